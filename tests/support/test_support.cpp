@@ -1,0 +1,58 @@
+#include "support/test_support.h"
+
+#include <array>
+#include <cstdio>
+#include <random>
+#include <sys/wait.h>
+
+namespace residue::testing {
+
+TempDir::TempDir() {
+  std::string templ = (std::filesystem::temp_directory_path() / "residue-test-XXXXXX").string();
+  if (!mkdtemp(templ.data())) throw std::runtime_error("cannot create a temporary folder");
+  path_ = templ;
+}
+
+TempDir::~TempDir() {
+  std::error_code ec;
+  std::filesystem::remove_all(path_, ec);
+}
+
+std::filesystem::path shared_dataset(const std::string& relative) {
+  std::filesystem::path p = std::filesystem::path(RESIDUE_SHARED_DIR) / "datasets" / relative;
+  return std::filesystem::exists(p) ? p : std::filesystem::path();
+}
+
+Image random_image(int64_t width, int64_t height, int channels, unsigned seed, float lo, float hi) {
+  Image img(width, height, channels);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> dist(lo, hi);
+  for (size_t i = 0; i < img.size(); ++i) img.data()[i] = dist(rng);
+  return img;
+}
+
+static std::string shell_quote(const std::string& s) {
+  std::string out = "'";
+  for (char c : s) {
+    if (c == '\'') out += "'\\''";
+    else out += c;
+  }
+  return out + "'";
+}
+
+int run_cli(const std::vector<std::string>& args, std::string* output) {
+  std::string cmd = shell_quote(RESIDUE_CLI_PATH);
+  for (const auto& a : args) cmd += " " + shell_quote(a);
+  cmd += " 2>&1 </dev/null";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) throw std::runtime_error("cannot run " + cmd);
+  std::array<char, 4096> buf{};
+  std::string text;
+  size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) text.append(buf.data(), n);
+  int status = pclose(pipe);
+  if (output) *output = text;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace residue::testing

@@ -1,0 +1,42 @@
+// Helpers shared by the test suites: temporary folders, paths to real data, small image builders.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "core/image/image.h"
+
+namespace residue::testing {
+
+// A fresh, empty folder under the system temp dir, removed when the object goes away.
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// ../shared/datasets/... beside the checkout; empty path when the data set is not there.
+std::filesystem::path shared_dataset(const std::string& relative);
+
+// An image filled with deterministic pseudo-random values in [lo, hi).
+Image random_image(int64_t width, int64_t height, int channels, unsigned seed, float lo = 0.0f,
+                   float hi = 1.0f);
+
+// Runs residue-cli with the given arguments; returns its exit code and captures stdout+stderr.
+int run_cli(const std::vector<std::string>& args, std::string* output = nullptr);
+
+}  // namespace residue::testing
+
+// Skip the current test (with the reason printed) when a shared data set is missing.
+#define RESIDUE_REQUIRE_SHARED(path)                                              \
+  do {                                                                             \
+    if ((path).empty()) GTEST_SKIP() << "shared data set not found beside the checkout"; \
+  } while (0)
