@@ -1,0 +1,401 @@
+#include "core/aov/aov_loader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include <OpenImageIO/imageio.h>
+#include <nlohmann/json.hpp>
+
+#include "core/aov/channel_naming.h"
+#include "core/aov/file_sets.h"
+#include "core/util/error.h"
+
+namespace residue {
+namespace fs = std::filesystem;
+namespace {
+
+// Depth values at or above this are "no hit" (Cycles Depth.Z writes 1e10 there).
+constexpr double kDepthBackgroundThreshold = 1e9;
+
+// What to read for one role.
+struct ReadPlan {
+  AovRole role = AovRole::Color;
+  std::string file;
+  std::string layer;
+  std::vector<ChannelRef> channels;
+  NormalSpace normal_space = NormalSpace::Unknown;
+  bool flip_normal_z = false;
+  DepthKind depth_kind = DepthKind::Unknown;
+  double depth_background = kDepthBackgroundThreshold;
+};
+
+// An opened input: its channels and per-subimage windows.
+struct OpenedFile {
+  std::string path;
+  std::vector<ChannelRef> channels;
+  std::vector<OIIO::ImageSpec> specs;
+};
+
+OpenedFile open_file(const fs::path& path) {
+  if (!fs::exists(path)) throw Error(ErrorKind::Input, "input '" + path.string() + "' does not exist");
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in)
+    throw Error(ErrorKind::Input, "cannot read '" + path.string() + "': " + OIIO::geterror());
+  OpenedFile f;
+  f.path = path.string();
+  for (int sub = 0; in->seek_subimage(sub, 0); ++sub) {
+    const OIIO::ImageSpec& spec = in->spec();
+    f.specs.push_back(spec);
+    // Parts of a multipart EXR may name channels without their layer ("R" in part "albedo"): qualify them.
+    const std::string part = spec.get_string_attribute("name");
+    for (int c = 0; c < spec.nchannels; ++c) {
+      ChannelRef ref;
+      ref.subimage = sub;
+      ref.index = c;
+      ref.name = spec.channelnames[static_cast<size_t>(c)];
+      if (sub > 0 && !part.empty() && ref.name.find('.') == std::string::npos) ref.name = part + "." + ref.name;
+      ref.pixel_type = spec.channelformat(c).c_str();
+      f.channels.push_back(ref);
+    }
+  }
+  if (f.specs.empty())
+    throw Error(ErrorKind::Input, "'" + path.string() + "' holds no image");
+  return f;
+}
+
+std::string channel_list(const OpenedFile& f, size_t max_names = 40) {
+  std::string s;
+  for (size_t i = 0; i < f.channels.size() && i < max_names; ++i) s += (i ? ", " : "") + f.channels[i].name;
+  if (f.channels.size() > max_names) s += ", ... (" + std::to_string(f.channels.size()) + " in all)";
+  return s.empty() ? "(none)" : s;
+}
+
+std::string expected_text(AovRole role) {
+  switch (role) {
+    case AovRole::Color:
+      return "a beauty pass: R,G,B, Combined.R/G/B (Cycles), Ci (RenderMan), or --map color=...";
+    case AovRole::Albedo: return "3 channels, e.g. albedo.R/G/B or Denoising Albedo.R/G/B";
+    case AovRole::Normal: return "3 channels, e.g. normal.X/Y/Z or Denoising Normal.X/Y/Z";
+    case AovRole::Depth: return "1 channel, e.g. depth.Z, Z or Denoising Depth.Z";
+    case AovRole::Variance: return "1 or 3 channels";
+    case AovRole::Reference: return "3 channels (R,G,B)";
+  }
+  return "";
+}
+
+// The plan for a whole single-AOV file: its only layer's channels.
+ReadPlan whole_file_plan(AovRole role, const OpenedFile& f) {
+  ReadPlan p;
+  p.role = role;
+  p.file = f.path;
+  if (role == AovRole::Color || role == AovRole::Reference) {
+    Recognition r = recognise_channels(f.channels);
+    if (const RecognisedAov* c = r.find(AovRole::Color)) {
+      p.channels = c->channels;
+      p.layer = c->layer;
+      return p;
+    }
+  }
+  const int want = expected_channels(role);
+  const std::vector<ChannelRef> first = [&] {
+    std::vector<ChannelRef> v;
+    for (const auto& c : f.channels)
+      if (c.subimage == 0 && c.name != "A" && c.name != "a") v.push_back(c);
+    return v;
+  }();
+  if (static_cast<int>(first.size()) >= want) {
+    p.channels.assign(first.begin(), first.begin() + want);
+  } else if (role == AovRole::Variance && first.size() == 1) {
+    p.channels = first;
+  } else {
+    throw Error(ErrorKind::Input, "'" + f.path + "' should hold the " + to_string(role) + " AOV: expected " +
+                                      expected_text(role) + "; found channels " + channel_list(f));
+  }
+  p.layer = "(whole file)";
+  return p;
+}
+
+ReadPlan plan_from_recognition(const RecognisedAov& r, const std::string& file) {
+  ReadPlan p;
+  p.role = r.role;
+  p.file = file;
+  p.layer = r.layer;
+  p.channels = r.channels;
+  p.normal_space = r.normal_space;
+  p.flip_normal_z = r.flip_normal_z;
+  p.depth_kind = r.depth_kind;
+  return p;
+}
+
+ReadPlan plan_from_binding(AovRole role, const ChannelBinding& b, const OpenedFile& f) {
+  ReadPlan p;
+  if (b.channels.empty()) {
+    p = whole_file_plan(role, f);
+  } else {
+    p.role = role;
+    p.file = f.path;
+    if (b.channels.size() == 1 && expected_channels(role) > 1) {
+      p.channels = find_layer_channels(f.channels, b.channels.front(), expected_channels(role));
+      p.layer = b.channels.front();
+      if (p.channels.empty())
+        throw Error(ErrorKind::Mapping, "mapping for " + std::string(to_string(role)) + ": '" + f.path +
+                                            "' has no layer \"" + b.channels.front() + "\" with " +
+                                            std::to_string(expected_channels(role)) + " channels; found " +
+                                            channel_list(f));
+    } else {
+      for (const auto& name : b.channels) {
+        auto it = std::find_if(f.channels.begin(), f.channels.end(),
+                               [&](const ChannelRef& c) { return c.name == name; });
+        if (it == f.channels.end())
+          throw Error(ErrorKind::Mapping, "mapping for " + std::string(to_string(role)) + ": channel \"" + name +
+                                              "\" is not in '" + f.path + "'; found " + channel_list(f));
+        p.channels.push_back(*it);
+      }
+      p.layer = "(mapped)";
+    }
+    const size_t n = p.channels.size();
+    const bool ok = role == AovRole::Variance ? (n == 1 || n == 3) : n == static_cast<size_t>(expected_channels(role));
+    if (!ok)
+      throw Error(ErrorKind::Mapping, "mapping for " + std::string(to_string(role)) + " names " +
+                                          std::to_string(n) + " channels; expected " + expected_text(role));
+  }
+  if (b.normal_space) p.normal_space = *b.normal_space;
+  if (b.depth_background) p.depth_background = *b.depth_background;
+  return p;
+}
+
+// Reads every plan that uses `file` into `out[role]`, placing pixels on `grid` (display coordinates).
+void read_plans(const OpenedFile& file, const std::vector<const ReadPlan*>& plans, const Rect& grid,
+                std::map<AovRole, Aov>& out) {
+  auto in = OIIO::ImageInput::open(file.path);
+  if (!in) throw Error(ErrorKind::Input, "cannot read '" + file.path + "': " + OIIO::geterror());
+  std::map<int, std::vector<const ReadPlan*>> by_subimage;
+  for (const ReadPlan* p : plans) {
+    Aov& aov = out[p->role];
+    aov.image = Image(grid.width, grid.height, static_cast<int>(p->channels.size()));
+    aov.source.file = file.path;
+    aov.source.subimage = p->channels.front().subimage;
+    aov.source.layer = p->layer;
+    for (const auto& c : p->channels) {
+      aov.source.channels.push_back(c.name);
+      aov.source.pixel_types.push_back(c.pixel_type);
+      if (c.subimage != aov.source.subimage)
+        throw Error(ErrorKind::Mapping, "the " + std::string(to_string(p->role)) + " channels of '" + file.path +
+                                            "' come from different parts of the file");
+    }
+    by_subimage[aov.source.subimage].push_back(p);
+  }
+
+  for (const auto& [sub, sub_plans] : by_subimage) {
+    if (!in->seek_subimage(sub, 0))
+      throw Error(ErrorKind::Input, "cannot read part " + std::to_string(sub) + " of '" + file.path + "'");
+    const OIIO::ImageSpec& spec = in->spec();
+    int ch_begin = spec.nchannels, ch_end = 0;
+    for (const ReadPlan* p : sub_plans)
+      for (const auto& c : p->channels) {
+        ch_begin = std::min(ch_begin, c.index);
+        ch_end = std::max(ch_end, c.index + 1);
+      }
+    const int nch = ch_end - ch_begin;
+    // Rows and columns of the grid this part covers.
+    const int64_t x0 = std::max<int64_t>(grid.x, spec.x), x1 = std::min<int64_t>(grid.x + grid.width, spec.x + spec.width);
+    const int64_t y0 = std::max<int64_t>(grid.y, spec.y), y1 = std::min<int64_t>(grid.y + grid.height, spec.y + spec.height);
+    const int64_t covered = std::max<int64_t>(0, x1 - x0) * std::max<int64_t>(0, y1 - y0);
+    for (const ReadPlan* p : sub_plans) out[p->role].uncovered_pixels = grid.area() - covered;
+    if (covered == 0) continue;
+
+    // Read in bands of rows so memory stays bounded for huge images; tiled files read whole tile rows.
+    const int64_t tile_h = spec.tile_height > 0 ? spec.tile_height : 0;
+    const int64_t band = tile_h > 0 ? std::max<int64_t>(tile_h, (64 / tile_h) * tile_h) : 64;
+    std::vector<float> buffer(static_cast<size_t>(band * spec.width * nch));
+    int64_t y = tile_h > 0 ? spec.y + ((y0 - spec.y) / tile_h) * tile_h : y0;
+    while (y < y1) {
+      const int64_t y_end = std::min<int64_t>(y + band, spec.y + spec.height);
+      bool ok = false;
+      if (tile_h > 0)
+        ok = in->read_tiles(sub, 0, spec.x, spec.x + spec.width, static_cast<int>(y), static_cast<int>(y_end), 0, 1,
+                            ch_begin, ch_end, OIIO::TypeFloat, buffer.data());
+      else
+        ok = in->read_scanlines(sub, 0, static_cast<int>(y), static_cast<int>(y_end), 0, ch_begin, ch_end,
+                                OIIO::TypeFloat, buffer.data());
+      if (!ok)
+        throw Error(ErrorKind::Input, "error reading rows " + std::to_string(y) + "-" + std::to_string(y_end) +
+                                          " of '" + file.path + "': " + in->geterror());
+      for (const ReadPlan* p : sub_plans) {
+        Image& img = out[p->role].image;
+        const int dst_ch = img.channels();
+        for (int64_t row = std::max(y, y0); row < std::min(y_end, y1); ++row) {
+          const float* src = buffer.data() + (row - y) * spec.width * nch;
+          for (int64_t x = x0; x < x1; ++x)
+            for (int c = 0; c < dst_ch; ++c)
+              img.at(x - grid.x, row - grid.y, c) =
+                  src[(x - spec.x) * nch + (p->channels[static_cast<size_t>(c)].index - ch_begin)];
+        }
+      }
+      y = y_end;
+    }
+  }
+}
+
+// Camera from the header: the OpenEXR worldToCamera attribute, or a JSON Note with "worldToCamera"
+// (the Cycles starter set writes one; Blender convention, row-major, p_cam = M p_world).
+std::optional<std::array<double, 16>> camera_from_header(const OIIO::ImageSpec& spec, std::vector<std::string>& notes) {
+  if (const OIIO::ParamValue* p = spec.find_attribute("worldtocamera", OIIO::TypeMatrix44)) {
+    // OpenEXR: row vectors (p' = p M), left-handed camera looking down +z. Ours: column vectors, looking down -z.
+    const float* m = static_cast<const float*>(p->data());
+    std::array<double, 16> out{};
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c) out[static_cast<size_t>(r * 4 + c)] = m[c * 4 + r] * (r == 2 ? -1.0 : 1.0);
+    return out;
+  }
+  const std::string note = spec.get_string_attribute("Note");
+  if (note.empty() || note.front() != '{') return std::nullopt;
+  try {
+    const auto j = nlohmann::json::parse(note);
+    if (j.contains("worldToCamera")) {
+      const auto v = j["worldToCamera"].get<std::vector<double>>();
+      if (v.size() == 16) {
+        std::array<double, 16> out{};
+        std::copy(v.begin(), v.end(), out.begin());
+        return out;
+      }
+    }
+  } catch (const std::exception&) {
+    notes.push_back("the Note attribute looks like JSON but could not be read as a camera");
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+FileChannels list_channels(const fs::path& file) {
+  OpenedFile f = open_file(file);
+  return {f.path, f.channels, f.specs.front().width, f.specs.front().height};
+}
+
+AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& options) {
+  if (inputs.empty()) throw Error(ErrorKind::Usage, "no input file given");
+  AovStack stack;
+
+  // 1. The primary file and what it holds by its own naming.
+  std::vector<fs::path> files = inputs;
+  if (files.size() == 1 && fs::is_directory(files.front())) files.front() = colour_file_in_folder(files.front());
+  std::optional<FileSet> set;
+  if (files.size() > 1) {
+    set = file_set_from_names(files);
+    files = {set->files.at(AovRole::Color)};
+  }
+  std::map<std::string, OpenedFile> opened;
+  auto open_cached = [&](const fs::path& p) -> const OpenedFile& {
+    auto it = opened.find(p.string());
+    if (it == opened.end()) it = opened.emplace(p.string(), open_file(p)).first;
+    return it->second;
+  };
+  const OpenedFile& primary = open_cached(files.front());
+  Recognition rec = recognise_channels(primary.channels, options.mapping.layer_prefix);
+  stack.convention = rec.convention;
+  stack.notes = rec.notes;
+
+  std::map<AovRole, ReadPlan> plans;
+  for (const RecognisedAov& a : rec.aovs) plans[a.role] = plan_from_recognition(a, primary.path);
+
+  // 2. Single-AOV siblings for what the file itself lacks (Tungsten, OIDN, or files named on the command line).
+  const bool single_layer = plans.size() == 1 && plans.count(AovRole::Color);
+  if (!set && single_layer && !options.mapping.roles.count(AovRole::Color)) set = sibling_file_set(primary.path);
+  if (set) {
+    bool used = false;
+    for (const auto& [role, path] : set->files) {
+      if (role == AovRole::Color || plans.count(role)) continue;
+      if (role == AovRole::Reference && (!options.load_reference || options.reference)) continue;
+      plans[role] = whole_file_plan(role, open_cached(path));
+      used = true;
+    }
+    if (used || files.size() != inputs.size()) stack.convention = set->convention;
+    if (set->convention == "Tungsten file set" && plans.count(AovRole::Normal)) {
+      plans[AovRole::Normal].normal_space = NormalSpace::World;
+      plans[AovRole::Depth].depth_kind = DepthKind::RayLength;
+    }
+  }
+  if (plans.count(AovRole::Reference) && !options.load_reference) plans.erase(AovRole::Reference);
+  if (plans.count(AovRole::Depth) && plans.at(AovRole::Depth).channels.empty()) plans.erase(AovRole::Depth);
+
+  // 3. Explicit mappings and a reference file override everything above.
+  for (const auto& [role, binding] : options.mapping.roles) {
+    const OpenedFile& f = open_cached(binding.file.empty() ? fs::path(primary.path) : fs::path(binding.file));
+    plans[role] = plan_from_binding(role, binding, f);
+    stack.convention = rec.convention.empty() ? "explicit mapping" : rec.convention + " + explicit mapping";
+  }
+  if (options.reference) plans[AovRole::Reference] = whole_file_plan(AovRole::Reference, open_cached(*options.reference));
+
+  if (!plans.count(AovRole::Color))
+    throw Error(ErrorKind::Input, "'" + primary.path + "': no colour (beauty) channels recognised; expected " +
+                                      expected_text(AovRole::Color) + "; found channels " + channel_list(primary));
+  if (options.normal_space && plans.count(AovRole::Normal)) {
+    plans[AovRole::Normal].normal_space = *options.normal_space;
+    plans[AovRole::Normal].flip_normal_z = false;
+  }
+
+  // 4. The grid: the colour source's data window. Other AOVs must share its display window.
+  const ReadPlan& colour = plans.at(AovRole::Color);
+  const OIIO::ImageSpec& cspec = open_cached(colour.file).specs.at(static_cast<size_t>(colour.channels.front().subimage));
+  stack.data_window = {cspec.x, cspec.y, cspec.width, cspec.height};
+  stack.display_width = cspec.full_width;
+  stack.display_height = cspec.full_height;
+  for (const auto& [role, plan] : plans) {
+    const OIIO::ImageSpec& s = open_cached(plan.file).specs.at(static_cast<size_t>(plan.channels.front().subimage));
+    if (s.full_width != cspec.full_width || s.full_height != cspec.full_height)
+      throw Error(ErrorKind::Input, std::string("size mismatch: the ") + to_string(role) + " AOV in '" + plan.file +
+                                        "' is " + std::to_string(s.full_width) + "x" + std::to_string(s.full_height) +
+                                        " but the colour in '" + colour.file + "' is " +
+                                        std::to_string(cspec.full_width) + "x" + std::to_string(cspec.full_height));
+  }
+
+  // 5. Read, one pass per file.
+  std::map<std::string, std::vector<const ReadPlan*>> by_file;
+  for (const auto& [role, plan] : plans) by_file[plan.file].push_back(&plan);
+  std::map<AovRole, Aov> loaded;
+  for (const auto& [file, file_plans] : by_file) read_plans(opened.at(file), file_plans, stack.data_window, loaded);
+
+  // 6. Normalise conventions and count what is unusual.
+  for (auto& [role, aov] : loaded) {
+    const ReadPlan& plan = plans.at(role);
+    if (role == AovRole::Normal && plan.flip_normal_z)
+      for (int64_t y = 0; y < aov.image.height(); ++y)
+        for (int64_t x = 0; x < aov.image.width(); ++x) aov.image.at(x, y, 2) = -aov.image.at(x, y, 2);
+    if (role == AovRole::Depth) {
+      for (int64_t y = 0; y < aov.image.height(); ++y)
+        for (float& v : aov.image.row(y))
+          if (v >= plan.depth_background) {  // +Inf too
+            v = 0.0f;
+            ++stack.depth_background_pixels;
+          }
+      stack.depth_kind = plan.depth_kind;
+    }
+    if (role == AovRole::Normal) stack.normal_space = plan.normal_space;
+    aov.non_finite = count_non_finite(aov.image);
+    if (aov.uncovered_pixels > 0)
+      stack.notes.push_back(std::string("the ") + to_string(role) + " AOV does not cover " +
+                            std::to_string(aov.uncovered_pixels) + " pixels of the colour's data window (set to 0)");
+  }
+  if (stack.normal_space == NormalSpace::Unknown && loaded.count(AovRole::Normal))
+    stack.notes.push_back("normal space unknown: give --normal-space camera|world if the network should know");
+
+  stack.color = std::move(loaded.at(AovRole::Color));
+  auto move_opt = [&](AovRole role, std::optional<Aov>& dst) {
+    if (loaded.count(role)) dst = std::move(loaded.at(role));
+  };
+  move_opt(AovRole::Albedo, stack.albedo);
+  move_opt(AovRole::Normal, stack.normal);
+  move_opt(AovRole::Depth, stack.depth);
+  move_opt(AovRole::Variance, stack.variance);
+  move_opt(AovRole::Reference, stack.reference);
+
+  stack.metadata = cspec.extra_attribs;
+  stack.world_to_camera = camera_from_header(cspec, stack.notes);
+  if (stack.normal_space == NormalSpace::World && !stack.world_to_camera)
+    stack.notes.push_back("normals are in world space and no camera is known: they cannot be made view-space");
+  return stack;
+}
+
+}  // namespace residue

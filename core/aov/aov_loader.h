@@ -1,0 +1,33 @@
+// Loading an AOV stack from EXR files with OpenImageIO: one multilayer/multipart file, a single-AOV file set,
+// or an explicit mapping. See channel_naming.h and file_sets.h for what is recognised.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <vector>
+
+#include "core/aov/aov_stack.h"
+#include "core/aov/channel_mapping.h"
+
+namespace residue {
+
+struct LoadOptions {
+  ChannelMapping mapping;                          // explicit bindings; override what is recognised
+  std::optional<std::filesystem::path> reference;  // a reference colour in another file
+  std::optional<NormalSpace> normal_space;         // override what the convention says
+  bool load_reference = true;                      // attach a reference found by convention
+};
+
+// Loads the stack. `inputs`: one file, one folder, or several single-AOV files.
+// Throws residue::Error(Input | Mapping) that names the file, the channels found and the channels expected.
+AovStack load_aov_stack(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {});
+
+// The channels of every subimage of `file`, for `info` and for error messages.
+struct FileChannels {
+  std::string file;
+  std::vector<struct ChannelRef> channels;
+  int64_t width = 0, height = 0;
+};
+FileChannels list_channels(const std::filesystem::path& file);
+
+}  // namespace residue

@@ -1,0 +1,77 @@
+#include "core/aov/aov_stack.h"
+
+#include <algorithm>
+#include <cctype>
+
+namespace residue {
+namespace {
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+}  // namespace
+
+const char* to_string(AovRole role) {
+  switch (role) {
+    case AovRole::Color: return "color";
+    case AovRole::Albedo: return "albedo";
+    case AovRole::Normal: return "normal";
+    case AovRole::Depth: return "depth";
+    case AovRole::Variance: return "variance";
+    case AovRole::Reference: return "reference";
+  }
+  return "?";
+}
+
+std::optional<AovRole> aov_role_from_string(const std::string& name) {
+  const std::string n = lower(name);
+  for (AovRole r : kAllAovRoles)
+    if (n == to_string(r)) return r;
+  if (n == "colour" || n == "beauty") return AovRole::Color;
+  return std::nullopt;
+}
+
+int expected_channels(AovRole role) { return role == AovRole::Depth ? 1 : 3; }
+
+const char* to_string(NormalSpace space) {
+  switch (space) {
+    case NormalSpace::Camera: return "camera";
+    case NormalSpace::World: return "world";
+    case NormalSpace::Unknown: return "unknown";
+  }
+  return "?";
+}
+
+std::optional<NormalSpace> normal_space_from_string(const std::string& name) {
+  const std::string n = lower(name);
+  if (n == "camera" || n == "view") return NormalSpace::Camera;
+  if (n == "world") return NormalSpace::World;
+  if (n == "unknown") return NormalSpace::Unknown;
+  return std::nullopt;
+}
+
+const char* to_string(DepthKind kind) {
+  switch (kind) {
+    case DepthKind::Planar: return "planar (distance along the view axis)";
+    case DepthKind::RayLength: return "ray length (distance along the camera ray)";
+    case DepthKind::Unknown: return "unknown definition";
+  }
+  return "?";
+}
+
+const Aov* AovStack::find(AovRole role) const { return const_cast<AovStack*>(this)->find(role); }
+
+Aov* AovStack::find(AovRole role) {
+  auto opt = [](std::optional<Aov>& a) { return a ? &*a : nullptr; };
+  switch (role) {
+    case AovRole::Color: return &color;
+    case AovRole::Albedo: return opt(albedo);
+    case AovRole::Normal: return opt(normal);
+    case AovRole::Depth: return opt(depth);
+    case AovRole::Variance: return opt(variance);
+    case AovRole::Reference: return opt(reference);
+  }
+  return nullptr;
+}
+
+}  // namespace residue

@@ -1,0 +1,252 @@
+#include "core/aov/channel_naming.h"
+
+#include <algorithm>
+#include <cctype>
+#include <map>
+
+namespace residue {
+namespace {
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+// A channel name split as prefix.layer.component, e.g. "ViewLayer.Denoising Albedo.R" ->
+// {"viewlayer", "denoising albedo", "r"}; "R" -> {"", "", "r"}; "Z" -> {"", "", "z"}; ".R" (V-Ray) -> {"", "", "r"}.
+struct SplitName {
+  std::string prefix;
+  std::string layer;
+  std::string component;
+};
+
+SplitName split(const std::string& stored) {
+  std::string name = stored;
+  while (!name.empty() && name.front() == '.') name.erase(0, 1);  // V-Ray writes root channels as ".R"
+  SplitName s;
+  const auto last = name.rfind('.');
+  if (last == std::string::npos) {
+    s.component = lower(name);
+    return s;
+  }
+  s.component = lower(name.substr(last + 1));
+  std::string layer_path = name.substr(0, last);
+  const auto mid = layer_path.rfind('.');
+  if (mid == std::string::npos) {
+    s.layer = lower(layer_path);
+  } else {
+    s.prefix = lower(layer_path.substr(0, mid));
+    s.layer = lower(layer_path.substr(mid + 1));
+  }
+  return s;
+}
+
+const std::vector<std::vector<std::string>> kTriplets = {
+    {"r", "g", "b"}, {"x", "y", "z"}, {"red", "green", "blue"}, {"u", "v", "w"}};
+const std::vector<std::string> kSingles = {"z", "y", "v", "r", "l", "a"};
+
+// Channels indexed by (prefix, layer) -> component -> channel.
+using LayerIndex = std::map<std::pair<std::string, std::string>, std::map<std::string, ChannelRef>>;
+
+LayerIndex index_channels(const std::vector<ChannelRef>& channels) {
+  LayerIndex idx;
+  for (const auto& c : channels) {
+    SplitName s = split(c.name);
+    idx[{s.prefix, s.layer}].emplace(s.component, c);  // first occurrence wins
+  }
+  return idx;
+}
+
+// The channels of `layer` under `prefix` for a role needing `count` channels; empty when absent.
+std::vector<ChannelRef> take(const LayerIndex& idx, const std::string& prefix, const std::string& layer,
+                             int count) {
+  // A bare root channel used as a one-channel layer: e.g. Arnold's "Z" is (prefix "", layer "", component "z").
+  if (count == 1 && prefix.empty()) {
+    auto root = idx.find({"", ""});
+    if (root != idx.end()) {
+      auto it = root->second.find(layer);
+      if (it != root->second.end()) return {it->second};
+    }
+  }
+  auto it = idx.find({prefix, layer});
+  if (it == idx.end()) return {};
+  const auto& comps = it->second;
+  if (count == 3) {
+    for (const auto& t : kTriplets) {
+      if (comps.count(t[0]) && comps.count(t[1]) && comps.count(t[2]))
+        return {comps.at(t[0]), comps.at(t[1]), comps.at(t[2])};
+    }
+    return {};
+  }
+  for (const auto& s : kSingles)
+    if (comps.count(s)) return {comps.at(s)};
+  if (comps.size() == 1) return {comps.begin()->second};
+  return {};
+}
+
+struct PassRule {
+  AovRole role;
+  std::vector<std::string> layers;  // lower case, in order of preference; "" = the root layer
+  NormalSpace normal_space = NormalSpace::Unknown;
+  bool flip_normal_z = false;
+  DepthKind depth_kind = DepthKind::Unknown;
+  std::string note;  // said when this rule is used
+};
+
+struct Convention {
+  std::string name;
+  // Layer names whose presence identifies the convention.
+  std::vector<std::string> signature;
+  bool root_beauty_signature = false;  // the signature also needs root R,G,B
+  std::vector<PassRule> rules;         // several rules per role = fallbacks in order
+};
+
+const std::vector<Convention>& conventions() {
+  static const std::vector<Convention> list = {
+      {"Blender Cycles",
+       {"combined", "noisy image", "denoising albedo", "denoising normal", "denoising depth"},
+       false,
+       {
+           {AovRole::Color, {"noisy image", "combined"}},
+           {AovRole::Albedo, {"denoising albedo"}},
+           {AovRole::Albedo, {"diffcol"}, {}, false, {}, "albedo taken from DiffCol (no Denoising Albedo pass)"},
+           {AovRole::Normal, {"denoising normal"}, NormalSpace::Camera, true},
+           {AovRole::Normal, {"normal"}, NormalSpace::World},
+           {AovRole::Depth, {"denoising depth"}, {}, false, DepthKind::RayLength},
+           {AovRole::Depth, {"depth"}, {}, false, DepthKind::Planar},
+           {AovRole::Variance, {"denoising variance"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"RenderMan",
+       {"ci"},
+       false,
+       {
+           {AovRole::Color, {"ci"}},
+           {AovRole::Albedo, {"albedo"}},
+           {AovRole::Normal, {"normal"}, NormalSpace::Unknown, false, {},
+            "RenderMan normal: space not stated in the file (give --normal-space)"},
+           {AovRole::Depth, {"zfiltered", "z"}, {}, false, DepthKind::Planar},
+           {AovRole::Variance, {"mse"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"V-Ray",
+       {"bump_normals", "bumpnormals", "diffuse"},
+       true,
+       {
+           {AovRole::Color, {"", "rgb", "rgba"}},
+           {AovRole::Albedo, {"diffuse"}},
+           {AovRole::Normal, {"bump_normals", "bumpnormals", "normals"}, NormalSpace::Camera},
+           {AovRole::Depth, {"zdepth", "vrayzdepth", "z"}, {}, false, DepthKind::Unknown,
+            "V-Ray depth is often normalised (zdepth min/max); treated as relative depth"},
+           {AovRole::Variance, {"variance"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"Arnold",
+       {"n", "denoise_albedo", "diffuse_albedo"},
+       true,
+       {
+           {AovRole::Color, {"", "rgba", "rgb", "beauty"}},
+           {AovRole::Albedo, {"denoise_albedo", "albedo", "diffuse_albedo"}},
+           {AovRole::Normal, {"n"}, NormalSpace::World},
+           {AovRole::Depth, {"z"}, {}, false, DepthKind::Planar},
+           {AovRole::Variance, {"variance", "rgba_variance"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"plain (R,G,B with named layers)",
+       {},
+       true,
+       {
+           {AovRole::Color, {"", "rgba", "rgb", "beauty", "color", "colour"}},
+           {AovRole::Albedo, {"albedo"}},
+           {AovRole::Normal, {"normal", "normals", "n"}, NormalSpace::Unknown},
+           {AovRole::Depth, {"depth", "z"}, {}, false, DepthKind::Unknown},
+           {AovRole::Variance, {"variance", "colorvariance"}},
+           {AovRole::Reference, {"reference", "ref"}},
+       }},
+  };
+  return list;
+}
+
+// The layer part of a stored channel name, in its original case ("ViewLayer.Denoising Albedo.R" ->
+// "ViewLayer.Denoising Albedo"); root channels are shown as "(root)".
+std::string stored_layer(const std::string& channel, bool root) {
+  const auto last = channel.rfind('.');
+  if (root || last == std::string::npos || last == 0) return "(root)";
+  return channel.substr(0, last);
+}
+
+bool has_root_rgb(const LayerIndex& idx) {
+  auto it = idx.find({"", ""});
+  return it != idx.end() && it->second.count("r") && it->second.count("g") && it->second.count("b");
+}
+
+}  // namespace
+
+const RecognisedAov* Recognition::find(AovRole role) const {
+  for (const auto& a : aovs)
+    if (a.role == role) return &a;
+  return nullptr;
+}
+
+std::vector<ChannelRef> find_layer_channels(const std::vector<ChannelRef>& channels, const std::string& layer,
+                                            int count) {
+  const LayerIndex idx = index_channels(channels);
+  SplitName s = split(layer + ".x");  // reuse the splitter for "prefix.layer"
+  return take(idx, s.prefix, s.layer, count);
+}
+
+Recognition recognise_channels(const std::vector<ChannelRef>& channels, const std::string& layer_prefix) {
+  const LayerIndex idx = index_channels(channels);
+  // The prefixes present (Cycles view layers), in order of first appearance.
+  std::vector<std::string> prefixes;
+  for (const auto& c : channels) {
+    std::string p = split(c.name).prefix;
+    if (std::find(prefixes.begin(), prefixes.end(), p) == prefixes.end()) prefixes.push_back(p);
+  }
+  const std::string wanted_prefix = lower(layer_prefix);
+
+  for (const Convention& conv : conventions()) {
+    if (conv.root_beauty_signature && !has_root_rgb(idx)) continue;
+    for (const std::string& prefix : prefixes) {
+      if (!wanted_prefix.empty() && prefix != wanted_prefix) continue;
+      bool signed_here = conv.signature.empty();
+      for (const auto& sig : conv.signature)
+        if (idx.count({prefix, sig}) || (prefix.empty() && sig.size() == 1 && idx.count({"", ""}) &&
+                                         idx.at({"", ""}).count(sig)))
+          signed_here = true;
+      if (!signed_here) continue;
+
+      Recognition rec;
+      rec.convention = conv.name;
+      for (const PassRule& rule : conv.rules) {
+        if (rec.find(rule.role)) continue;
+        const int count = expected_channels(rule.role);
+        for (const std::string& layer : rule.layers) {
+          // Root-layer beauty is never under a prefix.
+          const std::string& p = layer.empty() ? std::string() : prefix;
+          std::vector<ChannelRef> found = take(idx, p, layer, count);
+          if (found.empty() && rule.role == AovRole::Variance) found = take(idx, p, layer, 1);
+          if (found.empty()) continue;
+          RecognisedAov aov;
+          aov.role = rule.role;
+          aov.layer = stored_layer(aov.channels.front().name, layer.empty());
+          aov.channels = std::move(found);
+          aov.normal_space = rule.normal_space;
+          aov.flip_normal_z = rule.flip_normal_z;
+          aov.depth_kind = rule.depth_kind;
+          rec.aovs.push_back(std::move(aov));
+          if (!rule.note.empty()) rec.notes.push_back(rule.note);
+          break;
+        }
+      }
+      if (!rec.find(AovRole::Color)) continue;
+      if (prefixes.size() > 1 && wanted_prefix.empty() && !prefix.empty())
+        rec.notes.push_back("several layer prefixes in the file; using \"" + prefix +
+                            "\" (choose another with --layer)");
+      return rec;
+    }
+  }
+  return {};
+}
+
+}  // namespace residue

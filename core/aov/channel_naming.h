@@ -1,0 +1,54 @@
+// Recognising AOVs from channel names, by the naming conventions of the renderers people use.
+//
+// Pure functions of the channel list (no I/O), so every convention is testable on names alone.
+// Conventions, tried in this order (the first whose signature matches wins):
+//   Blender Cycles  `ViewLayer.Combined.R`, `ViewLayer.Denoising Albedo.R`, `... Denoising Normal.X`,
+//                   `... Denoising Depth.Z` (also `Noisy Image`, `Normal`, `Depth`, `DiffCol`, `Denoising Variance`)
+//   RenderMan       `Ci`, `albedo`, `normal`, `zfiltered` / `z`, `mse`
+//   V-Ray           root `R,G,B` (channel names may start with "."), `diffuse.{red,green,blue}`, `bump_normals`
+//   Arnold          root `R,G,B(,A)`, `N`, `Z`, `denoise_albedo` / `albedo`
+//   plain           root `R,G,B` with layers `albedo`, `normal`, `depth` (`variance`, `reference`)
+// Layer and component matching is case-insensitive; components may be R,G,B / X,Y,Z / red,green,blue.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "core/aov/aov_stack.h"
+
+namespace residue {
+
+// One channel of an input file.
+struct ChannelRef {
+  int subimage = 0;
+  int index = 0;           // within its subimage
+  std::string name;        // as stored
+  std::string pixel_type;  // "half", "float", ...
+};
+
+struct RecognisedAov {
+  AovRole role = AovRole::Color;
+  std::string layer;                 // the pass name it matched, e.g. "Denoising Normal"
+  std::vector<ChannelRef> channels;  // in the order the stack wants them (R,G,B / X,Y,Z / Z)
+  NormalSpace normal_space = NormalSpace::Unknown;
+  bool flip_normal_z = false;        // the file's camera space has +z along the view direction
+  DepthKind depth_kind = DepthKind::Unknown;
+};
+
+struct Recognition {
+  std::string convention;            // empty when no colour was found
+  std::vector<RecognisedAov> aovs;   // at most one per role
+  std::vector<std::string> notes;    // fallbacks taken, ambiguities resolved
+  const RecognisedAov* find(AovRole role) const;
+};
+
+// Finds the AOVs in `channels` (all subimages of one file). `layer_prefix` picks one view layer when a file
+// holds several (e.g. Cycles "ViewLayer"); empty = the first prefix that has a beauty pass.
+Recognition recognise_channels(const std::vector<ChannelRef>& channels, const std::string& layer_prefix = "");
+
+// Finds `count` channels for a layer: e.g. ("diffuse", 3) -> diffuse.red/green/blue. Used for explicit
+// mappings that name a layer rather than channels. Empty when not found.
+std::vector<ChannelRef> find_layer_channels(const std::vector<ChannelRef>& channels, const std::string& layer,
+                                            int count);
+
+}  // namespace residue
