@@ -16,17 +16,27 @@ enum class PixelType { Half, Float };
 
 struct ExrWriteOptions {
   PixelType pixel_type = PixelType::Half;
-  std::string compression = "zip";      // any OpenEXR compression OIIO knows: none, zip, zips, piz, dwaa, ...
+  // none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab; optionally with a level: "zip:9", "dwaa:45".
+  std::string compression = "zip";
   std::vector<std::string> channel_names;  // defaults: R,G,B(,A) / Y for one channel / C0.. otherwise
-  OIIO::ParamValueList metadata;         // header attributes to keep (from the source), written first
-  OIIO::ParamValueList residue_attributes;  // residue:model, residue:backend, ... (added after metadata)
-  Rect data_window{};                    // where the pixels sit in the display window (x, y origin)
-  int64_t display_width = 0;             // display window; 0 = same as the image
+  // Header attributes to keep (from the source), written first. Those that describe the source's layout or
+  // encoding (compression, windows, tiles, chunkCount, lineOrder, part name/type, oiio:*, ...) and residue:* of an
+  // earlier run are skipped.
+  OIIO::ParamValueList metadata;
+  // residue:model, residue:backend, ... (added after metadata, replacing same names). Strings, floats, ints and
+  // doubles are written as such; other types as their text.
+  OIIO::ParamValueList residue_attributes;
+  Rect data_window{};                    // where the pixels sit in the display window (x, y origin); a
+                                         // non-zero width/height must equal the image's
+  int64_t display_width = 0;             // display window, origin (0, 0); 0 = same as the image
   int64_t display_height = 0;
   bool overwrite = false;
 };
 
-// Writes `image` atomically (atomic_file.h). Throws residue::Error(Output) on failure or existing file.
+// Writes `image` atomically (atomic_file.h); values are written as they are (NaN and Inf included; float to half
+// rounds to nearest). Throws residue::Error(Usage) for an unknown compression (naming the allowed ones), a
+// channel-name count or data window that does not match the image; residue::Error(Output), with the path and
+// OpenImageIO's message, on write failure or an existing file.
 void write_exr(const std::filesystem::path& path, const Image& image, const ExrWriteOptions& options);
 
 }  // namespace residue::io

@@ -23,10 +23,17 @@ struct MetricsReport {
   std::vector<MetricsRow> rows;
 };
 
-std::string to_json(const MetricsReport& report);  // pretty-printed
-std::string to_csv(const MetricsReport& report);   // header line, one line per row
+// Pretty-printed: reference_file, width, height, options {eps, ssim_space, roi (null or {x,y,width,height})},
+// formula (metrics::formula_text) and rows. Finite numbers parse back to the same double. JSON has no infinity
+// or NaN: a non-finite score (PSNR of identical images is +inf) is written as the string "inf", "-inf" or "nan".
+std::string to_json(const MetricsReport& report);
+// Header `name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference`, one line per row;
+// doubles as the shortest text that parses back to the same value (inf, -inf, nan when not finite); fields with
+// a comma, quote or line break are quoted ("" for a quote).
+std::string to_csv(const MetricsReport& report);
 
-// Writes the report atomically; the format follows the extension (.json or .csv).
+// Writes the report atomically; the format follows the extension (.json or .csv, any case), else
+// residue::Error(Usage).
 void write_metrics(const std::filesystem::path& path, const MetricsReport& report, bool overwrite);
 
 }  // namespace residue::io

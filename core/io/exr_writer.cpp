@@ -1,0 +1,139 @@
+#include "core/io/exr_writer.h"
+
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <limits>
+#include <memory>
+#include <string_view>
+
+#include "core/io/atomic_file.h"
+#include "core/util/error.h"
+
+namespace residue::io {
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr std::array<std::string_view, 10> kCompressions = {"none",  "rle", "zips", "zip",  "piz",
+                                                            "pxr24", "b44", "b44a", "dwaa", "dwab"};
+
+std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
+
+// Accepts one of kCompressions, optionally with a level ("zip:9", "dwaa:45") as OpenImageIO allows.
+void check_compression(const std::string& compression) {
+  const auto colon = compression.find(':');
+  const std::string_view base = std::string_view(compression).substr(0, colon);
+  bool ok = std::find(kCompressions.begin(), kCompressions.end(), base) != kCompressions.end();
+  if (ok && colon != std::string::npos) {
+    const std::string level = compression.substr(colon + 1);
+    ok = !level.empty() &&
+         std::all_of(level.begin(), level.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+  }
+  if (ok) return;
+  std::string allowed;
+  for (auto name : kCompressions) allowed += (allowed.empty() ? "" : ", ") + std::string(name);
+  throw Error(ErrorKind::Usage, "unknown EXR compression '" + compression + "'; use one of: " + allowed +
+                                    " (optionally with a level, e.g. zip:9 or dwaa:45)");
+}
+
+std::vector<std::string> channel_names(const Image& image, const ExrWriteOptions& options) {
+  const int n = image.channels();
+  if (!options.channel_names.empty()) {
+    if (static_cast<int>(options.channel_names.size()) != n)
+      throw Error(ErrorKind::Usage, std::to_string(options.channel_names.size()) +
+                                        " channel names given for an image with " + std::to_string(n) +
+                                        " channels");
+    return options.channel_names;
+  }
+  if (n == 1) return {"Y"};
+  if (n == 3) return {"R", "G", "B"};
+  if (n == 4) return {"R", "G", "B", "A"};
+  std::vector<std::string> names;
+  for (int c = 0; c < n; ++c) names.push_back("C" + std::to_string(c));
+  return names;
+}
+
+// Attributes that describe how the source file was laid out or encoded, not what it shows: copying them would
+// contradict the file being written (or override its compression). Also the residue:* provenance of an
+// earlier run, which the new residue_attributes replace.
+bool is_layout_attribute(std::string_view name) {
+  // clang-format off
+  static constexpr std::array<std::string_view, 22> kNames = {
+      "compression", "openexr:compression", "channels", "channellist", "dataWindow", "displayWindow",
+      "tiles", "tile_width", "tile_height", "chunkCount", "openexr:chunkCount", "version", "openexr:version",
+      "name", "type", "lineOrder", "openexr:lineOrder", "openexr:levelmode", "openexr:roundingmode",
+      "openexr:dwaCompressionLevel", "maxSamplesPerPixel", "planarconfig"};
+  // clang-format on
+  using OIIO::Strutil::iequals, OIIO::Strutil::istarts_with;
+  return std::any_of(kNames.begin(), kNames.end(), [&](std::string_view n) { return iequals(name, n); }) ||
+         istarts_with(name, "oiio:") || istarts_with(name, "residue:") || istarts_with(name, "openexr:deep");
+}
+
+// EXR has string, int, float and double attributes; anything else (int64, unsigned, ...) is written as text.
+OIIO::ParamValue as_exr_attribute(const OIIO::ParamValue& p) {
+  const OIIO::TypeDesc t = p.type();
+  if (p.nvalues() == 1 &&
+      (t == OIIO::TypeString || t == OIIO::TypeFloat || t == OIIO::TypeInt || t == OIIO::TypeDesc::DOUBLE))
+    return p;
+  return OIIO::ParamValue(p.name(), p.get_string());
+}
+
+int to_int(int64_t v, const char* what, const fs::path& path) {
+  if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max())
+    throw Error(ErrorKind::Usage,
+                std::string(what) + " " + std::to_string(v) + " is too large for " + quoted(path));
+  return static_cast<int>(v);
+}
+
+OIIO::ImageSpec make_spec(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
+  if (image.empty() || image.channels() < 1)
+    throw Error(ErrorKind::Usage, "cannot write an empty image to " + quoted(path));
+  const Rect& dw = options.data_window;
+  if ((dw.width != 0 || dw.height != 0) && (dw.width != image.width() || dw.height != image.height()))
+    throw Error(ErrorKind::Usage, "data window " + dw.to_string() + " does not match the " +
+                                      std::to_string(image.width()) + "x" + std::to_string(image.height()) +
+                                      " image written to " + quoted(path));
+  const auto format = options.pixel_type == PixelType::Half ? OIIO::TypeHalf : OIIO::TypeFloat;
+  OIIO::ImageSpec spec(to_int(image.width(), "width", path), to_int(image.height(), "height", path),
+                       image.channels(), format);
+  spec.x = to_int(dw.x, "data window x", path);
+  spec.y = to_int(dw.y, "data window y", path);
+  spec.full_x = 0;
+  spec.full_y = 0;
+  spec.full_width =
+      to_int(options.display_width > 0 ? options.display_width : image.width(), "display width", path);
+  spec.full_height =
+      to_int(options.display_height > 0 ? options.display_height : image.height(), "display height", path);
+  spec.channelnames = channel_names(image, options);
+  const auto alpha = std::find(spec.channelnames.begin(), spec.channelnames.end(), "A");
+  spec.alpha_channel =
+      alpha == spec.channelnames.end() ? -1 : static_cast<int>(alpha - spec.channelnames.begin());
+  spec.z_channel = -1;
+
+  for (const OIIO::ParamValue& p : options.metadata)
+    if (!is_layout_attribute(p.name().string())) spec.extra_attribs.add_or_replace(p);
+  for (const OIIO::ParamValue& p : options.residue_attributes)
+    spec.extra_attribs.add_or_replace(as_exr_attribute(p));
+  // Set last, so that nothing copied above can override the chosen compression.
+  spec.attribute("compression", options.compression);
+  return spec;
+}
+
+}  // namespace
+
+void write_exr(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
+  check_compression(options.compression);
+  const OIIO::ImageSpec spec = make_spec(path, image, options);
+  write_atomically(path, options.overwrite, [&](const fs::path& temp) {
+    auto out = OIIO::ImageOutput::create("openexr");
+    if (!out) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + OIIO::geterror());
+    if (!out->open(temp.string(), spec) || !out->write_image(OIIO::TypeFloat, image.data()) || !out->close())
+      throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
+  });
+}
+
+}  // namespace residue::io
