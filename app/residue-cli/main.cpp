@@ -1,1 +1,45 @@
-int main() { return 0; }
+// residue-cli: the command-line face of Residue. Subcommands live in cmd_*.cpp; exit codes in cli_common.h.
+#include <cstdio>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "core/util/error.h"
+
+int main(int argc, char** argv) {
+  using namespace residue::cli;
+  CLI::App app{"Residue: denoise Monte Carlo renders with a direct residual network, and judge the result",
+               "residue-cli"};
+  app.set_version_flag("--version", std::string("residue-cli ") + RESIDUE_VERSION);
+  app.require_subcommand(1);
+  const std::vector<Command> commands = {add_info_command(app), add_eval_command(app)};
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? kOk : kUsageError;
+  }
+  try {
+    for (const Command& c : commands)
+      if (c.app->parsed()) return c.run();
+    return kUsageError;
+  } catch (const CLI::ParseError& e) {  // validation inside a runner (e.g. --roi)
+    std::fprintf(stderr, "residue-cli: %s\n", e.what());
+    return kUsageError;
+  } catch (const residue::Error& e) {
+    std::fprintf(stderr, "residue-cli: error: %s\n", e.what());
+    switch (e.kind()) {
+      case residue::ErrorKind::Input:
+      case residue::ErrorKind::Mapping: return kInputError;
+      case residue::ErrorKind::Output: return kOutputError;
+      case residue::ErrorKind::Usage: return kUsageError;
+    }
+    return kInternalError;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "residue-cli: internal error: %s\n", e.what());
+    return kInternalError;
+  }
+}

@@ -8,6 +8,7 @@
 
 #include "core/aov/aov_stack.h"
 #include "core/aov/channel_mapping.h"
+#include "core/aov/channel_naming.h"
 
 namespace residue {
 
@@ -25,7 +26,7 @@ AovStack load_aov_stack(const std::vector<std::filesystem::path>& inputs, const 
 // The channels of every subimage of `file`, for `info` and for error messages.
 struct FileChannels {
   std::string file;
-  std::vector<struct ChannelRef> channels;
+  std::vector<ChannelRef> channels;
   int64_t width = 0, height = 0;
 };
 FileChannels list_channels(const std::filesystem::path& file);

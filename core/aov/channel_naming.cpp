@@ -229,7 +229,7 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
           if (found.empty()) continue;
           RecognisedAov aov;
           aov.role = rule.role;
-          aov.layer = stored_layer(aov.channels.front().name, layer.empty());
+          aov.layer = stored_layer(found.front().name, layer.empty());
           aov.channels = std::move(found);
           aov.normal_space = rule.normal_space;
           aov.flip_normal_z = rule.flip_normal_z;

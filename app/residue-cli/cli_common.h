@@ -1,0 +1,45 @@
+// What the residue-cli subcommands share: exit codes, input options (mapping flags), and formatting.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "core/aov/aov_loader.h"
+#include "core/image/image.h"
+
+namespace residue::cli {
+
+// Exit codes mean the same thing for every subcommand.
+enum ExitCode : int {
+  kOk = 0,
+  kInternalError = 1,  // a bug or an unexpected failure
+  kUsageError = 2,     // bad arguments
+  kInputError = 3,     // an input is missing, unreadable, or lacks what is needed
+  kOutputError = 4,    // an output exists (no --force) or cannot be written
+};
+
+// Options that say how to read an AOV stack; added to every subcommand that reads one.
+struct InputOptions {
+  std::vector<std::string> inputs;
+  std::vector<std::string> map_flags;
+  std::string mapping_file;
+  std::string layer;
+  std::string reference;
+  std::string normal_space;
+
+  void add_to(CLI::App& app, bool with_reference);
+  LoadOptions load_options() const;
+  AovStack load() const;
+};
+
+// "x,y,w,h" -> Rect; throws CLI::ValidationError on a malformed one.
+Rect parse_roi(const std::string& text);
+
+// A path relative to the current folder when that is shorter, for tidy tables.
+std::string display_path(const std::string& path);
+
+}  // namespace residue::cli

@@ -1,0 +1,147 @@
+// residue-cli eval: noisy (and, given --denoised, denoised) against a reference; a table or JSON, and on
+// request the per-pixel maps and a metrics file.
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "core/io/map_writer.h"
+#include "core/io/metrics_report.h"
+#include "core/metrics/metrics.h"
+#include "core/util/error.h"
+
+namespace residue::cli {
+namespace {
+
+struct EvalOptions {
+  InputOptions input;
+  std::string denoised;
+  std::string roi;
+  double eps = 0.01;
+  std::string ssim_space = "tonemapped";
+  bool json = false;
+  std::string metrics_out;
+  std::string maps_dir;
+  std::string colormap = "viridis";
+  std::string map_format = "png";
+  bool force = false;
+};
+
+std::string format_psnr(double psnr) {
+  if (std::isinf(psnr)) return "inf";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", psnr);
+  return buf;
+}
+
+void print_table(const io::MetricsReport& report) {
+  std::printf("reference  %s (%lldx%lld)\n", display_path(report.reference_file).c_str(),
+              static_cast<long long>(report.width), static_cast<long long>(report.height));
+  std::printf("region     %s\n\n",
+              report.options.roi ? ("ROI " + report.options.roi->to_string()).c_str() : "whole image");
+  std::printf("%-10s %12s %12s %10s %9s %10s %10s\n", "image", "relMSE", "MSE", "PSNR dB", "SSIM", "pixels",
+              "excluded");
+  for (const auto& row : report.rows) {
+    const auto& s = row.scores;
+    std::printf("%-10s %12.6g %12.6g %10s %9.5f %10lld %10lld\n", row.name.c_str(), s.relmse, s.mse,
+                format_psnr(s.psnr).c_str(), s.ssim, static_cast<long long>(s.pixels),
+                static_cast<long long>(s.excluded_test + s.excluded_reference));
+  }
+  std::printf("\n%s\n", metrics::formula_text(report.options).c_str());
+}
+
+void write_maps(const EvalOptions& o, const std::string& name, const Image& test, const Image& reference,
+                const metrics::Options& mopts) {
+  const auto colormap = colormap_from_string(o.colormap);
+  for (metrics::MapKind kind : {metrics::MapKind::AbsoluteError, metrics::MapKind::SquaredError,
+                                metrics::MapKind::RelativeSquaredError, metrics::MapKind::Ssim}) {
+    const Image map = metrics::error_map(test, reference, kind, mopts);
+    const std::filesystem::path base = std::filesystem::path(o.maps_dir) / (name + "_" + metrics::to_string(kind));
+    if (o.map_format == "png" || o.map_format == "both") {
+      io::MapPngOptions p;
+      p.colormap = *colormap;
+      p.overwrite = o.force;
+      // Errors span decades: log scale; SSIM lives in [0, 1]: linear.
+      if (kind == metrics::MapKind::Ssim) p.scale = {false, 0.0, 1.0};
+      else p.scale.log = true;
+      io::write_map_png(base.string() + ".png", map, p);
+    }
+    if (o.map_format == "exr" || o.map_format == "both") io::write_map_exr(base.string() + ".exr", map, o.force);
+  }
+}
+
+int run(const EvalOptions& o) {
+  AovStack stack = o.input.load();
+  if (!stack.reference)
+    throw Error(ErrorKind::Usage, "no reference: give --reference FILE (none was found beside '" +
+                                      stack.color.source.file + "')");
+  metrics::Options mopts;
+  mopts.eps = o.eps;
+  mopts.ssim_space = o.ssim_space == "linear" ? metrics::SsimSpace::Linear : metrics::SsimSpace::Tonemapped;
+  if (!o.roi.empty()) mopts.roi = parse_roi(o.roi);
+
+  io::MetricsReport report;
+  report.reference_file = stack.reference->source.file;
+  report.width = stack.width();
+  report.height = stack.height();
+  report.options = mopts;
+  const Image& reference = stack.reference->image;
+  report.rows.push_back({"noisy", stack.color.source.file, metrics::compare(stack.color.image, reference, mopts)});
+
+  std::optional<Aov> denoised;
+  if (!o.denoised.empty()) {
+    LoadOptions lo;
+    lo.load_reference = false;
+    denoised = load_aov_stack({o.denoised}, lo).color;
+    if (denoised->image.width() != stack.width() || denoised->image.height() != stack.height())
+      throw Error(ErrorKind::Input, "'" + o.denoised + "' is " + std::to_string(denoised->image.width()) + "x" +
+                                        std::to_string(denoised->image.height()) + " but the noisy input is " +
+                                        std::to_string(stack.width()) + "x" + std::to_string(stack.height()));
+    report.rows.push_back({"denoised", o.denoised, metrics::compare(denoised->image, reference, mopts)});
+  }
+
+  if (!o.maps_dir.empty()) {
+    if (!std::filesystem::is_directory(o.maps_dir))
+      throw Error(ErrorKind::Output, "--maps-dir '" + o.maps_dir + "' is not an existing folder");
+    write_maps(o, "noisy", stack.color.image, reference, mopts);
+    if (denoised) write_maps(o, "denoised", denoised->image, reference, mopts);
+  }
+  if (!o.metrics_out.empty()) io::write_metrics(o.metrics_out, report, o.force);
+
+  if (o.json) std::cout << io::to_json(report) << "\n";
+  else print_table(report);
+  return kOk;
+}
+
+}  // namespace
+
+Command add_eval_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("eval", "Score noisy (and denoised) images against a reference: relMSE, MSE, "
+                                         "PSNR, SSIM; optionally write per-pixel maps and a metrics file");
+  auto o = std::make_shared<EvalOptions>();
+  o->input.add_to(*cmd, true);
+  cmd->add_option("-d,--denoised", o->denoised, "A denoised image to score as well")->check(CLI::ExistingFile);
+  cmd->add_option("--roi", o->roi, "Score only the rectangle x,y,w,h (pixels of the data window)");
+  cmd->add_option("--eps", o->eps, "relMSE denominator offset: (x-r)^2/(r^2+eps)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--ssim-space", o->ssim_space, "Values SSIM and PSNR are computed on")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"tonemapped", "linear"}));
+  cmd->add_flag("--json", o->json, "Print JSON instead of a table");
+  cmd->add_option("--metrics-out", o->metrics_out, "Also write the metrics to FILE (.json or .csv)");
+  cmd->add_option("--maps-dir", o->maps_dir,
+                  "Write per-pixel maps (abs, se, rse, ssim) of each scored image into this folder");
+  cmd->add_option("--colormap", o->colormap, "Colormap of PNG maps")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"viridis", "inferno", "magma", "turbo"}));
+  cmd->add_option("--map-format", o->map_format, "png (colour-mapped), exr (float values) or both")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"png", "exr", "both"}));
+  cmd->add_flag("-f,--force", o->force, "Replace output files that already exist");
+  return {cmd, [o]() { return run(*o); }};
+}
+
+}  // namespace residue::cli
