@@ -9,8 +9,17 @@
 //    images smaller than the window use every pixel, with the window cut at the border and renormalised.
 //  - PSNR = 10 log10(1 / MSE') where MSE' is the MSE on the same values SSIM uses (tonemapped by default).
 //  - A pixel whose test or reference value is NaN or Inf in any channel is excluded from every metric and
-//    counted; it never propagates into a score. Its map value is NaN.
-// All sums are accumulated in double, rows in parallel with oneTBB, in a fixed order (deterministic).
+//    counted; it never propagates into a score. Its map value is NaN. For SSIM the exclusion is a weight mask:
+//    every local moment is a sum with weights gauss * mask normalised by the sum of those weights, so windows
+//    cut by the image border or by excluded pixels are renormalised; where the whole window is inside the
+//    image and holds no excluded pixel this is exactly the standard SSIM.
+//  - With an ROI, scores and maps cover the ROI's pixels only, but SSIM windows reach outside the ROI into the
+//    image, and "interior" (5 px from the border) still refers to the image border: the SSIM score is the mean
+//    of the map over the ROI's interior pixels, or over all its pixels when none of them is interior.
+//  - When no pixel enters (every pixel excluded, or an empty image) the scores are NaN and pixels is 0.
+// All sums are accumulated in double, in parallel with oneTBB over fixed tiles whose partial sums are added
+// in a fixed order (deterministic: the same bits for any thread count). SSIM is separable and works in strips
+// of rows, so memory stays bounded (a few MiB per thread) whatever the image size.
 #pragma once
 
 #include <optional>
@@ -39,7 +48,8 @@ struct Scores {
 };
 
 // Compares the first three channels of `test` against `reference` (same size, >= 3 channels).
-// Throws residue::Error(Usage) on size mismatch or an ROI outside the image.
+// Throws residue::Error(Usage) on size mismatch, fewer than 3 channels, an empty ROI or one outside the image,
+// or an eps that is not a positive finite number.
 Scores compare(const Image& test, const Image& reference, const Options& options = {});
 
 enum class MapKind {
@@ -51,7 +61,8 @@ enum class MapKind {
 const char* to_string(MapKind kind);             // "abs", "se", "rse", "ssim"
 std::optional<MapKind> map_kind_from_string(const std::string& name);
 
-// A one-channel per-pixel map of the ROI (whole image by default); NaN where a pixel is excluded.
+// A one-channel per-pixel map of the ROI (whole image by default); NaN where a pixel is excluded. Map values
+// beyond float's range (squared fireflies) are +inf. Throws like compare().
 Image error_map(const Image& test, const Image& reference, MapKind kind, const Options& options = {});
 
 // The formulas and conventions above, as one human-readable paragraph with the eps in use.
