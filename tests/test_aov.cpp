@@ -1,0 +1,497 @@
+// AOV stack loading: real Cycles and Tungsten renders, and files written here for every naming convention.
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include <gtest/gtest.h>
+#include <OpenImageIO/imagebuf.h>
+
+#include "core/aov/aov_loader.h"
+#include "core/aov/channel_naming.h"
+#include "core/util/error.h"
+#include "support/exr_fixture.h"
+#include "support/test_support.h"
+
+namespace residue {
+namespace {
+
+using testing::as_half;
+using testing::constant_channel;
+using testing::FixtureChannel;
+using testing::FixturePart;
+using testing::TempDir;
+using testing::write_fixture_exr;
+
+// A channel whose value encodes its position and a tag, so a misplaced pixel or channel is caught.
+FixtureChannel coded(const std::string& name, float tag, bool half = false) {
+  return {name, half, [tag](int x, int y) { return tag + 0.001f * static_cast<float>(x) + 0.1f * static_cast<float>(y); }};
+}
+float code(float tag, int x, int y) { return tag + 0.001f * static_cast<float>(x) + 0.1f * static_cast<float>(y); }
+
+FixturePart part(int w, int h, std::vector<FixtureChannel> channels) {
+  FixturePart p;
+  p.width = w;
+  p.height = h;
+  p.channels = std::move(channels);
+  return p;
+}
+
+// Expects each AOV channel c of `role` to hold code(tag + c, x, y) everywhere.
+void expect_coded(const AovStack& s, AovRole role, float tag) {
+  const Aov* aov = s.find(role);
+  ASSERT_NE(aov, nullptr) << to_string(role) << " missing";
+  for (int c = 0; c < aov->image.channels(); ++c)
+    for (int64_t y = 0; y < s.height(); ++y)
+      for (int64_t x = 0; x < s.width(); ++x)
+        ASSERT_FLOAT_EQ(aov->image.at(x, y, c), code(tag + static_cast<float>(c), static_cast<int>(x), static_cast<int>(y)))
+            << to_string(role) << " channel " << c << " at " << x << "," << y;
+}
+
+std::string error_of(const std::function<void()>& f, ErrorKind* kind = nullptr) {
+  try {
+    f();
+  } catch (const Error& e) {
+    if (kind) *kind = e.kind();
+    return e.what();
+  }
+  return "";
+}
+
+// --- real renders -------------------------------------------------------------------------------------------
+
+TEST(AovCycles, StarterSceneLoadsEveryPass) {
+  const auto dir = testing::shared_dataset("cycles-starter/s100");
+  RESIDUE_REQUIRE_SHARED(dir);
+  LoadOptions o;
+  o.reference = dir / "reference.exr";
+  const AovStack s = load_aov_stack({dir / "noisy_a.exr"}, o);
+  EXPECT_EQ(s.convention, "Blender Cycles");
+  EXPECT_EQ(s.width(), 256);
+  EXPECT_EQ(s.height(), 256);
+  ASSERT_TRUE(s.albedo && s.normal && s.depth && s.reference);
+  EXPECT_FALSE(s.variance);
+  EXPECT_EQ(s.color.source.channels,
+            (std::vector<std::string>{"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B"}));
+  EXPECT_EQ(s.color.source.pixel_types, (std::vector<std::string>{"half", "half", "half"}));
+  EXPECT_EQ(s.normal->source.channels.front(), "ViewLayer.Denoising Normal.X");
+  EXPECT_EQ(s.normal->source.pixel_types.front(), "float");
+  EXPECT_EQ(s.depth->source.channels.front(), "ViewLayer.Denoising Depth.Z");
+  EXPECT_EQ(s.normal_space, NormalSpace::Camera);
+  EXPECT_EQ(s.depth_kind, DepthKind::RayLength);
+  EXPECT_TRUE(s.world_to_camera.has_value()) << "the starter set writes the camera into the Note attribute";
+
+  // Values equal a direct OIIO read of the same channels.
+  OIIO::ImageBuf raw((dir / "noisy_a.exr").string());
+  ASSERT_TRUE(raw.read(0, 0, true, OIIO::TypeFloat));
+  const int nx = raw.spec().channelindex("ViewLayer.Denoising Normal.X");
+  const int nz = raw.spec().channelindex("ViewLayer.Denoising Normal.Z");
+  const int cr = raw.spec().channelindex("ViewLayer.Combined.R");
+  double mean_z = 0;
+  for (int y = 0; y < 256; y += 17)
+    for (int x = 0; x < 256; x += 13) {
+      EXPECT_EQ(s.color.image.at(x, y, 0), raw.getchannel(x, y, 0, cr));
+      EXPECT_EQ(s.normal->image.at(x, y, 0), raw.getchannel(x, y, 0, nx));
+      // Cycles' denoising normal has +z along the view direction; the stack's +z points at the viewer.
+      EXPECT_EQ(s.normal->image.at(x, y, 2), -raw.getchannel(x, y, 0, nz));
+      mean_z += s.normal->image.at(x, y, 2);
+    }
+  EXPECT_GT(mean_z, 0.0) << "visible surfaces face the camera: +z towards the viewer on average";
+}
+
+TEST(AovCycles, EveryStarterSceneLoads) {
+  const auto root = testing::shared_dataset("cycles-starter");
+  RESIDUE_REQUIRE_SHARED(root);
+  int scenes = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(root)) {
+    if (!entry.is_directory()) continue;
+    const AovStack s = load_aov_stack({entry.path() / "noisy_b.exr"});
+    EXPECT_EQ(s.convention, "Blender Cycles") << entry.path();
+    EXPECT_TRUE(s.albedo && s.normal && s.depth) << entry.path();
+    EXPECT_EQ(s.color.non_finite.total(), 0) << entry.path();
+    ++scenes;
+  }
+  EXPECT_GE(scenes, 60);
+}
+
+TEST(AovTungsten, FolderIsAFileSetWithWorldNormals) {
+  const auto dir = testing::shared_dataset("tungsten-example/cornell-box");
+  RESIDUE_REQUIRE_SHARED(dir);
+  const AovStack s = load_aov_stack({dir});
+  EXPECT_EQ(s.convention, "Tungsten file set");
+  EXPECT_EQ(s.width(), 384);
+  ASSERT_TRUE(s.albedo && s.normal && s.depth && s.variance && s.reference);
+  EXPECT_EQ(s.normal_space, NormalSpace::World);
+  EXPECT_EQ(std::filesystem::path(s.depth->source.file).filename(), "depth.exr");
+  EXPECT_EQ(s.depth->source.channels, std::vector<std::string>{"Y"});
+  EXPECT_EQ(std::filesystem::path(s.variance->source.file).filename(), "colorVariance.exr");
+  EXPECT_EQ(std::filesystem::path(s.reference->source.file).filename(), "reference.exr");
+  // Tungsten's albedo includes emission: values above 1 are kept.
+  float max_albedo = 0;
+  for (size_t i = 0; i < s.albedo->image.size(); ++i) max_albedo = std::max(max_albedo, s.albedo->image.data()[i]);
+  EXPECT_GT(max_albedo, 1.0f);
+  // Loading color.exr itself finds the same siblings.
+  const AovStack t = load_aov_stack({dir / "color.exr"});
+  EXPECT_EQ(t.convention, "Tungsten file set");
+  EXPECT_TRUE(t.variance.has_value());
+}
+
+// --- every naming convention, on files written here ---------------------------------------------------------
+
+TEST(AovConventions, CyclesPlanarDepthSentinelAndWorldNormals) {
+  TempDir tmp;
+  const auto f = tmp / "cycles.exr";
+  write_fixture_exr(f, {part(7, 13, {coded("ViewLayer.Combined.R", 10, true), coded("ViewLayer.Combined.G", 11, true),
+                                     coded("ViewLayer.Combined.B", 12, true), constant_channel("ViewLayer.Combined.A", 1, true),
+                                     coded("ViewLayer.Normal.X", 20), coded("ViewLayer.Normal.Y", 21),
+                                     coded("ViewLayer.Normal.Z", 22),
+                                     {"ViewLayer.Depth.Z", false, [](int x, int) { return x < 3 ? 1e10f : 4.0f; }}})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "Blender Cycles");
+  EXPECT_EQ(s.normal_space, NormalSpace::World);
+  EXPECT_EQ(s.depth_kind, DepthKind::Planar);
+  EXPECT_EQ(s.depth_background_pixels, 3 * 13);
+  EXPECT_EQ(s.depth->image.at(0, 0), 0.0f) << "background sentinel 1e10 becomes 0";
+  EXPECT_EQ(s.depth->image.at(5, 5), 4.0f);
+  EXPECT_FALSE(s.albedo.has_value());
+  expect_coded(s, AovRole::Normal, 20);
+  // Half channels come back as the half value of what was written.
+  EXPECT_EQ(s.color.image.at(3, 4, 1), as_half(code(11, 3, 4)));
+}
+
+TEST(AovConventions, CyclesDenoisingDepthBackgroundIsZeroAlready) {
+  TempDir tmp;
+  const auto f = tmp / "cycles.exr";
+  write_fixture_exr(f, {part(4, 4, {coded("ViewLayer.Combined.R", 1), coded("ViewLayer.Combined.G", 2), coded("ViewLayer.Combined.B", 3),
+                                    {"ViewLayer.Denoising Depth.Z", false, [](int x, int) { return x == 0 ? 0.0f : 2.5f; }},
+                                    {"ViewLayer.Depth.Z", false, [](int, int) { return 1e10f; }}})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.depth->source.channels.front(), "ViewLayer.Denoising Depth.Z") << "the denoising pass is preferred";
+  EXPECT_EQ(s.depth->image.at(1, 1), 2.5f);
+  EXPECT_EQ(s.depth->image.at(0, 1), 0.0f);
+}
+
+TEST(AovConventions, CyclesSecondViewLayerByPrefix) {
+  TempDir tmp;
+  const auto f = tmp / "layers.exr";
+  write_fixture_exr(f, {part(3, 2, {coded("Fg.Combined.R", 1), coded("Fg.Combined.G", 2), coded("Fg.Combined.B", 3),
+                                    coded("Bg.Combined.R", 7), coded("Bg.Combined.G", 8), coded("Bg.Combined.B", 9)})});
+  LoadOptions o;
+  o.mapping.layer_prefix = "Bg";
+  const AovStack s = load_aov_stack({f}, o);
+  expect_coded(s, AovRole::Color, 7);
+  const AovStack first = load_aov_stack({f});
+  EXPECT_FALSE(first.notes.empty()) << "several view layers are worth a note";
+}
+
+TEST(AovConventions, Arnold) {
+  TempDir tmp;
+  const auto f = tmp / "arnold.exr";
+  write_fixture_exr(f, {part(5, 3, {coded("R", 10), coded("G", 11), coded("B", 12), constant_channel("A", 1),
+                                    coded("N.R", 20), coded("N.G", 21), coded("N.B", 22), coded("Z", 40),
+                                    coded("denoise_albedo.R", 30), coded("denoise_albedo.G", 31),
+                                    coded("denoise_albedo.B", 32)})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "Arnold");
+  expect_coded(s, AovRole::Color, 10);
+  expect_coded(s, AovRole::Normal, 20);
+  expect_coded(s, AovRole::Albedo, 30);
+  expect_coded(s, AovRole::Depth, 40);
+  EXPECT_EQ(s.normal_space, NormalSpace::World);
+}
+
+TEST(AovConventions, RenderMan) {
+  TempDir tmp;
+  const auto f = tmp / "prman.exr";
+  write_fixture_exr(f, {part(4, 6, {coded("Ci.r", 10), coded("Ci.g", 11), coded("Ci.b", 12), constant_channel("a", 1),
+                                    coded("albedo.r", 30), coded("albedo.g", 31), coded("albedo.b", 32),
+                                    coded("normal.x", 20), coded("normal.y", 21), coded("normal.z", 22),
+                                    coded("zfiltered.r", 40), coded("mse.r", 50), coded("mse.g", 51), coded("mse.b", 52),
+                                    coded("diffuse.r", 90), coded("diffuse.g", 91), coded("diffuse.b", 92)})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "RenderMan");
+  expect_coded(s, AovRole::Color, 10);
+  expect_coded(s, AovRole::Albedo, 30);  // RenderMan's diffuse is lighting, not albedo
+  expect_coded(s, AovRole::Normal, 20);
+  expect_coded(s, AovRole::Depth, 40);
+  expect_coded(s, AovRole::Variance, 50);
+}
+
+TEST(AovConventions, VRayLeadingDotsAndColourNames) {
+  TempDir tmp;
+  const auto f = tmp / "vray.exr";
+  write_fixture_exr(f, {part(6, 2, {coded(".R", 10), coded(".G", 11), coded(".B", 12),
+                                    coded("diffuse.red", 30), coded("diffuse.green", 31), coded("diffuse.blue", 32),
+                                    coded("bump_normals.x", 20), coded("bump_normals.y", 21), coded("bump_normals.z", 22)})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "V-Ray");
+  expect_coded(s, AovRole::Color, 10);
+  expect_coded(s, AovRole::Albedo, 30);
+  expect_coded(s, AovRole::Normal, 20);
+  EXPECT_FALSE(s.depth.has_value());
+}
+
+TEST(AovConventions, PlainLayersWithReference) {
+  TempDir tmp;
+  const auto f = tmp / "plain.exr";
+  write_fixture_exr(f, {part(1, 1, {coded("R", 10), coded("G", 11), coded("B", 12),
+                                    coded("albedo.R", 30), coded("albedo.G", 31), coded("albedo.B", 32),
+                                    coded("normal.X", 20), coded("normal.Y", 21), coded("normal.Z", 22),
+                                    coded("depth.Z", 40), coded("reference.R", 60), coded("reference.G", 61),
+                                    coded("reference.B", 62)})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "plain (R,G,B with named layers)");
+  EXPECT_EQ(s.width(), 1);
+  for (auto [role, tag] : std::vector<std::pair<AovRole, float>>{{AovRole::Color, 10}, {AovRole::Albedo, 30},
+                                                                 {AovRole::Normal, 20}, {AovRole::Depth, 40},
+                                                                 {AovRole::Reference, 60}})
+    expect_coded(s, role, tag);
+  EXPECT_EQ(s.normal_space, NormalSpace::Unknown);
+  LoadOptions o;
+  o.normal_space = NormalSpace::World;
+  EXPECT_EQ(load_aov_stack({f}, o).normal_space, NormalSpace::World);
+}
+
+TEST(AovConventions, MultipartWithUnqualifiedChannelNames) {
+  TempDir tmp;
+  const auto f = tmp / "multipart.exr";
+  FixturePart rgba = part(7, 13, {coded("R", 10, true), coded("G", 11, true), coded("B", 12, true)});
+  rgba.name = "rgba";
+  FixturePart albedo = part(7, 13, {coded("R", 30), coded("G", 31), coded("B", 32)});
+  albedo.name = "albedo";
+  FixturePart normal = part(7, 13, {coded("normal.X", 20), coded("normal.Y", 21), coded("normal.Z", 22)});
+  normal.name = "normal";
+  FixturePart depth = part(7, 13, {coded("Z", 40)});
+  depth.name = "depth";
+  write_fixture_exr(f, {rgba, albedo, normal, depth});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.albedo->source.subimage, 1);
+  EXPECT_EQ(s.albedo->source.channels.front(), "albedo.R");
+  expect_coded(s, AovRole::Albedo, 30);
+  expect_coded(s, AovRole::Normal, 20);
+  expect_coded(s, AovRole::Depth, 40);
+  EXPECT_EQ(s.color.image.at(6, 12, 2), as_half(code(12, 6, 12)));
+}
+
+TEST(AovConventions, OidnFileSet) {
+  TempDir tmp;
+  auto rgb = [](float tag) { return std::vector<FixtureChannel>{coded("R", tag), coded("G", tag + 1), coded("B", tag + 2)}; };
+  write_fixture_exr(tmp / "kitchen_0016spp.hdr.exr", {part(9, 4, rgb(10))});
+  write_fixture_exr(tmp / "kitchen_0016spp.alb.exr", {part(9, 4, rgb(30))});
+  write_fixture_exr(tmp / "kitchen_0016spp.nrm.exr", {part(9, 4, rgb(20))});
+  write_fixture_exr(tmp / "kitchen_ref.hdr.exr", {part(9, 4, rgb(60))});
+  for (const auto& input : {tmp.path(), tmp / "kitchen_0016spp.hdr.exr"}) {
+    const AovStack s = load_aov_stack({input});
+    EXPECT_EQ(s.convention, "OIDN data set");
+    expect_coded(s, AovRole::Color, 10);
+    expect_coded(s, AovRole::Albedo, 30);
+    expect_coded(s, AovRole::Normal, 20);
+    expect_coded(s, AovRole::Reference, 60);
+    EXPECT_FALSE(s.depth.has_value());
+  }
+}
+
+TEST(AovConventions, FilesNamedByRole) {
+  TempDir tmp;
+  write_fixture_exr(tmp / "beauty.exr", {part(3, 3, {coded("R", 10), coded("G", 11), coded("B", 12)})});
+  write_fixture_exr(tmp / "shot_albedo.exr", {part(3, 3, {coded("R", 30), coded("G", 31), coded("B", 32)})});
+  write_fixture_exr(tmp / "shot_depth.exr", {part(3, 3, {coded("Y", 40)})});
+  const AovStack s = load_aov_stack({tmp / "shot_depth.exr", tmp / "beauty.exr", tmp / "shot_albedo.exr"});
+  expect_coded(s, AovRole::Color, 10);
+  expect_coded(s, AovRole::Albedo, 30);
+  expect_coded(s, AovRole::Depth, 40);
+}
+
+// --- windows, non-finite values, sizes ---------------------------------------------------------------------
+
+TEST(AovWindows, DataWindowDiffersFromDisplayWindow) {
+  TempDir tmp;
+  FixturePart colour = part(7, 13, {coded("R", 10), coded("G", 11), coded("B", 12)});
+  colour.x = 5;
+  colour.y = 3;
+  colour.full_width = 20;
+  colour.full_height = 20;
+  // The albedo file covers the whole display window; only the colour's data window is taken from it.
+  FixturePart albedo = part(20, 20, {coded("R", 30), coded("G", 31), coded("B", 32)});
+  write_fixture_exr(tmp / "color.exr", {colour});
+  write_fixture_exr(tmp / "albedo.exr", {albedo});
+  const AovStack s = load_aov_stack({tmp / "color.exr"});
+  EXPECT_EQ(s.data_window, (Rect{5, 3, 7, 13}));
+  EXPECT_EQ(s.display_width, 20);
+  EXPECT_EQ(s.width(), 7);
+  EXPECT_EQ(s.color.image.at(0, 0, 0), code(10, 5, 3));
+  EXPECT_EQ(s.albedo->image.at(0, 0, 0), code(30, 5, 3));
+  EXPECT_EQ(s.albedo->image.at(6, 12, 2), code(32, 11, 15));
+  EXPECT_EQ(s.albedo->uncovered_pixels, 0);
+}
+
+TEST(AovWindows, PartlyCoveredAovIsZeroFilledAndNoted) {
+  TempDir tmp;
+  FixturePart colour = part(10, 10, {coded("R", 10), coded("G", 11), coded("B", 12)});
+  FixturePart albedo = part(4, 10, {coded("R", 30), coded("G", 31), coded("B", 32)});
+  albedo.full_width = albedo.full_height = 10;
+  write_fixture_exr(tmp / "color.exr", {colour});
+  write_fixture_exr(tmp / "albedo.exr", {albedo});
+  const AovStack s = load_aov_stack({tmp / "color.exr"});
+  EXPECT_EQ(s.albedo->uncovered_pixels, 60);
+  EXPECT_EQ(s.albedo->image.at(8, 2, 0), 0.0f);
+  EXPECT_EQ(s.albedo->image.at(3, 2, 0), code(30, 3, 2));
+  EXPECT_FALSE(s.notes.empty());
+}
+
+TEST(AovNonFinite, NanAndInfAreCountedNotFatal) {
+  TempDir tmp;
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  auto bad = [&](int x, int y) { return x == 1 && y == 1 ? nan : (x == 2 && y == 0 ? inf : 0.5f); };
+  write_fixture_exr(tmp / "bad.exr", {part(4, 3, {{"R", true, bad}, {"G", false, bad}, {"B", false, bad},
+                                                  {"albedo.R", false, bad}, {"albedo.G", false, bad},
+                                                  {"albedo.B", false, bad},
+                                                  {"depth.Z", false, [&](int x, int) { return x == 0 ? inf : 1.0f; }}})});
+  const AovStack s = load_aov_stack({tmp / "bad.exr"});
+  EXPECT_EQ(s.color.non_finite.nan, 3);
+  EXPECT_EQ(s.color.non_finite.inf, 3);
+  EXPECT_EQ(s.albedo->non_finite.total(), 6);
+  EXPECT_TRUE(std::isnan(s.color.image.at(1, 1, 0)));
+  // +Inf depth means "no hit": background, not an error.
+  EXPECT_EQ(s.depth->non_finite.total(), 0);
+  EXPECT_EQ(s.depth_background_pixels, 3);
+}
+
+TEST(AovLarge, SixtyFourBitOffsets) {
+  // 16K x 16K x 9 channels has more values than a 32-bit int can index.
+  Image probe;  // offsets are pure arithmetic: no allocation needed
+  const int64_t w = 16384, h = 16384, c = 9;
+  const int64_t last = (h - 1) * w * c + (w - 1) * c + 8;
+  EXPECT_GT(last, int64_t{std::numeric_limits<int32_t>::max()});
+  Image row_image(w, 2, 9);
+  EXPECT_EQ(row_image.offset(w - 1, 1, 8), 2 * w * 9 - 1);
+}
+
+TEST(AovLarge, WideImageLoads) {
+  // A 16384-pixel-wide image exercises the banded reader across many rows of bands.
+  TempDir tmp;
+  const int w = 16384, h = 130;
+  write_fixture_exr(tmp / "wide.exr", {part(w, h, {coded("R", 1, true), coded("G", 2), coded("B", 3)})});
+  const AovStack s = load_aov_stack({tmp / "wide.exr"});
+  EXPECT_EQ(s.width(), w);
+  EXPECT_EQ(s.height(), h);
+  EXPECT_EQ(s.color.image.at(w - 1, h - 1, 2), code(3, w - 1, h - 1));
+  EXPECT_EQ(s.color.image.at(w - 1, 64, 1), code(2, w - 1, 64));
+}
+
+// --- explicit mappings -------------------------------------------------------------------------------------
+
+TEST(AovMapping, FlagsMapOddNamesAndOtherFiles) {
+  TempDir tmp;
+  write_fixture_exr(tmp / "odd.exr", {part(5, 5, {coded("beauty_r", 10), coded("beauty_g", 11), coded("beauty_b", 12),
+                                                  coded("nn.u", 20), coded("nn.v", 21), coded("nn.w", 22)})});
+  write_fixture_exr(tmp / "zz.exr", {part(5, 5, {coded("dist", 40)})});
+  ChannelMapping m;
+  m.add_flag("color=beauty_r,beauty_g,beauty_b");
+  m.add_flag("normal=nn");
+  m.add_flag("depth=" + (tmp / "zz.exr").string());
+  LoadOptions o;
+  o.mapping = m;
+  const AovStack s = load_aov_stack({tmp / "odd.exr"}, o);
+  expect_coded(s, AovRole::Color, 10);
+  expect_coded(s, AovRole::Normal, 20);
+  expect_coded(s, AovRole::Depth, 40);
+}
+
+TEST(AovMapping, JsonFileWithRelativePaths) {
+  TempDir tmp;
+  write_fixture_exr(tmp / "main.exr", {part(2, 3, {coded("R", 10), coded("G", 11), coded("B", 12),
+                                                   coded("base.R", 30), coded("base.G", 31), coded("base.B", 32)})});
+  write_fixture_exr(tmp / "n.exr", {part(2, 3, {coded("N.X", 20), coded("N.Y", 21), coded("N.Z", 22)})});
+  std::ofstream(tmp / "map.json") << R"({"albedo": {"channels": ["base.R", "base.G", "base.B"]},
+      "normal": {"file": "n.exr", "channels": ["N.X", "N.Y", "N.Z"], "space": "world"}})";
+  LoadOptions o;
+  o.mapping = ChannelMapping::from_json_file(tmp / "map.json");
+  const AovStack s = load_aov_stack({tmp / "main.exr"}, o);
+  expect_coded(s, AovRole::Albedo, 30);
+  expect_coded(s, AovRole::Normal, 20);
+  EXPECT_EQ(s.normal_space, NormalSpace::World);
+}
+
+// --- errors name the file, the channels found and the channels expected ------------------------------------
+
+TEST(AovErrors, MissingFile) {
+  ErrorKind kind{};
+  const std::string msg = error_of([] { load_aov_stack({"/nonexistent/render.exr"}); }, &kind);
+  EXPECT_EQ(kind, ErrorKind::Input);
+  EXPECT_NE(msg.find("/nonexistent/render.exr"), std::string::npos) << msg;
+}
+
+TEST(AovErrors, NotAnImage) {
+  TempDir tmp;
+  std::ofstream(tmp / "junk.exr") << "this is not an EXR";
+  const std::string msg = error_of([&] { load_aov_stack({tmp / "junk.exr"}); });
+  EXPECT_NE(msg.find("junk.exr"), std::string::npos) << msg;
+}
+
+TEST(AovErrors, NoColourNamesFileFoundAndExpected) {
+  TempDir tmp;
+  write_fixture_exr(tmp / "nocolour.exr", {part(2, 2, {coded("foo.X", 1), coded("bar", 2)})});
+  ErrorKind kind{};
+  const std::string msg = error_of([&] { load_aov_stack({tmp / "nocolour.exr"}); }, &kind);
+  EXPECT_EQ(kind, ErrorKind::Input);
+  EXPECT_NE(msg.find("nocolour.exr"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("foo.X"), std::string::npos) << "lists the channels found: " << msg;
+  EXPECT_NE(msg.find("R,G,B"), std::string::npos) << "says what was expected: " << msg;
+}
+
+TEST(AovErrors, MappedChannelMissing) {
+  TempDir tmp;
+  write_fixture_exr(tmp / "a.exr", {part(2, 2, {coded("R", 1), coded("G", 2), coded("B", 3)})});
+  LoadOptions o;
+  o.mapping.add_flag("albedo=alb.R,alb.G,alb.B");
+  ErrorKind kind{};
+  const std::string msg = error_of([&] { load_aov_stack({tmp / "a.exr"}, o); }, &kind);
+  EXPECT_EQ(kind, ErrorKind::Mapping);
+  EXPECT_NE(msg.find("alb.R"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("a.exr"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("R, G, B"), std::string::npos) << "lists what the file has: " << msg;
+}
+
+TEST(AovErrors, WrongChannelCountInMapping) {
+  TempDir tmp;
+  write_fixture_exr(tmp / "a.exr", {part(2, 2, {coded("R", 1), coded("G", 2), coded("B", 3)})});
+  LoadOptions o;
+  o.mapping.add_flag("normal=R,G");
+  const std::string msg = error_of([&] { load_aov_stack({tmp / "a.exr"}, o); });
+  EXPECT_NE(msg.find("2 channels"), std::string::npos) << msg;
+}
+
+TEST(AovErrors, SizeMismatchNamesBothFiles) {
+  TempDir tmp;
+  write_fixture_exr(tmp / "color.exr", {part(8, 8, {coded("R", 1), coded("G", 2), coded("B", 3)})});
+  write_fixture_exr(tmp / "albedo.exr", {part(4, 4, {coded("R", 1), coded("G", 2), coded("B", 3)})});
+  ErrorKind kind{};
+  const std::string msg = error_of([&] { load_aov_stack({tmp / "color.exr"}); }, &kind);
+  EXPECT_EQ(kind, ErrorKind::Input);
+  EXPECT_NE(msg.find("albedo.exr"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("4x4"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("8x8"), std::string::npos) << msg;
+}
+
+TEST(AovErrors, BadMappingFlagsAndFiles) {
+  ChannelMapping m;
+  EXPECT_NE(error_of([&] { m.add_flag("albedo"); }).find("ROLE="), std::string::npos);
+  EXPECT_NE(error_of([&] { m.add_flag("glossiness=a,b,c"); }).find("unknown AOV \"glossiness\""), std::string::npos);
+  TempDir tmp;
+  std::ofstream(tmp / "bad.json") << "{ not json";
+  EXPECT_NE(error_of([&] { ChannelMapping::from_json_file(tmp / "bad.json"); }).find("bad.json"), std::string::npos);
+  std::ofstream(tmp / "badkey.json") << R"({"normal": {"file": "n.exr", "colour": 1}})";
+  EXPECT_NE(error_of([&] { ChannelMapping::from_json_file(tmp / "badkey.json"); }).find("\"colour\""),
+            std::string::npos);
+  std::ofstream(tmp / "badspace.json") << R"({"normal": {"space": "tangent"}})";
+  EXPECT_NE(error_of([&] { ChannelMapping::from_json_file(tmp / "badspace.json"); }).find("space"), std::string::npos);
+}
+
+TEST(AovErrors, FolderWithoutColour) {
+  TempDir tmp;
+  const std::string msg = error_of([&] { load_aov_stack({tmp.path()}); });
+  EXPECT_NE(msg.find("color.exr"), std::string::npos) << msg;
+}
+
+}  // namespace
+}  // namespace residue

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Sets Residue up on Debian 12: installs the Debian packages it needs (only those missing), configures and
+# builds the Release preset, then runs the main job on the bundled example.
+# Idempotent; run as root or as a user with sudo. Environment: RESIDUE_SKIP_EXAMPLE=1 skips the example run.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config
+  # libraries of residue_core and residue-cli
+  libopenimageio-dev openimageio-tools libopenexr-dev libtbb-dev libcli11-dev nlohmann-json3-dev
+  # tests: GoogleTest, and scikit-image + OpenImageIO's Python bindings for the independent metric checks
+  libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  echo "setup: installing ${missing[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+cmake --preset release
+cmake --build --preset release -j "$(nproc)"
+
+if [ "${RESIDUE_SKIP_EXAMPLE:-0}" != 1 ]; then
+  echo
+  echo "== residue-cli eval on the bundled example (resources/examples/room) =="
+  build/release/app/residue-cli/residue-cli eval resources/examples/room/noisy.exr \
+    --reference resources/examples/room/reference.exr
+fi
