@@ -9,6 +9,7 @@ float, ZIP) and OUT/reference.exr (Combined only) rendered with a different samp
 Adaptive sampling and denoising are off so the spp are exact (see ../shared/reference/NOTES.md).
 """
 import argparse
+import json
 import math
 import os
 import sys
@@ -113,6 +114,12 @@ def render(scene, path, spp, seed, args, data_passes):
     settings.file_format = "OPEN_EXR_MULTILAYER"
     settings.color_depth = "16"
     settings.exr_codec = "ZIP"
+    # The camera travels in the EXR's Note as JSON (Blender convention: row-major, p_cam = M p_world,
+    # camera looking down -z); Residue reads it to turn world-space normals into view space.
+    world_to_camera = [v for row in scene.camera.matrix_world.inverted() for v in row]
+    scene.render.use_stamp_note = True
+    scene.render.stamp_note_text = json.dumps({"worldToCamera": [round(v, 6) for v in world_to_camera],
+                                               "spp": spp, "sampling_seed": seed})
     scene.render.filepath = path
     bpy.ops.render.render(write_still=True)
 

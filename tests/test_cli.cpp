@@ -1,0 +1,165 @@
+// residue-cli end to end: real renders in, tables/JSON/maps out, exit codes for bad input.
+#include <cmath>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+
+#include "support/exr_fixture.h"
+#include "support/test_support.h"
+
+namespace residue {
+namespace {
+
+using testing::run_cli;
+using testing::TempDir;
+
+nlohmann::json eval_json(const std::vector<std::string>& args) {
+  std::string out;
+  std::vector<std::string> full = {"eval", "--json"};
+  full.insert(full.end(), args.begin(), args.end());
+  const int rc = run_cli(full, &out);
+  EXPECT_EQ(rc, 0) << out;
+  return nlohmann::json::parse(out);
+}
+
+std::string read_file(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+TEST(Cli, EvalMatchesSceneJsonOnEveryStarterScene) {
+  const auto root = testing::shared_dataset("cycles-starter");
+  RESIDUE_REQUIRE_SHARED(root);
+  int scenes = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(root)) {
+    if (!entry.is_directory()) continue;
+    const auto scene = nlohmann::json::parse(read_file(entry.path() / "scene.json"));
+    const double expected = scene["metrics"]["relmse_noisy_a"].get<double>();
+    const auto j = eval_json({(entry.path() / "noisy_a.exr").string(), "--reference",
+                              (entry.path() / "reference.exr").string()});
+    const double got = j["rows"][0]["relmse"].get<double>();
+    // The brief asks for 3 significant digits; the computation is the same, so it agrees far better.
+    EXPECT_NEAR(got, expected, 1e-9 * expected) << entry.path();
+    ++scenes;
+  }
+  EXPECT_GE(scenes, 60);
+}
+
+TEST(Cli, EvalTableOnTungstenWithDenoised) {
+  const auto dir = testing::shared_dataset("tungsten-example/cornell-box");
+  RESIDUE_REQUIRE_SHARED(dir);
+  std::string out;
+  ASSERT_EQ(run_cli({"eval", dir.string(), "--denoised", (dir / "nfor.exr").string()}, &out), 0) << out;
+  EXPECT_NE(out.find("noisy"), std::string::npos) << out;
+  EXPECT_NE(out.find("denoised"), std::string::npos) << out;
+  EXPECT_NE(out.find("eps = 0.01"), std::string::npos) << "the formula is printed with the table: " << out;
+  const auto j = eval_json({dir.string(), "--denoised", (dir / "nfor.exr").string()});
+  // NFOR is a good denoiser: far lower error than the noisy input.
+  EXPECT_LT(j["rows"][1]["relmse"].get<double>(), 0.1 * j["rows"][0]["relmse"].get<double>());
+  EXPECT_GT(j["rows"][1]["ssim"].get<double>(), j["rows"][0]["ssim"].get<double>());
+}
+
+TEST(Cli, InfoShowsTheMapping) {
+  const auto dir = testing::shared_dataset("cycles-starter/s101");
+  RESIDUE_REQUIRE_SHARED(dir);
+  std::string out;
+  ASSERT_EQ(run_cli({"info", (dir / "noisy_a.exr").string()}, &out), 0) << out;
+  EXPECT_NE(out.find("Blender Cycles"), std::string::npos) << out;
+  EXPECT_NE(out.find("ViewLayer.Denoising Normal"), std::string::npos) << out;
+  ASSERT_EQ(run_cli({"info", "--json", (dir / "noisy_a.exr").string()}, &out), 0) << out;
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["aovs"]["depth"]["channels"][0], "ViewLayer.Denoising Depth.Z");
+  EXPECT_TRUE(j["aovs"]["variance"].is_null());
+  EXPECT_EQ(j["normal_space"], "camera");
+}
+
+TEST(Cli, BundledExampleEvaluates) {
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  const auto j = eval_json({(ex / "noisy.exr").string(), "--reference", (ex / "reference.exr").string()});
+  const double relmse = j["rows"][0]["relmse"].get<double>();
+  EXPECT_GT(relmse, 1e-3) << "an 8-spp render is visibly noisy";
+  EXPECT_LT(relmse, 1.0);
+  EXPECT_EQ(j["width"], 192);
+}
+
+TEST(Cli, MapsAndMetricsFilesAreWrittenAndNeverOverwritten) {
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  TempDir tmp;
+  const std::vector<std::string> args = {"eval", (ex / "noisy.exr").string(), "--reference",
+                                         (ex / "reference.exr").string(), "--maps-dir", tmp.path().string(),
+                                         "--map-format", "both", "--metrics-out", (tmp / "m.json").string()};
+  std::string out;
+  ASSERT_EQ(run_cli(args, &out), 0) << out;
+  for (const char* kind : {"abs", "se", "rse", "ssim"}) {
+    EXPECT_TRUE(std::filesystem::exists(tmp / (std::string("noisy_") + kind + ".png"))) << kind;
+    EXPECT_TRUE(std::filesystem::exists(tmp / (std::string("noisy_") + kind + ".exr"))) << kind;
+  }
+  // The mean of the relative squared error map is the relMSE in the metrics file.
+  const auto metrics = nlohmann::json::parse(read_file(tmp / "m.json"));
+  OIIO::ImageBuf rse((tmp / "noisy_rse.exr").string());
+  const auto stats = OIIO::ImageBufAlgo::computePixelStats(rse);
+  ASSERT_EQ(stats.avg.size(), 1u);
+  EXPECT_NEAR(stats.avg[0], metrics["rows"][0]["relmse"].get<double>(), 1e-6);
+
+  // Running again must not replace anything: exit code 4, files unchanged.
+  const std::string before = read_file(tmp / "m.json");
+  EXPECT_EQ(run_cli(args, &out), 4) << out;
+  EXPECT_NE(out.find("--force"), std::string::npos) << out;
+  EXPECT_EQ(read_file(tmp / "m.json"), before);
+  std::vector<std::string> forced = args;
+  forced.push_back("--force");
+  EXPECT_EQ(run_cli(forced, &out), 0) << out;
+}
+
+TEST(Cli, CsvMetrics) {
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  TempDir tmp;
+  std::string out;
+  ASSERT_EQ(run_cli({"eval", (ex / "noisy.exr").string(), "-r", (ex / "reference.exr").string(), "--roi",
+                     "10,20,50,40", "--metrics-out", (tmp / "m.csv").string()},
+                    &out),
+            0)
+      << out;
+  const std::string csv = read_file(tmp / "m.csv");
+  EXPECT_EQ(csv.rfind("name,test_file,mse,relmse,psnr,ssim,pixels", 0), 0u) << csv;
+  EXPECT_NE(csv.find(",2000,"), std::string::npos) << "50x40 ROI pixels: " << csv;
+}
+
+TEST(Cli, ExitCodesForBadInput) {
+  std::string out;
+  EXPECT_EQ(run_cli({"eval", "/no/such/file.exr", "-r", "/no/such/ref.exr"}, &out), 2)
+      << "a missing --reference is an argument error: " << out;
+  EXPECT_EQ(run_cli({"info", "/no/such/file.exr"}, &out), 3) << out;
+  EXPECT_NE(out.find("/no/such/file.exr"), std::string::npos) << out;
+  EXPECT_EQ(run_cli({"frobnicate"}, &out), 2) << out;
+  EXPECT_EQ(run_cli({}, &out), 2) << out;
+  EXPECT_EQ(run_cli({"--help"}, &out), 0) << out;
+  EXPECT_NE(out.find("eval"), std::string::npos) << out;
+  EXPECT_EQ(run_cli({"eval", "--help"}, &out), 0) << out;
+  EXPECT_NE(out.find("--denoised"), std::string::npos) << out;
+
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  EXPECT_EQ(run_cli({"eval", (ex / "noisy.exr").string()}, &out), 2) << "no reference: " << out;
+  EXPECT_NE(out.find("--reference"), std::string::npos) << out;
+  EXPECT_EQ(run_cli({"eval", (ex / "noisy.exr").string(), "-r", (ex / "reference.exr").string(), "--roi", "0,0,5"},
+                    &out),
+            2)
+      << out;
+  EXPECT_EQ(run_cli({"eval", (ex / "noisy.exr").string(), "-r", (ex / "reference.exr").string(), "--roi",
+                     "180,180,50,50"},
+                    &out),
+            2)
+      << "ROI outside the image: " << out;
+  TempDir tmp;
+  testing::write_fixture_exr((tmp / "small.exr").string(),
+                             {{"", {testing::constant_channel("R", 1), testing::constant_channel("G", 1),
+                                    testing::constant_channel("B", 1)}, 0, 0, 8, 8}});
+  EXPECT_EQ(run_cli({"eval", (ex / "noisy.exr").string(), "-r", (tmp / "small.exr").string()}, &out), 3) << out;
+  EXPECT_NE(out.find("small.exr"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace residue
