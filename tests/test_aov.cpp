@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 #include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imageio.h>
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/channel_naming.h"
@@ -376,6 +377,42 @@ TEST(AovLarge, WideImageLoads) {
   EXPECT_EQ(s.height(), h);
   EXPECT_EQ(s.color.image.at(w - 1, h - 1, 2), code(3, w - 1, h - 1));
   EXPECT_EQ(s.color.image.at(w - 1, 64, 1), code(2, w - 1, 64));
+}
+
+TEST(AovLarge, SixteenKSquareLoads) {
+  // A real 16384 x 16384 half RGB EXR (3.2 GB as floats once loaded), written band by band to keep the
+  // test's own memory small. The pattern marks rows and columns so misplaced bands would show.
+  TempDir tmp;
+  const int n = 16384;
+  const auto path = (tmp / "16k.exr").string();
+  {
+    OIIO::ImageSpec spec(n, n, 3, OIIO::TypeHalf);
+    spec.attribute("compression", "zip");
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out && out->open(path, spec));
+    const int band = 256;
+    std::vector<float> rows(static_cast<size_t>(band) * n * 3);
+    for (int y0 = 0; y0 < n; y0 += band) {
+      for (int y = 0; y < band; ++y)
+        for (int x = 0; x < n; ++x) {
+          float* px = &rows[(static_cast<size_t>(y) * n + static_cast<size_t>(x)) * 3];
+          px[0] = static_cast<float>((y0 + y) % 1024);
+          px[1] = static_cast<float>(x % 1024);
+          px[2] = 0.5f;
+        }
+      ASSERT_TRUE(out->write_scanlines(y0, y0 + band, 0, OIIO::TypeFloat, rows.data()));
+    }
+    out->close();
+  }
+  const AovStack s = load_aov_stack({path});
+  ASSERT_EQ(s.width(), n);
+  ASSERT_EQ(s.height(), n);
+  for (int64_t y : {0, 1, 1023, 1024, 8191, 16383})
+    for (int64_t x : {0, 5, 1023, 16383}) {
+      EXPECT_EQ(s.color.image.at(x, y, 0), static_cast<float>(y % 1024)) << x << "," << y;
+      EXPECT_EQ(s.color.image.at(x, y, 1), static_cast<float>(x % 1024)) << x << "," << y;
+    }
+  EXPECT_EQ(s.color.non_finite.total(), 0);
 }
 
 // --- explicit mappings -------------------------------------------------------------------------------------
