@@ -1,0 +1,19 @@
+// Which AOVs a model reads, and in which order its input planes come.
+#pragma once
+
+#include <optional>
+#include <string>
+
+namespace residue {
+
+enum class FeatureSet {
+  Full,               // 9: colour (3), depth (1), view-space normal x,y (2), albedo (3) — the paper's input
+  ColorAlbedoNormal,  // 8: colour (3), normal x,y (2), albedo (3) — for renders without depth
+  ColorOnly,          // 3: colour — for beauty-only renders
+};
+
+int feature_channels(FeatureSet set);
+const char* to_string(FeatureSet set);  // "full", "color+albedo+normal", "color"
+std::optional<FeatureSet> feature_set_from_string(const std::string& name);
+
+}  // namespace residue

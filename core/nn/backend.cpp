@@ -1,0 +1,35 @@
+#include "core/nn/backend.h"
+
+#include "core/util/error.h"
+
+namespace residue::nn {
+
+#ifdef RESIDUE_HAVE_ONEDNN
+std::unique_ptr<Backend> make_onednn_backend(const Network& network, Precision precision);
+#endif
+
+const char* to_string(Precision p) { return p == Precision::BF16 ? "bf16" : "fp32"; }
+
+std::vector<std::string> available_backends() {
+  std::vector<std::string> names = {"eigen"};
+#ifdef RESIDUE_HAVE_ONEDNN
+  names.push_back("onednn");
+#endif
+  return names;
+}
+
+std::unique_ptr<Backend> make_backend(const std::string& name, const Network& network, const BackendOptions& options) {
+  if (name == "eigen") {
+    if (options.precision != Precision::FP32)
+      throw Error(ErrorKind::Usage, "the eigen backend computes in fp32 only; use --backend onednn for bf16");
+    return make_eigen_backend(network);
+  }
+#ifdef RESIDUE_HAVE_ONEDNN
+  if (name == "onednn") return make_onednn_backend(network, options.precision);
+#endif
+  std::string list;
+  for (const auto& n : available_backends()) list += (list.empty() ? "" : ", ") + n;
+  throw Error(ErrorKind::Usage, "unknown or unavailable backend \"" + name + "\"; available: " + list);
+}
+
+}  // namespace residue::nn

@@ -1,0 +1,41 @@
+// Backends run the network on one tile. One interface, chosen at run time:
+//   "eigen"   portable fp32 on Eigen GEMM + oneTBB (always built; the reference)
+//   "onednn"  oneDNN fp32 / bf16 (AVX-512, AMX where present), when built with oneDNN
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/image/image.h"
+#include "core/nn/network.h"
+
+namespace residue::nn {
+
+enum class Precision { FP32, BF16 };
+const char* to_string(Precision p);
+
+struct BackendOptions {
+  Precision precision = Precision::FP32;
+};
+
+class Backend {
+ public:
+  virtual ~Backend() = default;
+  // What runs, e.g. "eigen fp32" or "onednn bf16 (avx512_core_amx)".
+  virtual std::string description() const = 0;
+  // The network on one tile: `input` is H x W x C_in (the model's feature planes, NHWC), `output` gets
+  // H x W x 3 (the network's raw output). Convolutions pad with zeros at the tile's borders.
+  // Threads: whatever oneTBB's current arena allows (the caller limits it).
+  virtual void run(const Image& input, Image& output) = 0;
+  // Scratch memory run() allocates for a tile of this size, in bytes (for memory-bounded tiling).
+  virtual size_t scratch_bytes(int64_t width, int64_t height) const = 0;
+};
+
+// Throws residue::Error(Usage) for an unknown or unavailable backend / precision, saying what is available.
+std::unique_ptr<Backend> make_backend(const std::string& name, const Network& network, const BackendOptions& options);
+std::vector<std::string> available_backends();
+
+std::unique_ptr<Backend> make_eigen_backend(const Network& network);
+
+}  // namespace residue::nn

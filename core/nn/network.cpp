@@ -1,0 +1,77 @@
+#include "core/nn/network.h"
+
+#include <cmath>
+#include <random>
+
+namespace residue::nn {
+
+double Architecture::flops_per_pixel() const {
+  const double k = 9.0 * 2.0;  // 3x3 taps, multiply + add
+  return k * (in_channels() * width + (2.0 * blocks + 1.0) * width * width + width * 3.0);
+}
+
+std::string Architecture::to_string() const {
+  return std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
+}
+
+Conv3x3 fold_batch_norm(const Conv3x3& conv, const BatchNorm& bn) {
+  Conv3x3 f = conv;
+  if (f.bias.empty()) f.bias.assign(static_cast<size_t>(f.out), 0.0f);
+  for (int o = 0; o < f.out; ++o) {
+    const size_t oi = static_cast<size_t>(o);
+    const double scale = bn.gamma[oi] / std::sqrt(static_cast<double>(bn.var[oi]) + bn.eps);
+    for (int k = 0; k < f.in * 9; ++k) {
+      float& w = f.weight[static_cast<size_t>(o * f.in * 9 + k)];
+      w = static_cast<float>(w * scale);
+    }
+    f.bias[oi] = static_cast<float>((f.bias[oi] - bn.mean[oi]) * scale + bn.beta[oi]);
+  }
+  return f;
+}
+
+namespace {
+
+Conv3x3 random_conv(int in, int out, std::mt19937& rng, bool bias) {
+  Conv3x3 c;
+  c.in = in;
+  c.out = out;
+  // He initialisation for PReLU networks: std = sqrt(2 / fan_in).
+  std::normal_distribution<float> w(0.0f, std::sqrt(2.0f / static_cast<float>(9 * in)));
+  std::uniform_real_distribution<float> b(-0.1f, 0.1f);
+  c.weight.resize(static_cast<size_t>(out * in * 9));
+  for (float& v : c.weight) v = w(rng);
+  c.bias.resize(static_cast<size_t>(out));
+  for (float& v : c.bias) v = bias ? b(rng) : 0.0f;
+  return c;
+}
+
+std::vector<float> random_prelu(int n, std::mt19937& rng) {
+  std::uniform_real_distribution<float> a(0.05f, 0.35f);
+  std::vector<float> v(static_cast<size_t>(n));
+  for (float& x : v) x = a(rng);
+  return v;
+}
+
+}  // namespace
+
+Network random_network(const Architecture& arch, uint32_t seed) {
+  std::mt19937 rng(seed);
+  Network n;
+  n.arch = arch;
+  n.head = random_conv(arch.in_channels(), arch.width, rng, true);
+  n.head_prelu = random_prelu(arch.width, rng);
+  for (int b = 0; b < arch.blocks; ++b) {
+    ResBlock blk;
+    blk.conv1 = random_conv(arch.width, arch.width, rng, true);
+    blk.prelu = random_prelu(arch.width, rng);
+    blk.conv2 = random_conv(arch.width, arch.width, rng, true);
+    // Scale the residual branch down so activations stay O(1) through deep random networks.
+    for (float& v : blk.conv2.weight) v *= 0.2f;
+    n.blocks.push_back(std::move(blk));
+  }
+  n.tail = random_conv(arch.width, arch.width, rng, true);
+  n.out = random_conv(arch.width, 3, rng, true);
+  return n;
+}
+
+}  // namespace residue::nn
