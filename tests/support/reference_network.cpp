@@ -1,0 +1,64 @@
+#include "support/reference_network.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace residue::testing {
+
+Tensor64 to_tensor(const Image& image) {
+  Tensor64 t{image.height(), image.width(), image.channels(), {}};
+  t.v.assign(image.data(), image.data() + image.size());
+  return t;
+}
+
+Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv) {
+  Tensor64 out{in.h, in.w, conv.out, std::vector<double>(static_cast<size_t>(in.h * in.w * conv.out))};
+  for (int64_t y = 0; y < in.h; ++y)
+    for (int64_t x = 0; x < in.w; ++x)
+      for (int o = 0; o < conv.out; ++o) {
+        double sum = conv.bias.empty() ? 0.0 : conv.bias[static_cast<size_t>(o)];
+        for (int ky = 0; ky < 3; ++ky)
+          for (int kx = 0; kx < 3; ++kx) {
+            const int64_t sy = y + ky - 1, sx = x + kx - 1;
+            if (sy < 0 || sy >= in.h || sx < 0 || sx >= in.w) continue;
+            for (int i = 0; i < conv.in; ++i) sum += static_cast<double>(conv.w(o, i, ky, kx)) * in.at(sy, sx, i);
+          }
+        out.at(y, x, o) = sum;
+      }
+  return out;
+}
+
+namespace {
+void prelu(Tensor64& t, const std::vector<float>& slopes) {
+  for (size_t i = 0; i < t.v.size(); ++i)
+    if (t.v[i] < 0) t.v[i] *= slopes[i % static_cast<size_t>(t.c)];
+}
+void add(Tensor64& t, const Tensor64& other) {
+  for (size_t i = 0; i < t.v.size(); ++i) t.v[i] += other.v[i];
+}
+}  // namespace
+
+Tensor64 naive_forward(const nn::Network& net, const Image& input) {
+  Tensor64 h = naive_conv3x3(to_tensor(input), net.head);
+  prelu(h, net.head_prelu);
+  Tensor64 y = h;
+  for (const auto& b : net.blocks) {
+    Tensor64 t = naive_conv3x3(y, b.conv1);
+    prelu(t, b.prelu);
+    Tensor64 r = naive_conv3x3(t, b.conv2);
+    add(r, y);
+    y = std::move(r);
+  }
+  Tensor64 tail = naive_conv3x3(y, net.tail);
+  add(tail, h);
+  return naive_conv3x3(tail, net.out);
+}
+
+double max_relative_error(const Image& a, const Tensor64& b, double floor) {
+  double scale = floor, err = 0;
+  for (double v : b.v) scale = std::max(scale, std::abs(v));
+  for (size_t i = 0; i < b.v.size(); ++i) err = std::max(err, std::abs(static_cast<double>(a.data()[i]) - b.v[i]));
+  return err / scale;
+}
+
+}  // namespace residue::testing

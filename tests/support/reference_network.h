@@ -1,0 +1,32 @@
+// An independent float64 implementation of the network for tests: naive loops straight from the paper's
+// description, with batch norm applied explicitly when given unfolded weights. Slow; use small images.
+#pragma once
+
+#include <vector>
+
+#include "core/image/image.h"
+#include "core/nn/network.h"
+
+namespace residue::testing {
+
+// A float64 tensor H x W x C (NHWC).
+struct Tensor64 {
+  int64_t h = 0, w = 0;
+  int c = 0;
+  std::vector<double> v;
+  double& at(int64_t y, int64_t x, int ch) { return v[static_cast<size_t>((y * w + x) * c + ch)]; }
+  double at(int64_t y, int64_t x, int ch) const { return v[static_cast<size_t>((y * w + x) * c + ch)]; }
+};
+
+Tensor64 to_tensor(const Image& image);
+
+// 3x3 conv with zero 'same' padding and bias, in float64.
+Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv);
+
+// The whole (folded) network in float64.
+Tensor64 naive_forward(const nn::Network& net, const Image& input);
+
+// max |a - b| / max(max |b|, floor): the relative error measure the tests bound.
+double max_relative_error(const Image& a, const Tensor64& b, double floor = 1e-3);
+
+}  // namespace residue::testing
