@@ -1,0 +1,66 @@
+// Tiled inference: the whole denoise of one AOV stack, on the calling thread.
+//
+// The image (or the ROI) is cut into square tiles; each tile is extended by a halo equal to the network's
+// receptive field (one pixel per 3x3 conv), run through the backend, and only its centre is kept, so tiled
+// output equals untiled output. Tiles run one after another, each using every allowed thread.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "core/aov/aov_stack.h"
+#include "core/nn/backend.h"
+#include "core/nn/model_file.h"
+
+namespace residue {
+
+struct DenoiseOptions {
+  std::string backend;                          // empty: the fastest available
+  nn::Precision precision = nn::Precision::FP32;
+  int64_t tile = 0;                             // tile edge without halo; 0: the largest that fits max_memory
+  size_t max_memory = size_t{4} << 30;          // bytes for tiles, backend scratch and the output
+  int threads = 0;                              // 0: every core
+  std::optional<Rect> roi;                      // denoise only this rectangle; elsewhere the noisy colour
+  bool skip_empty_tiles = true;                 // pass through tiles whose colour (with halo) is all zero
+};
+
+struct TileEvent {
+  Rect rect;          // the tile's pixels in the output
+  bool skipped = false;
+  int64_t done = 0;   // tiles finished so far, this one included
+  int64_t total = 0;
+};
+
+struct DenoiseStats {
+  int64_t tiles = 0;
+  int64_t skipped = 0;
+  int64_t tile_size = 0;
+  double seconds = 0;
+  std::string backend;  // the backend's description
+  FeatureSet features = FeatureSet::Full;
+};
+
+// Thrown when the tile callback asks to stop.
+class Cancelled : public std::runtime_error {
+ public:
+  Cancelled() : std::runtime_error("denoise cancelled") {}
+};
+
+// Called after every tile with the output so far; return false to cancel.
+using TileCallback = std::function<bool(const TileEvent&, const Image& output)>;
+
+// The denoised colour, the stack's size. Throws Error (Input when the stack lacks the model's AOVs, Usage for
+// bad options), or Cancelled.
+Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
+              const TileCallback& on_tile = {}, DenoiseStats* stats = nullptr);
+
+// Tile rectangles covering `region`, row by row.
+std::vector<Rect> make_tiles(const Rect& region, int64_t tile);
+
+// The tile edge that keeps one tile's memory within `budget` bytes, or 0 when even 16 px does not fit.
+int64_t tile_for_memory(const nn::Backend& backend, const nn::Architecture& arch, size_t budget);
+
+}  // namespace residue

@@ -1,0 +1,104 @@
+#include "core/features/features.h"
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+
+#include <tbb/parallel_for.h>
+
+#include "core/util/error.h"
+
+namespace residue {
+namespace {
+
+float sanitize_nonnegative(float v) { return std::isfinite(v) && v > 0.0f ? v : 0.0f; }
+
+}  // namespace
+
+float compress_color(float linear) { return std::log1p(sanitize_nonnegative(linear)); }
+
+float expand_color(float y) {
+  if (!(y > 0.0f)) return 0.0f;  // negatives and NaN
+  constexpr float kMaxLog = 88.72f;  // log(FLT_MAX) - a little: expm1 stays finite
+  return std::min(std::expm1(std::min(y, kMaxLog)), FLT_MAX);
+}
+
+FeatureStats compute_feature_stats(const AovStack& stack) {
+  FeatureStats s;
+  if (stack.depth) {
+    double sum = 0;
+    int64_t n = 0;
+    const Image& d = stack.depth->image;
+    for (int64_t y = 0; y < d.height(); ++y)
+      for (float v : d.row(y))
+        if (std::isfinite(v) && v > 0) {
+          sum += v;
+          ++n;
+        }
+    if (n > 0 && sum > 0) s.depth_mean = sum / static_cast<double>(n);
+  }
+  if (stack.normal && stack.normal_space == NormalSpace::World && stack.world_to_camera) {
+    s.rotate_normals = true;
+    const auto& m = *stack.world_to_camera;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) s.normal_rotation[static_cast<size_t>(r * 3 + c)] = m[static_cast<size_t>(r * 4 + c)];
+  }
+  return s;
+}
+
+FeatureSet feature_set_for(const AovStack& stack) {
+  if (stack.albedo && stack.normal && stack.depth) return FeatureSet::Full;
+  if (stack.albedo && stack.normal) return FeatureSet::ColorAlbedoNormal;
+  return FeatureSet::ColorOnly;
+}
+
+void check_features_available(const AovStack& stack, FeatureSet set) {
+  std::string missing;
+  auto need = [&](bool present, const char* name) {
+    if (!present) missing += (missing.empty() ? "" : ", ") + std::string(name);
+  };
+  if (set != FeatureSet::ColorOnly) {
+    need(stack.albedo.has_value(), "albedo");
+    need(stack.normal.has_value(), "normal");
+  }
+  if (set == FeatureSet::Full) need(stack.depth.has_value(), "depth");
+  if (!missing.empty())
+    throw Error(ErrorKind::Input, "the model reads the \"" + std::string(to_string(set)) + "\" feature set but '" +
+                                      stack.color.source.file + "' has no " + missing +
+                                      " AOV; use a model for \"" + to_string(feature_set_for(stack)) + "\"");
+}
+
+void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& stats, const Rect& rect, Image& out) {
+  check_features_available(stack, set);
+  const int channels = feature_channels(set);
+  if (out.width() != rect.width || out.height() != rect.height || out.channels() != channels)
+    out = Image(rect.width, rect.height, channels);
+  const float inv_depth_mean = static_cast<float>(1.0 / stats.depth_mean);
+  const auto& r = stats.normal_rotation;
+  tbb::parallel_for(int64_t{0}, rect.height, [&](int64_t y) {
+    const int64_t sy = rect.y + y;
+    for (int64_t x = 0; x < rect.width; ++x) {
+      const int64_t sx = rect.x + x;
+      float* f = &out.at(x, y, 0);
+      for (int c = 0; c < 3; ++c) *f++ = compress_color(stack.color.image.at(sx, sy, c));
+      if (set == FeatureSet::ColorOnly) continue;
+      if (set == FeatureSet::Full) *f++ = std::log1p(sanitize_nonnegative(stack.depth->image.at(sx, sy)) * inv_depth_mean);
+      double n[3];
+      for (int c = 0; c < 3; ++c) {
+        const float v = stack.normal->image.at(sx, sy, c);
+        n[c] = std::isfinite(v) ? v : 0.0;
+      }
+      if (stats.rotate_normals) {
+        const double nx = r[0] * n[0] + r[1] * n[1] + r[2] * n[2];
+        const double ny = r[3] * n[0] + r[4] * n[1] + r[5] * n[2];
+        n[0] = nx;
+        n[1] = ny;
+      }
+      *f++ = static_cast<float>(std::clamp(n[0], -1.0, 1.0));
+      *f++ = static_cast<float>(std::clamp(n[1], -1.0, 1.0));
+      for (int c = 0; c < 3; ++c) *f++ = compress_color(stack.albedo->image.at(sx, sy, c));
+    }
+  });
+}
+
+}  // namespace residue

@@ -1,0 +1,44 @@
+// AOV stack -> the network's input planes, and the network's output -> linear colour.
+// The one place this mapping lives: inference and training both call it (no second copy anywhere).
+//
+// Planes, in order (FeatureSet says which are present):
+//   colour  log(1 + c)                       c sanitised: NaN/Inf/negative -> 0
+//   depth   log(1 + d / mean depth of hits)  background (0) stays 0; per-image mean, so units do not matter
+//   normal  view-space x, y                  world-space normals rotated by the camera when it is known;
+//                                            non-finite -> 0, clamped to [-1, 1]
+//   albedo  log(1 + a)                       a sanitised like colour; log keeps emissive albedo (> 1) bounded
+// Output: c = exp(y) - 1, clamped to [0, FLT_MAX], NaN -> 0: always finite and non-negative.
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+
+#include "core/aov/aov_stack.h"
+#include "core/features/feature_set.h"
+
+namespace residue {
+
+// Whole-image statistics the features need, computed once so that every tile sees the same normalisation.
+struct FeatureStats {
+  double depth_mean = 1.0;  // mean depth over pixels with depth > 0 (1 when none)
+  bool rotate_normals = false;  // world-space normals and a known camera
+  std::array<double, 9> normal_rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};  // world -> camera, row-major 3x3
+};
+
+FeatureStats compute_feature_stats(const AovStack& stack);
+
+// The richest feature set the stack can feed without inventing data.
+FeatureSet feature_set_for(const AovStack& stack);
+
+// Throws Error(Input) naming what is missing when `stack` cannot feed `set`.
+void check_features_available(const AovStack& stack, FeatureSet set);
+
+// Fills `out` with the feature planes of `rect` (inside the stack): rect.width x rect.height x channels.
+void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& stats, const Rect& rect, Image& out);
+
+// Colour transform and its inverse, exposed for training and tests.
+float compress_color(float linear);
+float expand_color(float network_output);
+
+}  // namespace residue

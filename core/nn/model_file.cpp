@@ -1,0 +1,172 @@
+#include "core/nn/model_file.h"
+
+#include <cstdlib>
+
+#include "core/util/error.h"
+
+namespace residue::nn {
+namespace {
+
+constexpr float kBnEps = 1e-5f;
+
+std::string shape_text(const std::vector<int64_t>& shape) {
+  std::string s = "[";
+  for (size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  return s + "]";
+}
+
+// Takes tensors out of the file, checking each one's shape; what is left at the end was not expected.
+class TensorReader {
+ public:
+  TensorReader(SafetensorsFile& file, std::string where) : file_(file), where_(std::move(where)) {}
+
+  std::vector<float> take(const std::string& name, const std::vector<int64_t>& shape) {
+    auto it = file_.tensors.find(name);
+    if (it == file_.tensors.end())
+      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + "\" " + shape_text(shape) + " is missing");
+    if (it->second.shape != shape)
+      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + "\" has shape " + shape_text(it->second.shape) +
+                                        "; expected " + shape_text(shape));
+    std::vector<float> v = std::move(it->second.values);
+    file_.tensors.erase(it);
+    return v;
+  }
+
+  Conv3x3 conv(const std::string& prefix, int in, int out, bool bias) {
+    Conv3x3 c;
+    c.in = in;
+    c.out = out;
+    c.weight = take(prefix + ".weight", {out, in, 3, 3});
+    c.bias = bias ? take(prefix + ".bias", {out}) : std::vector<float>(static_cast<size_t>(out), 0.0f);
+    return c;
+  }
+
+  BatchNorm bn(const std::string& prefix, int n, float eps) {
+    BatchNorm b;
+    b.gamma = take(prefix + ".weight", {n});
+    b.beta = take(prefix + ".bias", {n});
+    b.mean = take(prefix + ".running_mean", {n});
+    b.var = take(prefix + ".running_var", {n});
+    b.eps = eps;
+    return b;
+  }
+
+  void expect_empty() const {
+    if (!file_.tensors.empty())
+      throw Error(ErrorKind::Input, where_ + ": unexpected tensor \"" + file_.tensors.begin()->first +
+                                        "\" (not part of the architecture its metadata describes)");
+  }
+
+ private:
+  SafetensorsFile& file_;
+  std::string where_;
+};
+
+int metadata_int(const std::map<std::string, std::string>& m, const std::string& key, const std::string& where) {
+  auto it = m.find(key);
+  if (it == m.end()) throw Error(ErrorKind::Input, where + ": metadata \"" + key + "\" is missing");
+  try {
+    size_t used = 0;
+    const int v = std::stoi(it->second, &used);
+    if (used == it->second.size() && v > 0) return v;
+  } catch (const std::exception&) {
+  }
+  throw Error(ErrorKind::Input, where + ": metadata \"" + key + "\" = \"" + it->second + "\" is not a positive integer");
+}
+
+}  // namespace
+
+Model load_model(const std::filesystem::path& path) {
+  const std::string where = "model file '" + path.string() + "'";
+  SafetensorsFile file = read_safetensors(path);
+  const auto& md = file.metadata;
+  if (md.count("residue.format") == 0 || md.at("residue.format") != "1")
+    throw Error(ErrorKind::Input, where + ": not a Residue model (metadata residue.format = \"1\" expected)");
+  Architecture arch;
+  arch.blocks = metadata_int(md, "residue.blocks", where);
+  arch.width = metadata_int(md, "residue.width", where);
+  const auto features = md.count("residue.features") ? feature_set_from_string(md.at("residue.features")) : std::nullopt;
+  if (!features)
+    throw Error(ErrorKind::Input, where + ": metadata \"residue.features\" must be full, color+albedo+normal or color");
+  arch.features = *features;
+  const float eps = md.count("residue.bn_eps") ? std::stof(md.at("residue.bn_eps")) : kBnEps;
+
+  Model m;
+  m.path = path.string();
+  m.metadata = md;
+  m.name = md.count("name") ? md.at("name") : path.stem().string();
+  Network& n = m.network;
+  n.arch = arch;
+  const int w = arch.width;
+  TensorReader r(file, where);
+  n.head = r.conv("head.conv", arch.in_channels(), w, true);
+  n.head_prelu = r.take("head.prelu.weight", {w});
+  for (int b = 0; b < arch.blocks; ++b) {
+    const std::string p = "blocks." + std::to_string(b);
+    ResBlock blk;
+    blk.conv1 = fold_batch_norm(r.conv(p + ".conv1", w, w, false), r.bn(p + ".bn1", w, eps));
+    blk.prelu = r.take(p + ".prelu.weight", {w});
+    blk.conv2 = fold_batch_norm(r.conv(p + ".conv2", w, w, false), r.bn(p + ".bn2", w, eps));
+    n.blocks.push_back(std::move(blk));
+  }
+  n.tail = fold_batch_norm(r.conv("tail.conv", w, w, false), r.bn("tail.bn", w, eps));
+  n.out = r.conv("out.conv", w, 3, true);
+  r.expect_empty();
+  return m;
+}
+
+std::filesystem::path find_model(const std::string& name_or_path) {
+  if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
+  std::vector<std::filesystem::path> dirs;
+  if (const char* env = std::getenv("RESIDUE_MODEL_PATH")) dirs.emplace_back(env);
+  dirs.emplace_back(std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "models");
+  dirs.emplace_back(std::filesystem::path(RESIDUE_INSTALL_DATADIR) / "models");
+  std::string looked;
+  for (const auto& d : dirs) {
+    const auto candidate = d / (name_or_path + ".safetensors");
+    if (std::filesystem::is_regular_file(candidate)) return candidate;
+    looked += " " + d.string();
+  }
+  throw Error(ErrorKind::Input, "model \"" + name_or_path + "\" is neither a file nor a model name found in:" + looked);
+}
+
+SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::string> metadata) {
+  SafetensorsFile f;
+  f.metadata = std::move(metadata);
+  f.metadata["residue.format"] = "1";
+  f.metadata["residue.blocks"] = std::to_string(n.arch.blocks);
+  f.metadata["residue.width"] = std::to_string(n.arch.width);
+  f.metadata["residue.features"] = to_string(n.arch.features);
+  f.metadata["residue.bn_eps"] = "0";
+  const int64_t w = n.arch.width;
+  auto put = [&](const std::string& name, std::vector<int64_t> shape, const std::vector<float>& v) {
+    f.tensors[name] = Tensor{"F32", std::move(shape), v};
+  };
+  auto conv = [&](const std::string& p, const Conv3x3& c, bool bias) {
+    put(p + ".weight", {c.out, c.in, 3, 3}, c.weight);
+    if (bias) put(p + ".bias", {c.out}, c.bias);
+  };
+  // The weights are folded already: batch norm becomes identity with the conv's bias as its beta (eps 0).
+  auto bn = [&](const std::string& p, const Conv3x3& c) {
+    put(p + ".weight", {w}, std::vector<float>(static_cast<size_t>(w), 1.0f));
+    put(p + ".bias", {w}, c.bias);
+    put(p + ".running_mean", {w}, std::vector<float>(static_cast<size_t>(w), 0.0f));
+    put(p + ".running_var", {w}, std::vector<float>(static_cast<size_t>(w), 1.0f));
+  };
+  conv("head.conv", n.head, true);
+  put("head.prelu.weight", {w}, n.head_prelu);
+  for (size_t b = 0; b < n.blocks.size(); ++b) {
+    const std::string p = "blocks." + std::to_string(b);
+    conv(p + ".conv1", n.blocks[b].conv1, false);
+    bn(p + ".bn1", n.blocks[b].conv1);
+    put(p + ".prelu.weight", {w}, n.blocks[b].prelu);
+    conv(p + ".conv2", n.blocks[b].conv2, false);
+    bn(p + ".bn2", n.blocks[b].conv2);
+  }
+  conv("tail.conv", n.tail, false);
+  bn("tail.bn", n.tail);
+  conv("out.conv", n.out, true);
+  return f;
+}
+
+}  // namespace residue::nn
