@@ -1,7 +1,10 @@
 #include "cli_common.h"
 
+#include <cmath>
+#include <cstdio>
 #include <sstream>
 
+#include "core/metrics/metrics.h"
 #include "core/util/error.h"
 
 namespace residue::cli {
@@ -49,6 +52,29 @@ Rect parse_roi(const std::string& text) {
       !in.eof() || r.width <= 0 || r.height <= 0 || r.x < 0 || r.y < 0)
     throw CLI::ValidationError("--roi", "expected x,y,w,h with w,h > 0 and x,y >= 0; got \"" + text + "\"");
   return r;
+}
+
+static std::string format_psnr(double psnr) {
+  if (std::isinf(psnr)) return "inf";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3f", psnr);
+  return buf;
+}
+
+void print_metrics_table(const io::MetricsReport& report) {
+  std::printf("reference  %s (%lldx%lld)\n", display_path(report.reference_file).c_str(),
+              static_cast<long long>(report.width), static_cast<long long>(report.height));
+  std::printf("region     %s\n\n",
+              report.options.roi ? ("ROI " + report.options.roi->to_string()).c_str() : "whole image");
+  std::printf("%-10s %12s %12s %10s %9s %10s %10s\n", "image", "relMSE", "MSE", "PSNR dB", "SSIM", "pixels",
+              "excluded");
+  for (const auto& row : report.rows) {
+    const auto& s = row.scores;
+    std::printf("%-10s %12.6g %12.6g %10s %9.5f %10lld %10lld\n", row.name.c_str(), s.relmse, s.mse,
+                format_psnr(s.psnr).c_str(), s.ssim, static_cast<long long>(s.pixels),
+                static_cast<long long>(s.excluded_test + s.excluded_reference));
+  }
+  std::printf("\n%s\n", metrics::formula_text(report.options).c_str());
 }
 
 std::string display_path(const std::string& path) {

@@ -10,6 +10,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "core/image/image.h"
+#include "core/io/metrics_report.h"
 
 namespace residue::cli {
 
@@ -38,6 +39,9 @@ struct InputOptions {
 
 // "x,y,w,h" -> Rect; throws CLI::ValidationError on a malformed one.
 Rect parse_roi(const std::string& text);
+
+// The metrics table residue-cli prints (eval, denoise), with the formula under it.
+void print_metrics_table(const io::MetricsReport& report);
 
 // A path relative to the current folder when that is shorter, for tidy tables.
 std::string display_path(const std::string& path);

@@ -29,29 +29,6 @@ struct EvalOptions {
   bool force = false;
 };
 
-std::string format_psnr(double psnr) {
-  if (std::isinf(psnr)) return "inf";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.3f", psnr);
-  return buf;
-}
-
-void print_table(const io::MetricsReport& report) {
-  std::printf("reference  %s (%lldx%lld)\n", display_path(report.reference_file).c_str(),
-              static_cast<long long>(report.width), static_cast<long long>(report.height));
-  std::printf("region     %s\n\n",
-              report.options.roi ? ("ROI " + report.options.roi->to_string()).c_str() : "whole image");
-  std::printf("%-10s %12s %12s %10s %9s %10s %10s\n", "image", "relMSE", "MSE", "PSNR dB", "SSIM", "pixels",
-              "excluded");
-  for (const auto& row : report.rows) {
-    const auto& s = row.scores;
-    std::printf("%-10s %12.6g %12.6g %10s %9.5f %10lld %10lld\n", row.name.c_str(), s.relmse, s.mse,
-                format_psnr(s.psnr).c_str(), s.ssim, static_cast<long long>(s.pixels),
-                static_cast<long long>(s.excluded_test + s.excluded_reference));
-  }
-  std::printf("\n%s\n", metrics::formula_text(report.options).c_str());
-}
-
 void write_maps(const EvalOptions& o, const std::string& name, const Image& test, const Image& reference,
                 const metrics::Options& mopts) {
   const auto colormap = colormap_from_string(o.colormap);
@@ -111,7 +88,7 @@ int run(const EvalOptions& o) {
   if (!o.metrics_out.empty()) io::write_metrics(o.metrics_out, report, o.force);
 
   if (o.json) std::cout << io::to_json(report) << "\n";
-  else print_table(report);
+  else print_metrics_table(report);
   return kOk;
 }
 

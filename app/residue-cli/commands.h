@@ -15,5 +15,6 @@ struct Command {
 
 Command add_info_command(CLI::App& app);
 Command add_eval_command(CLI::App& app);
+Command add_denoise_command(CLI::App& app);
 
 }  // namespace residue::cli

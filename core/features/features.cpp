@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cfloat>
 #include <cmath>
+#include <vector>
 
 #include <tbb/parallel_for.h>
 
@@ -26,16 +27,20 @@ float expand_color(float y) {
 FeatureStats compute_feature_stats(const AovStack& stack) {
   FeatureStats s;
   if (stack.depth) {
-    double sum = 0;
-    int64_t n = 0;
+    // The median of the hit depths (a strided sample of at most ~1M pixels), rounded to 1/8 octave: robust to
+    // outliers, and one odd pixel almost never moves it, so bad pixels stay local (their receptive field).
     const Image& d = stack.depth->image;
-    for (int64_t y = 0; y < d.height(); ++y)
-      for (float v : d.row(y))
-        if (std::isfinite(v) && v > 0) {
-          sum += v;
-          ++n;
-        }
-    if (n > 0 && sum > 0) s.depth_mean = sum / static_cast<double>(n);
+    const int64_t stride = std::max<int64_t>(1, d.pixel_count() / (int64_t{1} << 20));
+    std::vector<float> hits;
+    for (int64_t i = 0; i < d.pixel_count(); i += stride) {
+      const float v = d.data()[i];
+      if (std::isfinite(v) && v > 0) hits.push_back(v);
+    }
+    if (!hits.empty()) {
+      auto mid = hits.begin() + static_cast<std::ptrdiff_t>(hits.size() / 2);
+      std::nth_element(hits.begin(), mid, hits.end());
+      s.depth_scale = std::exp2(std::round(std::log2(static_cast<double>(*mid)) * 8.0) / 8.0);
+    }
   }
   if (stack.normal && stack.normal_space == NormalSpace::World && stack.world_to_camera) {
     s.rotate_normals = true;
@@ -73,7 +78,7 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
   const int channels = feature_channels(set);
   if (out.width() != rect.width || out.height() != rect.height || out.channels() != channels)
     out = Image(rect.width, rect.height, channels);
-  const float inv_depth_mean = static_cast<float>(1.0 / stats.depth_mean);
+  const float inv_depth_mean = static_cast<float>(1.0 / stats.depth_scale);
   const auto& r = stats.normal_rotation;
   tbb::parallel_for(int64_t{0}, rect.height, [&](int64_t y) {
     const int64_t sy = rect.y + y;

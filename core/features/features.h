@@ -3,7 +3,8 @@
 //
 // Planes, in order (FeatureSet says which are present):
 //   colour  log(1 + c)                       c sanitised: NaN/Inf/negative -> 0
-//   depth   log(1 + d / mean depth of hits)  background (0) stays 0; per-image mean, so units do not matter
+//   depth   log(1 + d / depth scale)         background (0) stays 0; the scale is the median hit depth rounded
+//                                            to 1/8 octave, per image, so units do not matter
 //   normal  view-space x, y                  world-space normals rotated by the camera when it is known;
 //                                            non-finite -> 0, clamped to [-1, 1]
 //   albedo  log(1 + a)                       a sanitised like colour; log keeps emissive albedo (> 1) bounded
@@ -21,7 +22,7 @@ namespace residue {
 
 // Whole-image statistics the features need, computed once so that every tile sees the same normalisation.
 struct FeatureStats {
-  double depth_mean = 1.0;  // mean depth over pixels with depth > 0 (1 when none)
+  double depth_scale = 1.0;  // median depth of hits, rounded to 1/8 octave (1 when none)
   bool rotate_normals = false;  // world-space normals and a known camera
   std::array<double, 9> normal_rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};  // world -> camera, row-major 3x3
 };

@@ -1,0 +1,153 @@
+// residue-cli denoise: an AOV stack in, a denoised EXR out (atomic, never replacing without --force), with a
+// progress bar on a terminal, plain lines otherwise, and metrics when a reference is known.
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <memory>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "core/denoise/denoiser.h"
+#include "core/io/exr_writer.h"
+#include "core/metrics/metrics.h"
+#include "core/util/error.h"
+
+namespace residue::cli {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_interrupt(int) { g_interrupted = true; }
+
+struct DenoiseCliOptions {
+  InputOptions input;
+  std::string output;
+  std::string model;
+  std::string backend;
+  std::string precision = "fp32";
+  int64_t tile = 0;
+  int threads = 0;
+  std::string roi;
+  size_t max_memory_mib = 4096;
+  bool no_skip = false;
+  bool float_output = false;
+  std::string compression = "zip";
+  bool force = false;
+};
+
+// Draws "[#####.....] 12/40 tiles" on a terminal, or one line per ~10% otherwise.
+class ProgressReporter {
+ public:
+  ProgressReporter() : tty_(isatty(STDERR_FILENO) != 0) {}
+  void tile(const TileEvent& e) {
+    if (tty_) {
+      const int width = 30;
+      const int filled = static_cast<int>(width * e.done / std::max<int64_t>(1, e.total));
+      std::fprintf(stderr, "\r[%s%s] %lld/%lld tiles", std::string(static_cast<size_t>(filled), '#').c_str(),
+                   std::string(static_cast<size_t>(width - filled), '.').c_str(), static_cast<long long>(e.done),
+                   static_cast<long long>(e.total));
+      if (e.done == e.total) std::fprintf(stderr, "\n");
+    } else if (e.done == e.total || e.done * 10 / e.total != (e.done - 1) * 10 / e.total) {
+      std::fprintf(stderr, "denoise: %lld/%lld tiles\n", static_cast<long long>(e.done), static_cast<long long>(e.total));
+    }
+  }
+
+ private:
+  bool tty_;
+};
+
+int run(const DenoiseCliOptions& o) {
+  if (std::filesystem::exists(o.output) && !o.force)
+    throw Error(ErrorKind::Output, "output '" + o.output + "' exists; pass --force to replace it");
+  const AovStack stack = o.input.load();
+  const nn::Model model = nn::load_model(nn::find_model(o.model));
+
+  DenoiseOptions d;
+  d.backend = o.backend;
+  d.precision = o.precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+  d.tile = o.tile;
+  d.threads = o.threads;
+  d.max_memory = o.max_memory_mib << 20;
+  d.skip_empty_tiles = !o.no_skip;
+  if (!o.roi.empty()) d.roi = parse_roi(o.roi);
+
+  ProgressReporter progress;
+  g_interrupted = false;
+  std::signal(SIGINT, on_interrupt);
+  DenoiseStats stats;
+  Image denoised;
+  try {
+    denoised = denoise(stack, model, d, [&](const TileEvent& e, const Image&) {
+      progress.tile(e);
+      return !g_interrupted.load();
+    }, &stats);
+  } catch (const Cancelled&) {
+    std::fprintf(stderr, "\ndenoise: interrupted; nothing was written\n");
+    return 130;
+  }
+  std::signal(SIGINT, SIG_DFL);
+
+  io::ExrWriteOptions w;
+  w.pixel_type = o.float_output ? io::PixelType::Float : io::PixelType::Half;
+  w.compression = o.compression;
+  w.metadata = stack.metadata;
+  w.data_window = stack.data_window;
+  w.display_width = stack.display_width;
+  w.display_height = stack.display_height;
+  w.overwrite = o.force;
+  w.residue_attributes.attribute("residue:version", RESIDUE_VERSION);
+  w.residue_attributes.attribute("residue:model", model.name);
+  w.residue_attributes.attribute("residue:architecture", model.network.arch.to_string());
+  w.residue_attributes.attribute("residue:backend", stats.backend);
+  w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
+  w.residue_attributes.attribute("residue:source", stack.color.source.file);
+  io::write_exr(o.output, denoised, w);
+
+  const double megapixels = static_cast<double>(d.roi ? d.roi->area() : stack.width() * stack.height()) / 1e6;
+  std::printf("wrote      %s\n", display_path(o.output).c_str());
+  std::printf("model      %s (%s)\n", model.name.c_str(), model.network.arch.to_string().c_str());
+  std::printf("backend    %s\n", stats.backend.c_str());
+  std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
+              stats.seconds / megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
+              static_cast<long long>(stats.skipped));
+  if (stack.reference) {
+    metrics::Options m;
+    m.roi = d.roi;
+    io::MetricsReport report{stack.reference->source.file, stack.width(), stack.height(), m, {}};
+    report.rows.push_back({"noisy", stack.color.source.file, metrics::compare(stack.color.image, stack.reference->image, m)});
+    report.rows.push_back({"denoised", o.output, metrics::compare(denoised, stack.reference->image, m)});
+    std::printf("\n");
+    print_metrics_table(report);
+  }
+  return kOk;
+}
+
+}  // namespace
+
+Command add_denoise_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("denoise", "Denoise a render with a residual-network model and write an EXR");
+  auto o = std::make_shared<DenoiseCliOptions>();
+  o->input.add_to(*cmd, true);
+  cmd->add_option("-o,--output", o->output, "The denoised EXR to write")->required();
+  cmd->add_option("-m,--model", o->model, "A model name (see resources/models) or a .safetensors file")->required();
+  cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest available)")
+      ->check(CLI::IsMember(nn::available_backends()));
+  cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"fp32", "bf16"}));
+  cmd->add_option("--tile", o->tile, "Tile edge in pixels, without the halo (default: the largest within --max-memory)")
+      ->check(CLI::Range(int64_t{16}, int64_t{1} << 20));
+  cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));
+  cmd->add_option("--roi", o->roi, "Denoise only the rectangle x,y,w,h; elsewhere the noisy colour is kept");
+  cmd->add_option("--max-memory", o->max_memory_mib, "Memory for tiles and the output, in MiB")
+      ->capture_default_str()
+      ->check(CLI::Range(size_t{16}, size_t{1} << 24));
+  cmd->add_flag("--no-skip", o->no_skip, "Run the network on empty (all-black) tiles too");
+  cmd->add_flag("--float", o->float_output, "Write 32-bit float channels (default: half)");
+  cmd->add_option("--compression", o->compression, "EXR compression (zip, piz, dwaa, none, ...)")->capture_default_str();
+  cmd->add_flag("-f,--force", o->force, "Replace the output if it exists");
+  return {cmd, [o]() { return run(*o); }};
+}
+
+}  // namespace residue::cli

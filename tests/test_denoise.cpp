@@ -1,0 +1,487 @@
+// Features, model files, tiled inference and the job API.
+#include <cfloat>
+#include <chrono>
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include <gtest/gtest.h>
+#include <OpenImageIO/imagebuf.h>
+
+#include "core/aov/aov_loader.h"
+#include "core/denoise/denoise_job.h"
+#include "core/denoise/denoiser.h"
+#include "core/features/features.h"
+#include "core/nn/model_file.h"
+#include "core/util/error.h"
+#include "support/reference_network.h"
+#include "support/test_support.h"
+
+namespace residue {
+namespace {
+
+using testing::random_image;
+using testing::TempDir;
+
+const float kNan = std::numeric_limits<float>::quiet_NaN();
+const float kInf = std::numeric_limits<float>::infinity();
+
+// A stack with every AOV, random but plausible values.
+AovStack make_stack(int64_t w, int64_t h, unsigned seed) {
+  AovStack s;
+  s.convention = "test";
+  s.color.image = random_image(w, h, 3, seed, 0.0f, 4.0f);
+  s.color.source.file = "test.exr";
+  s.albedo = Aov{random_image(w, h, 3, seed + 1, 0.0f, 1.0f), {}, {}, 0};
+  s.normal = Aov{random_image(w, h, 3, seed + 2, -1.0f, 1.0f), {}, {}, 0};
+  s.depth = Aov{random_image(w, h, 1, seed + 3, 1.0f, 10.0f), {}, {}, 0};
+  s.normal_space = NormalSpace::Camera;
+  s.data_window = {0, 0, w, h};
+  s.display_width = w;
+  s.display_height = h;
+  return s;
+}
+
+nn::Model small_model(FeatureSet set = FeatureSet::Full, int blocks = 2, int width = 8, uint32_t seed = 1) {
+  nn::Model m;
+  m.name = "test";
+  m.network = nn::random_network({blocks, width, set}, seed);
+  return m;
+}
+
+double max_rel_diff(const Image& a, const Image& b) {
+  double scale = 1e-6, err = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    scale = std::max(scale, static_cast<double>(std::abs(b.data()[i])));
+    err = std::max(err, static_cast<double>(std::abs(a.data()[i] - b.data()[i])));
+  }
+  return err / scale;
+}
+
+bool all_finite_nonnegative(const Image& img) {
+  for (size_t i = 0; i < img.size(); ++i)
+    if (!std::isfinite(img.data()[i]) || img.data()[i] < 0) return false;
+  return true;
+}
+
+DenoiseOptions eigen_options(int64_t tile) {
+  DenoiseOptions o;
+  o.backend = "eigen";
+  o.tile = tile;
+  o.skip_empty_tiles = false;
+  return o;
+}
+
+// --- features --------------------------------------------------------------------------------------------
+
+TEST(Features, ColourTransformAndInverse) {
+  for (float c : {0.0f, 1e-6f, 0.5f, 1.0f, 100.0f, 1e4f, 1e8f})
+    EXPECT_NEAR(expand_color(compress_color(c)), c, 1e-5 * std::max(1.0f, c)) << c;
+  EXPECT_EQ(compress_color(kNan), 0.0f);
+  EXPECT_EQ(compress_color(kInf), 0.0f);
+  EXPECT_EQ(compress_color(-3.0f), 0.0f);
+  EXPECT_FLOAT_EQ(compress_color(FLT_MAX), std::log1p(FLT_MAX));
+  EXPECT_EQ(expand_color(-5.0f), 0.0f);
+  EXPECT_EQ(expand_color(kNan), 0.0f);
+  EXPECT_TRUE(std::isfinite(expand_color(1e30f)));
+  EXPECT_TRUE(std::isfinite(expand_color(kInf)));
+}
+
+TEST(Features, PlanesInPaperOrder) {
+  AovStack s = make_stack(4, 3, 5);
+  s.depth->image.at(1, 1) = 0.0f;  // background
+  const FeatureStats stats = compute_feature_stats(s);
+  std::vector<float> hits;
+  for (size_t i = 0; i < s.depth->image.size(); ++i)
+    if (s.depth->image.data()[i] > 0) hits.push_back(s.depth->image.data()[i]);
+  std::sort(hits.begin(), hits.end());
+  const double median = hits[hits.size() / 2];
+  EXPECT_NEAR(std::log2(stats.depth_scale), std::log2(median), 1.0 / 16 + 1e-12) << "within 1/16 octave of the median";
+  EXPECT_DOUBLE_EQ(std::log2(stats.depth_scale) * 8, std::round(std::log2(stats.depth_scale) * 8));
+  Image f;
+  make_features(s, FeatureSet::Full, stats, {1, 0, 3, 3}, f);
+  ASSERT_EQ(f.channels(), 9);
+  // Pixel (0,1) of the feature image is (1,1) of the stack.
+  EXPECT_FLOAT_EQ(f.at(0, 1, 0), std::log1p(s.color.image.at(1, 1, 0)));
+  EXPECT_EQ(f.at(0, 1, 3), 0.0f) << "background depth stays 0";
+  EXPECT_FLOAT_EQ(f.at(1, 1, 3), static_cast<float>(std::log1p(s.depth->image.at(2, 1) / stats.depth_scale)));
+  EXPECT_FLOAT_EQ(f.at(1, 2, 4), s.normal->image.at(2, 2, 0));
+  EXPECT_FLOAT_EQ(f.at(1, 2, 5), s.normal->image.at(2, 2, 1));
+  EXPECT_FLOAT_EQ(f.at(2, 0, 8), std::log1p(s.albedo->image.at(3, 0, 2)));
+  make_features(s, FeatureSet::ColorAlbedoNormal, stats, {0, 0, 4, 3}, f);
+  EXPECT_EQ(f.channels(), 8);
+  EXPECT_FLOAT_EQ(f.at(2, 2, 3), s.normal->image.at(2, 2, 0));
+}
+
+TEST(Features, WorldNormalsRotatedByTheCamera) {
+  AovStack s = make_stack(1, 1, 2);
+  s.normal_space = NormalSpace::World;
+  // A camera rotated 90 degrees about world z: world +x maps to camera +y.
+  s.world_to_camera = std::array<double, 16>{0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+  s.normal->image.at(0, 0, 0) = 1;
+  s.normal->image.at(0, 0, 1) = 0;
+  s.normal->image.at(0, 0, 2) = 0;
+  const FeatureStats stats = compute_feature_stats(s);
+  EXPECT_TRUE(stats.rotate_normals);
+  Image f;
+  make_features(s, FeatureSet::Full, stats, {0, 0, 1, 1}, f);
+  EXPECT_NEAR(f.at(0, 0, 4), 0.0f, 1e-7);
+  EXPECT_NEAR(f.at(0, 0, 5), 1.0f, 1e-7);
+}
+
+TEST(Features, MissingAovNamesWhatIsMissing) {
+  AovStack s = make_stack(2, 2, 1);
+  s.depth.reset();
+  EXPECT_EQ(feature_set_for(s), FeatureSet::ColorAlbedoNormal);
+  try {
+    check_features_available(s, FeatureSet::Full);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find("depth"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("color+albedo+normal"), std::string::npos) << e.what();
+  }
+  s.albedo.reset();
+  EXPECT_EQ(feature_set_for(s), FeatureSet::ColorOnly);
+}
+
+// --- model files -------------------------------------------------------------------------------------------
+
+TEST(ModelFile, RoundTripKeepsEveryWeight) {
+  TempDir tmp;
+  const nn::Network net = nn::random_network({3, 16, FeatureSet::ColorAlbedoNormal}, 9);
+  nn::write_safetensors(tmp / "m.safetensors", nn::to_safetensors(net, {{"name", "tiny-test"}}), false);
+  const nn::Model m = nn::load_model(tmp / "m.safetensors");
+  EXPECT_EQ(m.name, "tiny-test");
+  EXPECT_EQ(m.network.arch.blocks, 3);
+  EXPECT_EQ(m.network.arch.features, FeatureSet::ColorAlbedoNormal);
+  EXPECT_EQ(m.network.head.weight, net.head.weight);
+  EXPECT_EQ(m.network.blocks[2].conv2.weight, net.blocks[2].conv2.weight);
+  EXPECT_EQ(m.network.blocks[1].conv1.bias, net.blocks[1].conv1.bias);
+  EXPECT_EQ(m.network.tail.bias, net.tail.bias);
+  EXPECT_EQ(m.network.out.weight, net.out.weight);
+  // And it refuses to overwrite.
+  EXPECT_THROW(nn::write_safetensors(tmp / "m.safetensors", nn::to_safetensors(net), false), Error);
+}
+
+TEST(ModelFile, BatchNormIsFoldedOnLoad) {
+  TempDir tmp;
+  const nn::Network net = nn::random_network({1, 4, FeatureSet::ColorOnly}, 4);
+  nn::SafetensorsFile f = nn::to_safetensors(net);
+  f.metadata["residue.bn_eps"] = "0.001";
+  f.tensors["tail.bn.weight"].values = {2.0f, 0.5f, 1.0f, 3.0f};
+  f.tensors["tail.bn.running_mean"].values = {0.1f, -0.2f, 0.3f, 0.0f};
+  f.tensors["tail.bn.running_var"].values = {4.0f, 1.0f, 0.25f, 9.0f};
+  nn::write_safetensors(tmp / "bn.safetensors", f, false);
+  const nn::Model m = nn::load_model(tmp / "bn.safetensors");
+  const Image x = random_image(3, 3, 4, 1, -1, 1);
+  const auto folded = testing::naive_conv3x3(testing::to_tensor(x), m.network.tail);
+  const auto raw = testing::naive_conv3x3(testing::to_tensor(x), net.tail);  // includes bias (= beta here)
+  for (size_t i = 0; i < raw.v.size(); ++i) {
+    const size_t o = i % 4;
+    const double conv = raw.v[i] - net.tail.bias[o];
+    const double expect = (conv - f.tensors["tail.bn.running_mean"].values[o]) /
+                              std::sqrt(f.tensors["tail.bn.running_var"].values[o] + 0.001) *
+                              f.tensors["tail.bn.weight"].values[o] + net.tail.bias[o];
+    EXPECT_NEAR(folded.v[i], expect, 1e-5);
+  }
+}
+
+std::string load_error(const std::filesystem::path& p) {
+  try {
+    nn::load_model(p);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(ModelFile, ErrorsNameTheFileAndTheTensor) {
+  TempDir tmp;
+  const nn::Network net = nn::random_network({1, 4, FeatureSet::Full}, 2);
+  {
+    auto f = nn::to_safetensors(net);
+    f.tensors["blocks.0.conv9.weight"] = f.tensors["blocks.0.conv1.weight"];
+    f.tensors.erase("blocks.0.conv1.weight");
+    nn::write_safetensors(tmp / "name.safetensors", f, false);
+    const std::string e = load_error(tmp / "name.safetensors");
+    EXPECT_NE(e.find("blocks.0.conv1.weight"), std::string::npos) << e;
+    EXPECT_NE(e.find("name.safetensors"), std::string::npos) << e;
+  }
+  {
+    auto f = nn::to_safetensors(net);
+    f.tensors["head.conv.weight"].shape = {4, 3, 3, 3};
+    f.tensors["head.conv.weight"].values.resize(4 * 3 * 9);
+    nn::write_safetensors(tmp / "shape.safetensors", f, false);
+    const std::string e = load_error(tmp / "shape.safetensors");
+    EXPECT_NE(e.find("[4, 3, 3, 3]"), std::string::npos) << e;
+    EXPECT_NE(e.find("[4, 9, 3, 3]"), std::string::npos) << e;
+  }
+  {
+    auto f = nn::to_safetensors(net);
+    f.tensors["extra.weight"] = nn::Tensor{"F32", {1}, {1.0f}};
+    nn::write_safetensors(tmp / "extra.safetensors", f, false);
+    EXPECT_NE(load_error(tmp / "extra.safetensors").find("unexpected tensor \"extra.weight\""), std::string::npos);
+  }
+  {
+    auto f = nn::to_safetensors(net);
+    f.metadata["residue.features"] = "color";  // the head expects 9 inputs: a wrong feature set
+    nn::write_safetensors(tmp / "features.safetensors", f, false);
+    EXPECT_NE(load_error(tmp / "features.safetensors").find("head.conv.weight"), std::string::npos);
+  }
+  {
+    nn::write_safetensors(tmp / "full.safetensors", nn::to_safetensors(net), false);
+    const auto size = std::filesystem::file_size(tmp / "full.safetensors");
+    std::filesystem::copy_file(tmp / "full.safetensors", tmp / "cut.safetensors");
+    std::filesystem::resize_file(tmp / "cut.safetensors", size - 100);
+    EXPECT_NE(load_error(tmp / "cut.safetensors").find("truncated"), std::string::npos) << load_error(tmp / "cut.safetensors");
+  }
+  {
+    // A dtype Residue does not read: rewrite one tensor's dtype in the header by hand.
+    nn::write_safetensors(tmp / "d.safetensors", nn::to_safetensors(net), false);
+    std::fstream file(tmp / "d.safetensors", std::ios::in | std::ios::out | std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    const auto pos = bytes.find("\"F32\"");
+    ASSERT_NE(pos, std::string::npos);
+    file.seekp(static_cast<std::streamoff>(pos));
+    file.write("\"I32\"", 5);
+    file.close();
+    EXPECT_NE(load_error(tmp / "d.safetensors").find("dtype I32"), std::string::npos) << load_error(tmp / "d.safetensors");
+  }
+  std::ofstream(tmp / "junk.safetensors") << "nonsense";
+  EXPECT_FALSE(load_error(tmp / "junk.safetensors").empty());
+  EXPECT_NE(load_error(tmp / "missing.safetensors").find("missing.safetensors"), std::string::npos);
+}
+
+// --- tiled inference ---------------------------------------------------------------------------------------
+
+TEST(Denoise, TiledEqualsUntiled) {
+  const nn::Model model = small_model();
+  for (auto [w, h] : std::vector<std::pair<int64_t, int64_t>>{{1, 1}, {3, 5}, {40, 33}, {1000, 7}}) {
+    const AovStack s = make_stack(w, h, 3);
+    const Image whole = denoise(s, model, eigen_options(std::max(w, h)));
+    for (int64_t tile : {16, 23}) {
+      DenoiseStats stats;
+      const Image tiled = denoise(s, model, eigen_options(tile), {}, &stats);
+      EXPECT_LT(max_rel_diff(tiled, whole), 1e-5) << w << "x" << h << " tile " << tile;
+      EXPECT_EQ(stats.tiles, ((w + tile - 1) / tile) * ((h + tile - 1) / tile));
+    }
+  }
+}
+
+TEST(Denoise, MatchesTheFloat64ReferenceThroughFeatures) {
+  const nn::Model model = small_model(FeatureSet::Full, 1, 8, 3);
+  const AovStack s = make_stack(9, 7, 8);
+  const Image out = denoise(s, model, eigen_options(4));
+  Image f;
+  make_features(s, FeatureSet::Full, compute_feature_stats(s), {0, 0, 9, 7}, f);
+  const auto ref = testing::naive_forward(model.network, f);
+  for (size_t i = 0; i < ref.v.size(); ++i)
+    EXPECT_NEAR(out.data()[i], expand_color(static_cast<float>(ref.v[i])), 1e-5 * std::max(1.0f, out.data()[i]));
+}
+
+TEST(Denoise, RegionOfInterestOnly) {
+  const nn::Model model = small_model();
+  const AovStack s = make_stack(30, 20, 4);
+  const Image full = denoise(s, model, eigen_options(32));
+  DenoiseOptions o = eigen_options(8);
+  o.roi = Rect{5, 4, 12, 9};
+  const Image part = denoise(s, model, o);
+  for (int64_t y = 0; y < 20; ++y)
+    for (int64_t x = 0; x < 30; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const bool inside = o.roi->contains({x, y, 1, 1});
+        if (inside) {
+          EXPECT_NEAR(part.at(x, y, c), full.at(x, y, c), 1e-5 * std::max(1.0f, full.at(x, y, c)));
+        } else {
+          EXPECT_EQ(part.at(x, y, c), s.color.image.at(x, y, c)) << "outside the ROI the noisy colour stays";
+        }
+      }
+  o.roi = Rect{25, 0, 10, 5};
+  EXPECT_THROW(denoise(s, model, o), Error);
+}
+
+TEST(Denoise, EmptyTilesArePassedThrough) {
+  const nn::Model model = small_model(FeatureSet::Full, 1, 8);  // halo 5
+  AovStack s = make_stack(64, 16, 6);
+  for (int64_t y = 0; y < 16; ++y)
+    for (int64_t x = 0; x < 40; ++x)
+      for (int c = 0; c < 3; ++c) s.color.image.at(x, y, c) = 0.0f;
+  DenoiseOptions o = eigen_options(16);
+  o.skip_empty_tiles = true;
+  DenoiseStats stats;
+  const Image skipped = denoise(s, model, o, {}, &stats);
+  EXPECT_EQ(stats.skipped, 2) << "tiles at x 0-15 and 16-31 see only black within their halo";
+  const Image full = denoise(s, model, eigen_options(16));
+  for (int64_t y = 0; y < 16; ++y) {
+    EXPECT_EQ(skipped.at(3, y, 0), 0.0f);
+    EXPECT_EQ(skipped.at(50, y, 1), full.at(50, y, 1)) << "tiles with content are denoised as usual";
+  }
+}
+
+TEST(Denoise, ExtremeInputsGiveFiniteOutputAndStayLocal) {
+  const nn::Model model = small_model(FeatureSet::Full, 1, 8, 7);  // halo 5
+  const AovStack clean = make_stack(40, 40, 12);
+  const Image clean_out = denoise(clean, model, eigen_options(64));
+  struct Case {
+    const char* name;
+    std::function<void(AovStack&)> spoil;
+  };
+  const std::vector<Case> cases = {
+      {"firefly 1e4", [](AovStack& s) { s.color.image.at(20, 20, 0) = 1e4f; }},
+      {"firefly 1e8", [](AovStack& s) { s.color.image.at(20, 20, 1) = 1e8f; }},
+      {"firefly FLT_MAX", [](AovStack& s) { s.color.image.at(20, 20, 2) = FLT_MAX; }},
+      {"NaN colour", [](AovStack& s) { s.color.image.at(20, 20, 0) = kNan; }},
+      {"Inf colour", [](AovStack& s) { s.color.image.at(20, 20, 1) = kInf; }},
+      {"negative colour", [](AovStack& s) { s.color.image.at(20, 20, 2) = -50.0f; }},
+      {"NaN albedo", [](AovStack& s) { s.albedo->image.at(20, 20, 0) = kNan; }},
+      {"Inf albedo", [](AovStack& s) { s.albedo->image.at(20, 20, 1) = kInf; }},
+      {"NaN normal", [](AovStack& s) { s.normal->image.at(20, 20, 0) = kNan; }},
+      {"zero-length normal", [](AovStack& s) { for (int c = 0; c < 3; ++c) s.normal->image.at(20, 20, c) = 0; }},
+      {"NaN depth", [](AovStack& s) { s.depth->image.at(20, 20) = kNan; }},
+      {"Inf depth", [](AovStack& s) { s.depth->image.at(20, 20) = kInf; }},
+      {"denormal colour", [](AovStack& s) { s.color.image.at(20, 20, 0) = 1e-42f; }},
+  };
+  for (const auto& c : cases) {
+    AovStack s = make_stack(40, 40, 12);
+    c.spoil(s);
+    const Image out = denoise(s, model, eigen_options(64));
+    EXPECT_TRUE(all_finite_nonnegative(out)) << c.name;
+    const int64_t halo = model.network.arch.halo();
+    for (int64_t y = 0; y < 40; ++y)
+      for (int64_t x = 0; x < 40; ++x)
+        if (std::abs(x - 20) > halo || std::abs(y - 20) > halo) {
+          for (int ch = 0; ch < 3; ++ch) {
+            ASSERT_NEAR(out.at(x, y, ch), clean_out.at(x, y, ch), 1e-6f * std::max(1.0f, clean_out.at(x, y, ch)))
+                << c.name << " changed (" << x << "," << y << "), outside the receptive field";
+          }
+        }
+  }
+  // All black, and a fully non-finite image.
+  AovStack black = make_stack(20, 20, 3);
+  for (size_t i = 0; i < black.color.image.size(); ++i) black.color.image.data()[i] = 0;
+  EXPECT_TRUE(all_finite_nonnegative(denoise(black, model, eigen_options(8))));
+  AovStack nan = make_stack(20, 20, 3);
+  for (size_t i = 0; i < nan.color.image.size(); ++i) nan.color.image.data()[i] = kNan;
+  EXPECT_TRUE(all_finite_nonnegative(denoise(nan, model, eigen_options(8))));
+}
+
+TEST(Denoise, MemoryBoundChoosesTheTile) {
+  const nn::Model model = small_model(FeatureSet::Full, 4, 32);
+  auto backend = nn::make_backend("eigen", model.network, {});
+  const int64_t big = tile_for_memory(*backend, model.network.arch, size_t{1} << 30);
+  const int64_t small = tile_for_memory(*backend, model.network.arch, size_t{8} << 20);
+  EXPECT_GT(big, small);
+  EXPECT_GT(small, 0);
+  EXPECT_EQ(tile_for_memory(*backend, model.network.arch, 1024), 0);
+  const AovStack s = make_stack(50, 50, 1);
+  DenoiseOptions o;
+  o.backend = "eigen";
+  o.max_memory = 4096;
+  EXPECT_THROW(denoise(s, model, o), Error);
+}
+
+TEST(Denoise, RealStarterSceneTiledEqualsUntiled) {
+  const auto dir = testing::shared_dataset("cycles-starter/s105");
+  RESIDUE_REQUIRE_SHARED(dir);
+  const AovStack s = load_aov_stack({dir / "noisy_a.exr"});
+  const nn::Model model = small_model(FeatureSet::Full, 2, 16, 5);
+  DenoiseStats stats;
+  const Image tiled = denoise(s, model, eigen_options(100), {}, &stats);
+  const Image whole = denoise(s, model, eigen_options(256));
+  EXPECT_EQ(stats.tiles, 9);
+  EXPECT_LT(max_rel_diff(tiled, whole), 1e-5);
+  EXPECT_TRUE(all_finite_nonnegative(tiled));
+}
+
+// --- the job API -------------------------------------------------------------------------------------------
+
+TEST(DenoiseJob, RunsOnAWorkerAndReportsEveryTile) {
+  auto stack = std::make_shared<AovStack>(make_stack(48, 32, 2));
+  auto model = std::make_shared<nn::Model>(small_model());
+  std::mutex m;
+  Image assembled(48, 32, 3, -1.0f);
+  DenoiseJob job(stack, model, eigen_options(16), [&](const Rect& r, const Image& px) {
+    std::lock_guard lock(m);
+    for (int64_t y = 0; y < r.height; ++y)
+      for (int64_t x = 0; x < r.width; ++x)
+        for (int c = 0; c < 3; ++c) assembled.at(r.x + x, r.y + y, c) = px.at(x, y, c);
+  });
+  job.wait();
+  ASSERT_EQ(job.status(), DenoiseJob::Status::Done) << job.error();
+  EXPECT_EQ(job.progress().done, 6);
+  EXPECT_EQ(job.progress().total, 6);
+  ASSERT_TRUE(job.result().has_value());
+  const Image direct = denoise(*stack, *model, eigen_options(16));
+  EXPECT_EQ(max_rel_diff(*job.result(), direct), 0.0);
+  EXPECT_EQ(max_rel_diff(assembled, direct), 0.0) << "the tiles handed out add up to the result";
+}
+
+TEST(DenoiseJob, CancelStopsAfterTheTileInFlight) {
+  auto stack = std::make_shared<AovStack>(make_stack(256, 256, 2));
+  auto model = std::make_shared<nn::Model>(small_model(FeatureSet::Full, 4, 32));
+  std::atomic<int> tiles_seen{0};
+  DenoiseJob* self = nullptr;
+  DenoiseJob job(stack, model, eigen_options(16), [&](const Rect&, const Image&) {
+    if (++tiles_seen == 2 && self) self->cancel();
+  });
+  self = &job;
+  job.cancel();  // also cancel right away in case the first tiles finished before `self` was set
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_TRUE(job.wait_for(std::chrono::seconds(30)));
+  EXPECT_EQ(job.status(), DenoiseJob::Status::Cancelled);
+  EXPECT_FALSE(job.result().has_value());
+  EXPECT_LE(job.progress().done, 3) << "of 256 tiles";
+  (void)t0;
+}
+
+TEST(DenoiseJob, ErrorsAreValues) {
+  AovStack s = make_stack(8, 8, 1);
+  s.depth.reset();
+  DenoiseJob job(std::make_shared<AovStack>(std::move(s)), std::make_shared<nn::Model>(small_model()), eigen_options(8));
+  job.wait();
+  EXPECT_EQ(job.status(), DenoiseJob::Status::Failed);
+  EXPECT_EQ(job.error_kind(), ErrorKind::Input);
+  EXPECT_NE(job.error().find("depth"), std::string::npos) << job.error();
+}
+
+// --- residue-cli denoise ----------------------------------------------------------------------------------
+
+TEST(CliDenoise, WritesAnExrWithProvenanceAndNeverOverwrites) {
+  TempDir tmp;
+  const auto model_path = tmp / "random.safetensors";
+  nn::write_safetensors(model_path, nn::to_safetensors(nn::random_network({2, 8, FeatureSet::Full}, 1), {{"name", "random-2x8"}}), false);
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  const auto out = tmp / "denoised.exr";
+  std::vector<std::string> args = {"denoise", (ex / "noisy.exr").string(), "-r", (ex / "reference.exr").string(),
+                                   "-o", out.string(), "--model", model_path.string(), "--backend", "eigen", "--tile", "64"};
+  std::string text;
+  ASSERT_EQ(testing::run_cli(args, &text), 0) << text;
+  EXPECT_NE(text.find("per megapixel"), std::string::npos) << text;
+  EXPECT_NE(text.find("denoised"), std::string::npos) << "metrics against the reference: " << text;
+  OIIO::ImageBuf img(out.string());
+  ASSERT_TRUE(img.read());
+  EXPECT_EQ(img.spec().width, 192);
+  EXPECT_EQ(img.spec().nchannels, 3);
+  EXPECT_EQ(img.spec().get_string_attribute("residue:model"), "random-2x8");
+  EXPECT_NE(img.spec().get_string_attribute("residue:backend").find("eigen"), std::string::npos);
+  EXPECT_FALSE(img.spec().get_string_attribute("Note").empty()) << "the source's metadata is kept";
+  const auto before = std::filesystem::last_write_time(out);
+  EXPECT_EQ(testing::run_cli(args, &text), 4) << text;
+  EXPECT_EQ(std::filesystem::last_write_time(out), before);
+  args.push_back("--force");
+  EXPECT_EQ(testing::run_cli(args, &text), 0) << text;
+  // A model that reads AOVs the input lacks: a clear input error.
+  nn::write_safetensors(tmp / "m.safetensors", nn::to_safetensors(nn::random_network({1, 4, FeatureSet::Full}, 1)), false);
+  EXPECT_EQ(testing::run_cli({"denoise", (ex / "reference.exr").string(), "-o", (tmp / "x.exr").string(), "-m",
+                              (tmp / "m.safetensors").string()},
+                             &text),
+            3)
+      << text;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "x.exr"));
+  EXPECT_EQ(testing::run_cli({"denoise", (ex / "noisy.exr").string(), "-o", (tmp / "y.exr").string(), "-m", "no-such-model"}, &text), 3) << text;
+}
+
+}  // namespace
+}  // namespace residue
