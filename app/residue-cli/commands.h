@@ -16,5 +16,6 @@ struct Command {
 Command add_info_command(CLI::App& app);
 Command add_eval_command(CLI::App& app);
 Command add_denoise_command(CLI::App& app);
+Command add_bench_command(CLI::App& app);
 
 }  // namespace residue::cli

@@ -1,0 +1,145 @@
+// residue-cli bench: time per megapixel of each model size x backend x precision x tile size on a synthetic
+// render, as GFLOP/s and as a share of this CPU's fp32 ceiling measured by the same tool (an FMA loop).
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <random>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <tbb/task_arena.h>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "core/denoise/denoiser.h"
+#include "core/util/cpu_peak.h"
+#include "core/util/error.h"
+
+namespace residue::cli {
+namespace {
+
+struct BenchOptions {
+  std::vector<std::string> models = {"4/32", "8/32", "8/64", "16/128"};
+  std::vector<std::string> backends;
+  std::vector<std::string> precisions = {"fp32", "bf16"};
+  std::vector<int64_t> tiles = {256, 512};
+  int64_t size = 512;
+  int threads = 0;
+  int repeat = 2;
+  bool json = false;
+};
+
+nn::Architecture parse_model(const std::string& text) {
+  nn::Architecture a;
+  char slash = 0;
+  std::istringstream in(text);
+  if (!(in >> a.blocks >> slash >> a.width) || slash != '/' || a.blocks <= 0 || a.width <= 0)
+    throw Error(ErrorKind::Usage, "--models: expected BLOCKS/WIDTH such as 16/128, got \"" + text + "\"");
+  return a;
+}
+
+// A synthetic render with every AOV: smooth shapes plus noise, no empty tiles.
+AovStack synthetic_stack(int64_t n) {
+  AovStack s;
+  s.convention = "synthetic";
+  s.color.image = Image(n, n, 3);
+  s.albedo = Aov{Image(n, n, 3), {}, {}, 0};
+  s.normal = Aov{Image(n, n, 3), {}, {}, 0};
+  s.depth = Aov{Image(n, n, 1), {}, {}, 0};
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> noise(0.0f, 1.0f);
+  for (int64_t y = 0; y < n; ++y)
+    for (int64_t x = 0; x < n; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        s.color.image.at(x, y, c) = 0.2f + 0.5f * noise(rng) * static_cast<float>((x / 32 + y / 32 + c) % 3);
+        s.albedo->image.at(x, y, c) = 0.3f + 0.1f * static_cast<float>(c);
+      }
+      s.normal->image.at(x, y, 2) = 1.0f;
+      s.depth->image.at(x, y) = 1.0f + static_cast<float>(x + y) / static_cast<float>(n);
+    }
+  s.data_window = {0, 0, n, n};
+  s.display_width = s.display_height = n;
+  return s;
+}
+
+int run(const BenchOptions& o) {
+  const int threads = o.threads > 0 ? o.threads : tbb::this_task_arena::max_concurrency();
+  const CpuPeak peak = measure_fp32_peak(threads);
+  const AovStack stack = synthetic_stack(o.size);
+  const double megapixels = static_cast<double>(o.size * o.size) / 1e6;
+  const std::vector<std::string> backends = o.backends.empty() ? nn::available_backends() : o.backends;
+
+  nlohmann::json rows = nlohmann::json::array();
+  if (!o.json) {
+    std::printf("fp32 ceiling measured: %.0f GFLOP/s (%s FMA loop, %d threads); image %lldx%lld\n\n", peak.gflops,
+                peak.isa.c_str(), threads, static_cast<long long>(o.size), static_cast<long long>(o.size));
+    std::printf("| model | backend | precision | tile | s / MP | GFLOP/s | %% of fp32 peak | implementation |\n");
+    std::printf("|---|---|---|---|---|---|---|---|\n");
+  }
+  for (const auto& model_text : o.models) {
+    nn::Model model;
+    model.name = model_text;
+    model.network = nn::random_network(parse_model(model_text), 1);
+    const double flops = model.network.arch.flops_per_pixel() * static_cast<double>(o.size * o.size);
+    for (const auto& backend : backends)
+      for (const auto& precision : o.precisions) {
+        if (backend == "eigen" && precision != "fp32") continue;
+        for (int64_t tile : o.tiles) {
+          DenoiseOptions d;
+          d.backend = backend;
+          d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+          d.tile = std::min(tile, o.size);
+          d.threads = threads;
+          d.skip_empty_tiles = false;
+          DenoiseStats best;
+          best.seconds = 1e30;
+          try {
+            for (int r = 0; r < o.repeat; ++r) {
+              DenoiseStats st;
+              denoise(stack, model, d, {}, &st);
+              if (st.seconds < best.seconds) best = st;
+            }
+          } catch (const Error& e) {
+            std::fprintf(stderr, "bench: %s %s %s: %s\n", model_text.c_str(), backend.c_str(), precision.c_str(), e.what());
+            continue;
+          }
+          const double gflops = flops / best.seconds / 1e9;  // useful work: halo recomputation not counted
+          const double share = 100.0 * gflops / peak.gflops;
+          rows.push_back({{"model", model_text}, {"backend", backend}, {"precision", precision}, {"tile", d.tile},
+                          {"seconds_per_megapixel", best.seconds / megapixels}, {"gflops", gflops},
+                          {"percent_of_fp32_peak", share}, {"implementation", best.backend}});
+          if (!o.json)
+            std::printf("| %s | %s | %s | %lld | %.3f | %.0f | %.0f %% | %s |\n", model_text.c_str(), backend.c_str(),
+                        precision.c_str(), static_cast<long long>(d.tile), best.seconds / megapixels, gflops, share,
+                        best.backend.c_str());
+          std::fflush(stdout);
+        }
+      }
+  }
+  if (o.json)
+    std::cout << nlohmann::json{{"fp32_peak_gflops", peak.gflops}, {"peak_isa", peak.isa}, {"threads", threads},
+                                {"image", o.size}, {"rows", rows}}.dump(2)
+              << "\n";
+  else
+    std::printf("\nGFLOP/s counts the network's useful work (%s); the halo each tile recomputes is overhead.\n",
+                "2 x multiply-adds per output pixel");
+  return kOk;
+}
+
+}  // namespace
+
+Command add_bench_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("bench", "Measure seconds per megapixel for model sizes, backends, precisions, tiles");
+  auto o = std::make_shared<BenchOptions>();
+  cmd->add_option("--models", o->models, "Model sizes BLOCKS/WIDTH")->capture_default_str()->delimiter(',');
+  cmd->add_option("--backends", o->backends, "Backends (default: all available)")->delimiter(',');
+  cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
+  cmd->add_option("--tiles", o->tiles, "Tile edges")->capture_default_str()->delimiter(',');
+  cmd->add_option("--size", o->size, "Edge of the square test image")->capture_default_str()->check(CLI::Range(16, 16384));
+  cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));
+  cmd->add_option("--repeat", o->repeat, "Runs per configuration; the fastest counts")->capture_default_str()->check(CLI::Range(1, 100));
+  cmd->add_flag("--json", o->json, "Print JSON instead of a Markdown table");
+  return {cmd, [o]() { return run(*o); }};
+}
+
+}  // namespace residue::cli

@@ -1,0 +1,18 @@
+// This machine's measured fp32 ceiling: an FMA loop on every allowed thread, so benchmark figures can be
+// stated as a share of what the CPU can do rather than of a datasheet number.
+#pragma once
+
+#include <string>
+
+namespace residue {
+
+struct CpuPeak {
+  double gflops = 0;      // fp32 multiply-add rate, all threads, GFLOP/s
+  std::string isa;        // "avx512f", "avx2+fma" or "scalar"
+  int threads = 0;
+};
+
+// Runs for about `seconds` per measurement and reports the best of three.
+CpuPeak measure_fp32_peak(int threads, double seconds = 0.2);
+
+}  // namespace residue
