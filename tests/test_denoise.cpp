@@ -483,5 +483,33 @@ TEST(CliDenoise, WritesAnExrWithProvenanceAndNeverOverwrites) {
   EXPECT_EQ(testing::run_cli({"denoise", (ex / "noisy.exr").string(), "-o", (tmp / "y.exr").string(), "-m", "no-such-model"}, &text), 3) << text;
 }
 
+TEST(CliDenoise, ModelNamePicksTheVariantForTheAovsPresent) {
+  TempDir tmp;
+  nn::write_safetensors(tmp / "fam.safetensors",
+                        nn::to_safetensors(nn::random_network({1, 4, FeatureSet::Full}, 1), {{"name", "fam"}}), false);
+  nn::write_safetensors(tmp / "fam-color.safetensors",
+                        nn::to_safetensors(nn::random_network({1, 4, FeatureSet::ColorOnly}, 2), {{"name", "fam-color"}}),
+                        false);
+  EXPECT_EQ(nn::find_model_for((tmp / "fam.safetensors").string(), FeatureSet::ColorOnly), tmp / "fam.safetensors")
+      << "a path is taken as is";
+  setenv("RESIDUE_MODEL_PATH", tmp.path().c_str(), 1);
+  EXPECT_EQ(nn::find_model_for("fam", FeatureSet::Full), tmp / "fam.safetensors");
+  EXPECT_EQ(nn::find_model_for("fam", FeatureSet::ColorAlbedoNormal), tmp / "fam-color.safetensors")
+      << "no albedo-normal variant: the colour-only one, never zeros for depth";
+  EXPECT_THROW(nn::find_model_for("other", FeatureSet::Full), Error);
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  std::string text;
+  // The reference file has only colour: the colour-only variant runs.
+  ASSERT_EQ(testing::run_cli({"denoise", (ex / "reference.exr").string(), "-o", (tmp / "c.exr").string(), "-m", "fam",
+                              "--backend", "eigen"},
+                             &text),
+            0)
+      << text;
+  OIIO::ImageBuf img((tmp / "c.exr").string());
+  ASSERT_TRUE(img.read());
+  EXPECT_EQ(img.spec().get_string_attribute("residue:model"), "fam-color");
+  unsetenv("RESIDUE_MODEL_PATH");
+}
+
 }  // namespace
 }  // namespace residue

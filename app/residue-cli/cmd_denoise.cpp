@@ -10,6 +10,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/denoise/denoiser.h"
+#include "core/features/features.h"
 #include "core/io/exr_writer.h"
 #include "core/metrics/metrics.h"
 #include "core/util/error.h"
@@ -61,7 +62,8 @@ int run(const DenoiseCliOptions& o) {
   if (std::filesystem::exists(o.output) && !o.force)
     throw Error(ErrorKind::Output, "output '" + o.output + "' exists; pass --force to replace it");
   const AovStack stack = o.input.load();
-  const nn::Model model = nn::load_model(nn::find_model(o.model));
+  // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
+  const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(stack)));
 
   DenoiseOptions d;
   d.backend = o.backend;

@@ -115,19 +115,52 @@ Model load_model(const std::filesystem::path& path) {
   return m;
 }
 
-std::filesystem::path find_model(const std::string& name_or_path) {
-  if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
+namespace {
+std::vector<std::filesystem::path> model_dirs() {
   std::vector<std::filesystem::path> dirs;
   if (const char* env = std::getenv("RESIDUE_MODEL_PATH")) dirs.emplace_back(env);
   dirs.emplace_back(std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "models");
   dirs.emplace_back(std::filesystem::path(RESIDUE_INSTALL_DATADIR) / "models");
+  return dirs;
+}
+}  // namespace
+
+std::filesystem::path find_model(const std::string& name_or_path) {
+  if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
   std::string looked;
-  for (const auto& d : dirs) {
+  for (const auto& d : model_dirs()) {
     const auto candidate = d / (name_or_path + ".safetensors");
     if (std::filesystem::is_regular_file(candidate)) return candidate;
     looked += " " + d.string();
   }
   throw Error(ErrorKind::Input, "model \"" + name_or_path + "\" is neither a file nor a model name found in:" + looked);
+}
+
+std::string model_variant_name(const std::string& family, FeatureSet set) {
+  switch (set) {
+    case FeatureSet::Full: return family;
+    case FeatureSet::ColorAlbedoNormal: return family + "-albedo-normal";
+    case FeatureSet::ColorOnly: return family + "-color";
+  }
+  return family;
+}
+
+std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available) {
+  if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
+  std::vector<FeatureSet> usable;
+  for (FeatureSet s : {FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly})
+    if (feature_channels(s) <= feature_channels(available)) usable.push_back(s);  // the sets nest: 9 > 8 > 3
+  std::string tried;
+  for (FeatureSet s : usable) {
+    const std::string name = model_variant_name(name_or_path, s);
+    for (const auto& d : model_dirs())
+      if (std::filesystem::is_regular_file(d / (name + ".safetensors"))) return d / (name + ".safetensors");
+    tried += (tried.empty() ? "" : ", ") + name;
+  }
+  std::string looked;
+  for (const auto& d : model_dirs()) looked += " " + d.string();
+  throw Error(ErrorKind::Input, "no model "" + name_or_path + "" for the AOVs this render has (tried " + tried +
+                                    ") in:" + looked);
 }
 
 SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::string> metadata) {

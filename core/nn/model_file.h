@@ -15,6 +15,7 @@
 #include <map>
 #include <string>
 
+#include "core/features/feature_set.h"
 #include "core/nn/network.h"
 #include "core/nn/safetensors.h"
 
@@ -34,6 +35,13 @@ Model load_model(const std::filesystem::path& path);
 // `name_or_path`: an existing file, or a model name looked up in $RESIDUE_MODEL_PATH, the source tree's
 // resources/models and <prefix>/share/residue/models. Throws Error(Input) listing where it looked.
 std::filesystem::path find_model(const std::string& name_or_path);
+
+// A model *name* names a family of variants, one per feature set: NAME (full), NAME-albedo-normal, NAME-color.
+// Returns the richest variant that exists and that a stack able to feed `available` can use, so a render
+// without depth (or without any AOV) gets the model trained for what it has instead of zeros.
+// A path is returned as is. Throws Error(Input) listing what was looked for.
+std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available);
+std::string model_variant_name(const std::string& family, FeatureSet set);
 
 // A network as a model file's tensors (batch norm written as identity: the weights are already folded).
 SafetensorsFile to_safetensors(const Network& network, std::map<std::string, std::string> metadata = {});
