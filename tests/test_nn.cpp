@@ -1,9 +1,13 @@
 // The network and its backends against an independent float64 implementation.
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 #include <gtest/gtest.h>
+#include <tbb/task_arena.h>
 
 #include "core/nn/backend.h"
+#include "core/util/error.h"
 #include "support/reference_network.h"
 #include "support/test_support.h"
 
@@ -51,7 +55,8 @@ TEST_P(NnBackend, WholeNetworkMatchesFloat64Reference) {
   const auto& p = GetParam();
   for (const auto& [arch, w, h] : std::vector<std::tuple<Architecture, int, int>>{
            {{2, 16, FeatureSet::Full}, 13, 9}, {{3, 32, FeatureSet::ColorOnly}, 1, 1},
-           {{1, 8, FeatureSet::ColorAlbedoNormal}, 3, 5}, {{2, 16, FeatureSet::Full}, 40, 2}}) {
+           {{1, 8, FeatureSet::ColorAlbedoNormal}, 3, 5}, {{2, 16, FeatureSet::Full}, 40, 2},
+           {{1, 48, FeatureSet::ColorAlbedoNormal}, 17, 3}}) {
     const nn::Network net = nn::random_network(arch, 42);
     const Image x = testing::random_image(w, h, arch.in_channels(), 7, -1.0f, 2.0f);
     auto backend = nn::make_backend(p.backend, net, {p.precision});
@@ -76,6 +81,50 @@ TEST_P(NnBackend, WideImageMatchesReference) {
   EXPECT_LT(testing::max_relative_error(out, testing::naive_forward(net, x)), p.tolerance);
 }
 
+TEST_P(NnBackend, RepeatedRunsWithChangingTileSizes) {
+  // Backends cache per-size state (oneDNN: primitives per tile size and thread count); going back and forth
+  // between sizes, and between thread limits, must give the right answer every time.
+  const auto& p = GetParam();
+  const nn::Network net = nn::random_network({2, 16, FeatureSet::Full}, 17);
+  auto backend = nn::make_backend(p.backend, net, {p.precision});
+  const std::vector<std::tuple<int, int, int>> runs = {{13, 9, 0}, {40, 2, 0}, {13, 9, 1}, {1, 1, 0},
+                                                       {7, 30, 0}, {40, 2, 1}, {13, 9, 0}};
+  for (const auto& [w, h, single_thread] : runs) {
+    const Image x = testing::random_image(w, h, 9, static_cast<unsigned>(w * 100 + h), -1.0f, 2.0f);
+    Image out;
+    if (single_thread) tbb::task_arena(1).execute([&] { backend->run(x, out); });
+    else backend->run(x, out);
+    ASSERT_EQ(out.width(), w);
+    ASSERT_EQ(out.height(), h);
+    EXPECT_LT(testing::max_relative_error(out, testing::naive_forward(net, x)), p.tolerance)
+        << backend->description() << " " << w << "x" << h << (single_thread ? " (1 thread)" : "");
+  }
+}
+
+TEST_P(NnBackend, UniformPReluSlopes) {
+  // All slopes of a layer equal: the oneDNN backend fuses them as a leaky-ReLU post-op instead of a prelu pass.
+  const auto& p = GetParam();
+  nn::Network net = nn::random_network({2, 16, FeatureSet::Full}, 23);
+  std::fill(net.head_prelu.begin(), net.head_prelu.end(), 0.2f);
+  std::fill(net.blocks[1].prelu.begin(), net.blocks[1].prelu.end(), -0.3f);
+  const Image x = testing::random_image(11, 6, 9, 29, -1.0f, 2.0f);
+  auto backend = nn::make_backend(p.backend, net, {p.precision});
+  Image out;
+  backend->run(x, out);
+  EXPECT_LT(testing::max_relative_error(out, testing::naive_forward(net, x)), p.tolerance) << backend->description();
+}
+
+TEST_P(NnBackend, ScratchBytesCoverTheActivations) {
+  const auto& p = GetParam();
+  const nn::Network net = nn::random_network({1, 32, FeatureSet::Full}, 3);
+  auto backend = nn::make_backend(p.backend, net, {p.precision});
+  const size_t element = p.precision == nn::Precision::BF16 ? 2 : 4;
+  const size_t small = backend->scratch_bytes(64, 32), large = backend->scratch_bytes(256, 128);
+  EXPECT_GE(small, 3 * 64 * 32 * 32 * element);  // head output, block state, temporary
+  EXPECT_GT(large, small);
+  EXPECT_LT(large, size_t{256} * 128 * 32 * 4 * 8);  // and not absurd
+}
+
 std::vector<BackendCase> backend_cases() {
   std::vector<BackendCase> cases = {{"eigen", nn::Precision::FP32, 1e-5}};
   for (const auto& b : nn::available_backends())
@@ -88,6 +137,75 @@ std::vector<BackendCase> backend_cases() {
 
 INSTANTIATE_TEST_SUITE_P(All, NnBackend, ::testing::ValuesIn(backend_cases()),
                          [](const auto& param_info) { return param_info.param.backend + "_" + nn::to_string(param_info.param.precision); });
+
+bool have_onednn() {
+  const auto names = nn::available_backends();
+  return std::find(names.begin(), names.end(), "onednn") != names.end();
+}
+
+TEST(NnOneDnn, AgreesWithEigenOnPaperWidthNetwork) {
+  // Width 128 as in the paper (oneDNN's real kernels, not the small-channel paths), 4 blocks, a 48 x 40 tile.
+  if (!have_onednn()) GTEST_SKIP() << "built without oneDNN";
+  const Architecture arch{4, 128, FeatureSet::Full};
+  const nn::Network net = nn::random_network(arch, 8);
+  const Image x = testing::random_image(48, 40, arch.in_channels(), 12, -1.0f, 2.0f);
+  Image eigen_out, onednn_out;
+  nn::make_backend("eigen", net, {nn::Precision::FP32})->run(x, eigen_out);
+  auto onednn = nn::make_backend("onednn", net, {nn::Precision::FP32});
+  onednn->run(x, onednn_out);
+  EXPECT_LT(testing::max_relative_error(onednn_out, testing::to_tensor(eigen_out)), 1e-5) << onednn->description();
+}
+
+TEST(NnOneDnn, DescriptionNamesPrecisionAndImplementation) {
+  if (!have_onednn()) GTEST_SKIP() << "built without oneDNN";
+  const nn::Network net = nn::random_network({1, 16, FeatureSet::Full}, 1);
+  const std::string fp32 = nn::make_backend("onednn", net, {nn::Precision::FP32})->description();
+  EXPECT_EQ(fp32.rfind("onednn fp32 (", 0), 0u) << fp32;
+  EXPECT_EQ(fp32.find("ref"), std::string::npos) << "the reference kernel runs: " << fp32;
+  try {
+    const std::string bf16 = nn::make_backend("onednn", net, {nn::Precision::BF16})->description();
+    EXPECT_EQ(bf16.rfind("onednn bf16 (", 0), 0u) << bf16;
+  } catch (const Error& e) {  // a CPU without native bf16: refused with a reason
+    EXPECT_EQ(e.kind(), ErrorKind::Usage);
+    EXPECT_NE(std::string(e.what()).find("bf16"), std::string::npos) << e.what();
+  }
+}
+
+TEST(NnEigen, PortablePathMatchesReferenceAndTheAvx512Kernel) {
+  // The im2col + Eigen GEMM path runs where AVX-512 is missing; RESIDUE_EIGEN_PORTABLE forces it here.
+  setenv("RESIDUE_EIGEN_PORTABLE", "1", 1);
+  const nn::Network small = nn::random_network({2, 16, FeatureSet::Full}, 42);
+  const nn::Network wide = nn::random_network({4, 128, FeatureSet::Full}, 8);
+  auto portable_small = nn::make_backend("eigen", small, {});
+  auto portable_wide = nn::make_backend("eigen", wide, {});
+  unsetenv("RESIDUE_EIGEN_PORTABLE");
+  EXPECT_EQ(portable_small->description(), "eigen fp32");
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{13, 9}, {1, 1}, {40, 2}}) {
+    const Image x = testing::random_image(w, h, 9, 7, -1.0f, 2.0f);
+    Image out;
+    portable_small->run(x, out);
+    EXPECT_LT(testing::max_relative_error(out, testing::naive_forward(small, x)), 1e-5) << w << "x" << h;
+  }
+  const Image x = testing::random_image(48, 40, 9, 12, -1.0f, 2.0f);
+  Image portable_out, default_out;
+  portable_wide->run(x, portable_out);
+  auto default_wide = nn::make_backend("eigen", wide, {});
+  default_wide->run(x, default_out);
+  EXPECT_LT(testing::max_relative_error(default_out, testing::to_tensor(portable_out)), 1e-5)
+      << default_wide->description();
+}
+
+TEST(NnBackendChoice, EigenRefusesBf16AndUnknownNamesListTheAvailable) {
+  const nn::Network net = nn::random_network({1, 8, FeatureSet::Full}, 1);
+  EXPECT_THROW(nn::make_backend("eigen", net, {nn::Precision::BF16}), Error);
+  try {
+    nn::make_backend("tpu", net, {});
+    FAIL() << "no error for an unknown backend";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Usage);
+    EXPECT_NE(std::string(e.what()).find("eigen"), std::string::npos) << e.what();
+  }
+}
 
 }  // namespace
 }  // namespace residue

@@ -7,8 +7,10 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/util/error.h"
+#include "core/util/openmp_env.h"
 
 int main(int argc, char** argv) {
+  residue::ensure_passive_openmp(argc, argv);  // first: may re-execute the program (see openmp_env.h)
   using namespace residue::cli;
   CLI::App app{"Residue: denoise Monte Carlo renders with a direct residual network, and judge the result",
                "residue-cli"};

@@ -1,11 +1,27 @@
-// The portable fp32 backend: each 3x3 conv is an im2col + GEMM (Eigen) over strips of rows, the strips run in
-// parallel on oneTBB. Bias, PReLU and the residual add are applied while the strip is still in cache.
+// The portable fp32 backend. Activations live in buffers with a one-pixel zero border, so a 3x3 conv reads
+// its neighbours without bounds checks. Each conv runs in parallel on oneTBB, in one of two ways:
+//  - on CPUs with AVX-512 (checked at run time): a direct convolution kernel, compiled for AVX-512 through
+//    function attributes only, so that the rest of the binary (and Eigen, and the standard library) stays
+//    plain x86-64. A tile of 12 pixels x 32 output channels is accumulated in 24 registers over the 9 taps
+//    and all input channels, from weights packed per 32-channel block; bias, PReLU and the residual add are
+//    applied before the store. Rows of the image run in parallel.
+//  - otherwise: im2col + Eigen GEMM over strips of rows, the strips in parallel, bias, PReLU and the
+//    residual add applied while the strip is still in cache.
+// RESIDUE_EIGEN_PORTABLE=1 in the environment forces the second way (for tests and comparisons).
 #include <algorithm>
+#include <cstdlib>
 #include <cstring>
 
 #include <Eigen/Core>
+#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define RESIDUE_HAVE_AVX512_KERNEL 1
+#endif
 
 #include "core/nn/backend.h"
 
@@ -14,112 +30,290 @@ namespace {
 
 using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-// A conv's weights as the GEMM wants them: (9 * in) x out, row (ky * 3 + kx) * in + i.
+constexpr int kLanes = 16;  // floats per AVX-512 register
+constexpr int kTileBlock = 2;  // output-channel registers per tile (32 channels)
+constexpr int kTilePixels = 12;  // pixels per tile: 12 x 2 accumulators, 2 weight registers, 1 broadcast
+
+// A conv ready to run: weights for the Eigen GEMM or blocked for the AVX-512 kernel.
 struct PackedConv {
   int in = 0, out = 0;
-  RowMatrix weights;
-  std::vector<float> bias;
-  std::vector<float> prelu;  // empty: no activation
+  RowMatrix weights;          // Eigen: (9 * in) x out, row (ky * 3 + kx) * in + i
+  std::vector<float> blocked;  // AVX-512: per block of kTileBlock * 16 output channels, [tap][in][channel]
+  std::vector<float> bias;     // `out` values; AVX-512: padded to whole registers with zeros
+  std::vector<float> prelu;    // empty: no activation; AVX-512: padded with ones
 };
 
-PackedConv pack(const Conv3x3& c, const std::vector<float>& prelu = {}) {
+int padded_channels(int out) { return (out + kLanes - 1) / kLanes * kLanes; }
+
+PackedConv pack(const Conv3x3& c, const std::vector<float>& prelu, bool blocked) {
   PackedConv p;
   p.in = c.in;
   p.out = c.out;
-  p.weights.resize(9 * c.in, c.out);
-  for (int o = 0; o < c.out; ++o)
-    for (int i = 0; i < c.in; ++i)
-      for (int ky = 0; ky < 3; ++ky)
-        for (int kx = 0; kx < 3; ++kx) p.weights((ky * 3 + kx) * c.in + i, o) = c.w(o, i, ky, kx);
   p.bias = c.bias;
+  p.bias.resize(static_cast<size_t>(c.out), 0.0f);
   p.prelu = prelu;
+  if (!blocked) {
+    p.weights.resize(9 * c.in, c.out);
+    for (int o = 0; o < c.out; ++o)
+      for (int i = 0; i < c.in; ++i)
+        for (int ky = 0; ky < 3; ++ky)
+          for (int kx = 0; kx < 3; ++kx) p.weights((ky * 3 + kx) * c.in + i, o) = c.w(o, i, ky, kx);
+    return p;
+  }
+  const int padded = padded_channels(c.out);
+  p.bias.resize(static_cast<size_t>(padded), 0.0f);
+  if (!p.prelu.empty()) p.prelu.resize(static_cast<size_t>(padded), 1.0f);
+  p.blocked.assign(static_cast<size_t>(padded) * 9 * static_cast<size_t>(c.in), 0.0f);
+  for (int o0 = 0; o0 < padded; o0 += kTileBlock * kLanes) {
+    const int n = std::min(kTileBlock * kLanes, padded - o0);  // channels in this block
+    float* block = p.blocked.data() + static_cast<size_t>(o0) * 9 * static_cast<size_t>(c.in);
+    for (int t = 0; t < 9; ++t)
+      for (int i = 0; i < c.in; ++i)
+        for (int k = 0; k < n && o0 + k < c.out; ++k)
+          block[(static_cast<size_t>(t) * static_cast<size_t>(c.in) + static_cast<size_t>(i)) * static_cast<size_t>(n) +
+                static_cast<size_t>(k)] = c.w(o0 + k, i, t / 3, t % 3);
+  }
   return p;
 }
 
+// An H x W x C image with a one-pixel zero border: pixel (y, x) for y in [-1, H], x in [-1, W].
+struct Padded {
+  int64_t h = 0, w = 0;
+  int c = 0;
+  std::vector<float> v;
+  void reset(int64_t height, int64_t width, int channels) {
+    if (height == h && width == w && channels == c) return;  // the border is still zero
+    h = height;
+    w = width;
+    c = channels;
+    v.assign(static_cast<size_t>((h + 2) * (w + 2) * c), 0.0f);
+  }
+  int64_t row() const { return (w + 2) * c; }
+  float* at(int64_t y, int64_t x) { return v.data() + (y + 1) * row() + (x + 1) * c; }
+  const float* at(int64_t y, int64_t x) const { return v.data() + (y + 1) * row() + (x + 1) * c; }
+};
+
+// Where a conv writes (and where the residual it adds is): pixel (y, x) at data + y * row + x * channels.
+struct View {
+  float* data = nullptr;
+  int64_t row = 0;
+  int channels = 0;
+  float* at(int64_t y, int64_t x) const { return data + y * row + x * channels; }
+};
+
+View view(Padded& p) { return {p.at(0, 0), p.row(), p.c}; }
+
+#ifdef RESIDUE_HAVE_AVX512_KERNEL
+// MR pixels x NR registers of output channels. `src`: the input at pixel (y - 1, x - 1); `w`: the block's
+// weights [tap][in][NR * 16]; `dst` and `add` at pixel (y, x), channel o0; `last`: the lanes of the last
+// register that are real channels.
+template <int MR, int NR>
+__attribute__((target("avx512f"))) void tile_avx512(const float* src, int64_t src_row, int cin, const float* w,
+                                                    const float* bias, const float* prelu, float* dst,
+                                                    const float* add, int dst_c, __mmask16 last) {
+  __m512 acc[MR][NR];
+  for (int p = 0; p < MR; ++p)
+    for (int j = 0; j < NR; ++j) acc[p][j] = _mm512_setzero_ps();
+  for (int ky = 0; ky < 3; ++ky)
+    for (int kx = 0; kx < 3; ++kx) {
+      const float* s = src + ky * src_row + kx * cin;
+      const float* wt = w + (ky * 3 + kx) * cin * NR * kLanes;
+      for (int i = 0; i < cin; ++i, wt += NR * kLanes) {
+        __m512 wv[NR];
+        for (int j = 0; j < NR; ++j) wv[j] = _mm512_loadu_ps(wt + j * kLanes);
+        for (int p = 0; p < MR; ++p) {
+          const __m512 b = _mm512_set1_ps(s[p * cin + i]);
+          for (int j = 0; j < NR; ++j) acc[p][j] = _mm512_fmadd_ps(b, wv[j], acc[p][j]);
+        }
+      }
+    }
+  const __m512 zero = _mm512_setzero_ps();
+  for (int j = 0; j < NR; ++j) {
+    const __mmask16 m = j + 1 == NR ? last : __mmask16(0xFFFF);
+    const __m512 bv = _mm512_loadu_ps(bias + j * kLanes);
+    const __m512 av = prelu ? _mm512_loadu_ps(prelu + j * kLanes) : zero;
+    for (int p = 0; p < MR; ++p) {
+      __m512 v = _mm512_add_ps(acc[p][j], bv);
+      if (prelu) v = _mm512_mask_mul_ps(v, _mm512_cmp_ps_mask(v, zero, _CMP_LT_OQ), v, av);
+      if (add) v = _mm512_add_ps(v, _mm512_maskz_loadu_ps(m, add + p * dst_c + j * kLanes));
+      _mm512_mask_storeu_ps(dst + p * dst_c + j * kLanes, m, v);
+    }
+  }
+}
+
+// The last pixels of a row (fewer than kTilePixels): the tile for exactly `r` of them.
+template <int NR, int MR = 1>
+__attribute__((target("avx512f"))) void tile_tail_avx512(int r, const float* src, int64_t src_row, int cin,
+                                                         const float* w, const float* bias, const float* prelu,
+                                                         float* dst, const float* add, int dst_c, __mmask16 last) {
+  if constexpr (MR < kTilePixels) {
+    if (r == MR) return tile_avx512<MR, NR>(src, src_row, cin, w, bias, prelu, dst, add, dst_c, last);
+    tile_tail_avx512<NR, MR + 1>(r, src, src_row, cin, w, bias, prelu, dst, add, dst_c, last);
+  }
+}
+
+template <int NR>
+__attribute__((target("avx512f"))) void block_row_avx512(const float* src, int64_t src_row, int cin, int64_t width,
+                                                         const float* w, const float* bias, const float* prelu,
+                                                         float* dst, const float* add, int dst_c, __mmask16 last) {
+  int64_t x = 0;
+  for (; x + kTilePixels <= width; x += kTilePixels)
+    tile_avx512<kTilePixels, NR>(src + x * cin, src_row, cin, w, bias, prelu, dst + x * dst_c,
+                                 add ? add + x * dst_c : nullptr, dst_c, last);
+  if (x < width)
+    tile_tail_avx512<NR>(static_cast<int>(width - x), src + x * cin, src_row, cin, w, bias, prelu, dst + x * dst_c,
+                         add ? add + x * dst_c : nullptr, dst_c, last);
+}
+
+// One output row, all output channels. `src` at input pixel (y - 1, -1); `dst`, `add` at pixel (y, 0).
+__attribute__((target("avx512f"))) void conv_row_avx512(const PackedConv& c, const float* src, int64_t src_row,
+                                                        int64_t width, float* dst, const float* add, int dst_c) {
+  const int padded = padded_channels(c.out);
+  const float* prelu = c.prelu.empty() ? nullptr : c.prelu.data();
+  for (int o0 = 0; o0 < padded; o0 += kTileBlock * kLanes) {
+    const int regs = std::min(kTileBlock * kLanes, padded - o0) / kLanes;
+    const int real = std::min(regs * kLanes, c.out - o0);  // channels of this block that exist
+    const int in_last = real - (regs - 1) * kLanes;
+    const auto last = static_cast<__mmask16>((1u << in_last) - 1u);
+    const float* w = c.blocked.data() + static_cast<size_t>(o0) * 9 * static_cast<size_t>(c.in);
+    const float* a = add ? add + o0 : nullptr;
+    static_assert(kTileBlock == 2, "block_row_avx512 instances below assume 2 registers per block");
+    if (regs == 2)
+      block_row_avx512<2>(src, src_row, c.in, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0, a,
+                          dst_c, last);
+    else
+      block_row_avx512<1>(src, src_row, c.in, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0, a,
+                          dst_c, last);
+  }
+}
+
+bool cpu_has_avx512() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f");
+}
+#else
+bool cpu_has_avx512() { return false; }
+#endif
+
 constexpr int64_t kStripPixels = 2048;  // im2col rows per GEMM: ~9 MB of patches at W = 128
+
+bool portable_forced() {
+  const char* v = std::getenv("RESIDUE_EIGEN_PORTABLE");
+  return v != nullptr && *v != '\0' && std::strcmp(v, "0") != 0;
+}
 
 class EigenBackend final : public Backend {
  public:
-  explicit EigenBackend(const Network& n) : arch_(n.arch) {
-    head_ = pack(n.head, n.head_prelu);
+  explicit EigenBackend(const Network& n) : arch_(n.arch), avx512_(cpu_has_avx512() && !portable_forced()) {
+    head_ = pack(n.head, n.head_prelu, avx512_);
     for (const auto& b : n.blocks) {
-      blocks_.push_back(pack(b.conv1, b.prelu));
-      blocks_.push_back(pack(b.conv2));
+      blocks_.push_back(pack(b.conv1, b.prelu, avx512_));
+      blocks_.push_back(pack(b.conv2, {}, avx512_));
     }
-    tail_ = pack(n.tail);
-    out_ = pack(n.out);
+    tail_ = pack(n.tail, {}, avx512_);
+    out_ = pack(n.out, {}, avx512_);
   }
 
-  std::string description() const override { return "eigen fp32"; }
+  std::string description() const override { return avx512_ ? "eigen fp32 (avx512 direct)" : "eigen fp32"; }
 
   size_t scratch_bytes(int64_t width, int64_t height) const override {
-    // Three activation buffers (head output, block state, temporary) + one im2col strip per thread.
-    const size_t act = static_cast<size_t>(width * height * arch_.width) * sizeof(float);
-    return 3 * act + 2 * static_cast<size_t>(kStripPixels * 9 * arch_.width) * sizeof(float);
+    // Three padded activation buffers (head output, block state, temporary), the padded input, and without
+    // AVX-512 one im2col strip and its GEMM result per thread.
+    const auto padded = static_cast<size_t>((width + 2) * (height + 2));
+    size_t bytes = padded * static_cast<size_t>(3 * arch_.width + arch_.in_channels()) * sizeof(float);
+    if (!avx512_) {
+      const auto threads = static_cast<size_t>(tbb::this_task_arena::max_concurrency());
+      const auto strip = static_cast<size_t>(std::min(kStripPixels, std::max<int64_t>(width, 1) * height));
+      bytes += threads * strip * static_cast<size_t>(9 * std::max(arch_.width, arch_.in_channels()) + arch_.width) *
+               sizeof(float);
+    }
+    return bytes;
   }
 
   void run(const Image& input, Image& output) override {
     const int64_t h = input.height(), w = input.width();
-    const size_t n = static_cast<size_t>(h * w * arch_.width);
-    head_out_.resize(n);
-    state_.resize(n);
-    temp_.resize(n);
-    conv(input.data(), h, w, head_, head_out_.data(), nullptr);
-    std::memcpy(state_.data(), head_out_.data(), n * sizeof(float));
-    for (size_t b = 0; b < blocks_.size(); b += 2) {
-      conv(state_.data(), h, w, blocks_[b], temp_.data(), nullptr);
-      conv(temp_.data(), h, w, blocks_[b + 1], state_.data(), state_.data());  // in place: + identity
-    }
-    conv(state_.data(), h, w, tail_, temp_.data(), head_out_.data());
     output = Image(w, h, 3);
-    conv(temp_.data(), h, w, out_, output.data(), nullptr);
+    if (h == 0 || w == 0) return;
+    input_.reset(h, w, input.channels());
+    for (int64_t y = 0; y < h; ++y)
+      std::memcpy(input_.at(y, 0), input.row(y).data(), static_cast<size_t>(w * input.channels()) * sizeof(float));
+    head_out_.reset(h, w, arch_.width);
+    state_.reset(h, w, arch_.width);
+    temp_.reset(h, w, arch_.width);
+    conv(input_, head_, view(head_out_), nullptr);
+    std::memcpy(state_.v.data(), head_out_.v.data(), head_out_.v.size() * sizeof(float));
+    for (size_t b = 0; b < blocks_.size(); b += 2) {
+      conv(state_, blocks_[b], view(temp_), nullptr);
+      const View s = view(state_);
+      conv(temp_, blocks_[b + 1], s, &s);  // in place: + identity
+    }
+    const View head = view(head_out_);
+    conv(state_, tail_, view(temp_), &head);
+    conv(temp_, out_, {output.data(), w * 3, 3}, nullptr);
   }
 
  private:
   // out = act(conv(in) + bias) (+ add). `out` may alias `add` (the residual), never `in`.
-  void conv(const float* in, int64_t h, int64_t w, const PackedConv& c, float* out, const float* add) {
+  void conv(const Padded& in, const PackedConv& c, const View& out, const View* add) {
+#ifdef RESIDUE_HAVE_AVX512_KERNEL
+    if (avx512_) {
+      tbb::parallel_for(tbb::blocked_range<int64_t>(0, in.h), [&](const tbb::blocked_range<int64_t>& rows) {
+        for (int64_t y = rows.begin(); y < rows.end(); ++y)
+          conv_row_avx512(c, in.at(y - 1, -1), in.row(), in.w, out.at(y, 0), add ? add->at(y, 0) : nullptr,
+                          out.channels);
+      });
+      return;
+    }
+#endif
+    conv_eigen(in, c, out, add);
+  }
+
+  void conv_eigen(const Padded& in, const PackedConv& c, const View& out, const View* add) {
+    const int64_t h = in.h, w = in.w;
     const int64_t rows_per_strip = std::max<int64_t>(1, kStripPixels / std::max<int64_t>(w, 1));
     const int64_t strips = (h + rows_per_strip - 1) / rows_per_strip;
     tbb::parallel_for(int64_t{0}, strips, [&](int64_t s) {
       const int64_t y0 = s * rows_per_strip, y1 = std::min(h, y0 + rows_per_strip);
       const int64_t pixels = (y1 - y0) * w;
-      std::vector<float>& cols = im2col_.local();
-      cols.resize(static_cast<size_t>(pixels * 9 * c.in));
-      // Patches: for each pixel, the 3x3 neighbourhood's channels, zeros outside the tile.
+      Scratch& scratch = scratch_.local();
+      scratch.cols.resize(static_cast<size_t>(pixels * 9 * c.in));
+      scratch.result.resize(static_cast<size_t>(pixels * c.out));
+      // Patches: for each pixel, the 3x3 neighbourhood's channels (the border supplies the zeros).
+      const size_t bytes = static_cast<size_t>(c.in) * sizeof(float);
       for (int64_t y = y0; y < y1; ++y)
         for (int64_t x = 0; x < w; ++x) {
-          float* dst = cols.data() + ((y - y0) * w + x) * 9 * c.in;
+          float* dst = scratch.cols.data() + ((y - y0) * w + x) * 9 * c.in;
           for (int ky = 0; ky < 3; ++ky)
-            for (int kx = 0; kx < 3; ++kx, dst += c.in) {
-              const int64_t sy = y + ky - 1, sx = x + kx - 1;
-              if (sy < 0 || sy >= h || sx < 0 || sx >= w) std::fill(dst, dst + c.in, 0.0f);
-              else std::memcpy(dst, in + (sy * w + sx) * c.in, static_cast<size_t>(c.in) * sizeof(float));
-            }
+            for (int kx = 0; kx < 3; ++kx, dst += c.in) std::memcpy(dst, in.at(y + ky - 1, x + kx - 1), bytes);
         }
-      Eigen::Map<const RowMatrix> patches(cols.data(), pixels, 9 * c.in);
-      Eigen::Map<RowMatrix> result(out + y0 * w * c.out, pixels, c.out);
-      if (add) {
-        Eigen::Map<const RowMatrix> residual(add + y0 * w * c.out, pixels, c.out);
-        result = (patches * c.weights).eval() + residual;  // eval(): `out` may alias `add`
-      } else {
-        result.noalias() = patches * c.weights;
-      }
+      Eigen::Map<const RowMatrix> patches(scratch.cols.data(), pixels, 9 * c.in);
+      Eigen::Map<RowMatrix> result(scratch.result.data(), pixels, c.out);
+      result.noalias() = patches * c.weights;
       for (int64_t p = 0; p < pixels; ++p) {
-        float* v = out + (y0 * w + p) * c.out;
+        const int64_t y = y0 + p / w, x = p % w;
+        const float* r = scratch.result.data() + p * c.out;
+        const float* a = add ? add->at(y, x) : nullptr;
+        float* v = out.at(y, x);
         for (int o = 0; o < c.out; ++o) {
-          float x = v[o] + c.bias[static_cast<size_t>(o)];
-          if (!c.prelu.empty() && x < 0) x *= c.prelu[static_cast<size_t>(o)];
-          v[o] = x;
+          float value = r[o] + c.bias[static_cast<size_t>(o)];
+          if (!c.prelu.empty() && value < 0) value *= c.prelu[static_cast<size_t>(o)];
+          if (a) value += a[o];
+          v[o] = value;
         }
       }
     });
   }
 
+  struct Scratch {
+    std::vector<float> cols, result;
+  };
+
   Architecture arch_;
+  bool avx512_ = false;
   PackedConv head_, tail_, out_;
   std::vector<PackedConv> blocks_;
-  std::vector<float> head_out_, state_, temp_;
-  tbb::enumerable_thread_specific<std::vector<float>> im2col_;
+  Padded input_, head_out_, state_, temp_;
+  tbb::enumerable_thread_specific<Scratch> scratch_;
 };
 
 }  // namespace
