@@ -1,5 +1,6 @@
 // Backends run the network on one tile. One interface, chosen at run time:
-//   "eigen"   portable fp32 on Eigen GEMM + oneTBB (always built; the reference)
+//   "eigen"   portable fp32 (always built; the reference): an AVX-512 direct 3x3 kernel where the CPU has it,
+//             else im2col + Eigen GEMM; strips of rows in parallel on oneTBB
 //   "onednn"  oneDNN fp32 / bf16 (AVX-512, AMX where present), when built with oneDNN
 #pragma once
 
