@@ -47,6 +47,8 @@ struct BackendCase {
   std::string backend;
   nn::Precision precision;
   double tolerance;
+  // So test logs say "onednn bf16" rather than the parameter's bytes.
+  friend void PrintTo(const BackendCase& c, std::ostream* os) { *os << c.backend << " " << nn::to_string(c.precision); }
 };
 
 class NnBackend : public ::testing::TestWithParam<BackendCase> {};
