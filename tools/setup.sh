@@ -12,6 +12,8 @@ packages=(
   libopenimageio-dev openimageio-tools libopenexr-dev libtbb-dev libcli11-dev nlohmann-json3-dev
   # inference: Eigen (portable backend) and oneDNN (fast backend, AVX-512 / AMX)
   libeigen3-dev libdnnl-dev
+  # training: libtorch (residue-train, and the trainer/inference parity test)
+  libtorch-dev
   # tests: GoogleTest, and scikit-image + OpenImageIO's Python bindings for the independent metric checks
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
 )

@@ -1,0 +1,84 @@
+#include "torch_network.h"
+
+namespace residue::train {
+namespace {
+
+torch::nn::Conv2dOptions conv3x3(int in, int out, bool bias) {
+  return torch::nn::Conv2dOptions(in, out, 3).padding(1).bias(bias);
+}
+
+}  // namespace
+
+ResBlockImpl::ResBlockImpl(int width) {
+  conv1 = register_module("conv1", torch::nn::Conv2d(conv3x3(width, width, false)));
+  bn1 = register_module("bn1", torch::nn::BatchNorm2d(width));
+  prelu = register_module("prelu", torch::nn::PReLU(torch::nn::PReLUOptions().num_parameters(width)));
+  conv2 = register_module("conv2", torch::nn::Conv2d(conv3x3(width, width, false)));
+  bn2 = register_module("bn2", torch::nn::BatchNorm2d(width));
+}
+
+torch::Tensor ResBlockImpl::forward(const torch::Tensor& x) {
+  return x + bn2(conv2(prelu(bn1(conv1(x)))));
+}
+
+HeadImpl::HeadImpl(int in, int width) {
+  conv = register_module("conv", torch::nn::Conv2d(conv3x3(in, width, true)));
+  prelu = register_module("prelu", torch::nn::PReLU(torch::nn::PReLUOptions().num_parameters(width)));
+}
+
+TailImpl::TailImpl(int width) {
+  conv = register_module("conv", torch::nn::Conv2d(conv3x3(width, width, false)));
+  bn = register_module("bn", torch::nn::BatchNorm2d(width));
+}
+
+OutImpl::OutImpl(int width) { conv = register_module("conv", torch::nn::Conv2d(conv3x3(width, 3, true))); }
+
+ResidueNetImpl::ResidueNetImpl(const nn::Architecture& a) : arch(a) {
+  head = register_module("head", Head(a.in_channels(), a.width));
+  blocks = register_module("blocks", torch::nn::ModuleList());
+  for (int b = 0; b < a.blocks; ++b) blocks->push_back(ResBlock(a.width));
+  tail = register_module("tail", Tail(a.width));
+  out = register_module("out", Out(a.width));
+}
+
+torch::Tensor ResidueNetImpl::forward(const torch::Tensor& x) {
+  const torch::Tensor h = head->prelu(head->conv(x));
+  torch::Tensor y = h;
+  for (const auto& m : *blocks) y = m->as<ResBlock>()->forward(y);
+  y = tail->bn(tail->conv(y)) + h;
+  return out->conv(y);
+}
+
+void initialise(ResidueNet& net) {
+  torch::NoGradGuard no_grad;
+  for (auto& m : net->modules(/*include_self=*/false)) {
+    if (auto* conv = m->as<torch::nn::Conv2d>()) {
+      // He et al. 2015 for PReLU (a = 0.25): std = sqrt(2 / ((1 + a^2) fan_in)).
+      torch::nn::init::kaiming_normal_(conv->weight, 0.25, torch::kFanIn, torch::kLeakyReLU);
+      if (conv->options.bias()) conv->bias.zero_();
+    }
+  }
+}
+
+nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::string> metadata) {
+  nn::SafetensorsFile f;
+  f.metadata = std::move(metadata);
+  f.metadata["residue.format"] = "1";
+  f.metadata["residue.blocks"] = std::to_string(net->arch.blocks);
+  f.metadata["residue.width"] = std::to_string(net->arch.width);
+  f.metadata["residue.features"] = to_string(net->arch.features);
+  f.metadata["residue.bn_eps"] = "1e-05";
+  auto put = [&](const std::string& name, const torch::Tensor& t) {
+    if (name.find("num_batches_tracked") != std::string::npos) return;
+    const torch::Tensor c = t.detach().to(torch::kCPU, torch::kFloat32).contiguous();
+    nn::Tensor out;
+    out.shape.assign(c.sizes().begin(), c.sizes().end());
+    out.values.assign(c.data_ptr<float>(), c.data_ptr<float>() + c.numel());
+    f.tensors[name] = std::move(out);
+  };
+  for (const auto& p : net->named_parameters()) put(p.key(), p.value());
+  for (const auto& b : net->named_buffers()) put(b.key(), b.value());
+  return f;
+}
+
+}  // namespace residue::train

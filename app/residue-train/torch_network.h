@@ -1,0 +1,64 @@
+// The paper's network as a libtorch module, for training. Module and parameter names are exactly the model
+// file's tensor names (core/nn/model_file.h), so the state dict exports as is.
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <string>
+
+#include <torch/torch.h>
+
+#include "core/nn/network.h"
+#include "core/nn/safetensors.h"
+
+namespace residue::train {
+
+struct ResBlockImpl : torch::nn::Module {
+  explicit ResBlockImpl(int width);
+  torch::Tensor forward(const torch::Tensor& x);
+  torch::nn::Conv2d conv1{nullptr}, conv2{nullptr};
+  torch::nn::BatchNorm2d bn1{nullptr}, bn2{nullptr};
+  torch::nn::PReLU prelu{nullptr};
+};
+TORCH_MODULE(ResBlock);
+
+struct HeadImpl : torch::nn::Module {
+  HeadImpl(int in, int width);
+  torch::nn::Conv2d conv{nullptr};
+  torch::nn::PReLU prelu{nullptr};
+};
+TORCH_MODULE(Head);
+
+struct TailImpl : torch::nn::Module {
+  explicit TailImpl(int width);
+  torch::nn::Conv2d conv{nullptr};
+  torch::nn::BatchNorm2d bn{nullptr};
+};
+TORCH_MODULE(Tail);
+
+struct OutImpl : torch::nn::Module {
+  explicit OutImpl(int width);
+  torch::nn::Conv2d conv{nullptr};
+};
+TORCH_MODULE(Out);
+
+struct ResidueNetImpl : torch::nn::Module {
+  explicit ResidueNetImpl(const nn::Architecture& arch);
+  // x: N x C_in x H x W feature planes -> N x 3 x H x W (log-compressed colour).
+  torch::Tensor forward(const torch::Tensor& x);
+
+  nn::Architecture arch;
+  Head head{nullptr};
+  torch::nn::ModuleList blocks{nullptr};
+  Tail tail{nullptr};
+  Out out{nullptr};
+};
+TORCH_MODULE(ResidueNet);
+
+// He initialisation (for PReLU), zero biases, BN gamma 1 / beta 0; PReLU slopes 0.25.
+void initialise(ResidueNet& net);
+
+// The state dict as a model file (F32 tensors; BN as trained, folded by core on load) with metadata.
+nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::string> metadata);
+
+}  // namespace residue::train

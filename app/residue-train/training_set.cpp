@@ -1,0 +1,142 @@
+#include "training_set.h"
+
+#include <algorithm>
+
+#include "core/aov/aov_loader.h"
+#include "core/features/features.h"
+#include "core/util/error.h"
+
+namespace residue::train {
+namespace fs = std::filesystem;
+
+int normal_plane(FeatureSet set) {
+  switch (set) {
+    case FeatureSet::Full: return 4;
+    case FeatureSet::ColorAlbedoNormal: return 3;
+    case FeatureSet::ColorOnly: return -1;
+  }
+  return -1;
+}
+
+std::vector<fs::path> list_scenes(const fs::path& root) {
+  std::vector<fs::path> scenes;
+  for (const auto& e : fs::directory_iterator(root))
+    if (e.is_directory() && fs::exists(e.path() / "noisy_a.exr") && fs::exists(e.path() / "reference.exr"))
+      scenes.push_back(e.path());
+  std::sort(scenes.begin(), scenes.end());
+  return scenes;
+}
+
+namespace {
+
+// Per-pixel relative noise of the colour from the two halves: sum over RGB of (a - b)^2 / (r^2 + 0.01).
+Image noise_map(const AovStack& a, const AovStack* b, const Image& reference) {
+  Image n(a.width(), a.height(), 1, 1.0f);
+  if (!b) return n;
+  for (int64_t y = 0; y < n.height(); ++y)
+    for (int64_t x = 0; x < n.width(); ++x) {
+      float s = 0;
+      for (int c = 0; c < 3; ++c) {
+        const float d = a.color.image.at(x, y, c) - b->color.image.at(x, y, c);
+        const float r = reference.at(x, y, c);
+        if (std::isfinite(d) && std::isfinite(r)) s += d * d / (r * r + 0.01f);
+      }
+      n.at(x, y) = std::min(s, 100.0f);
+    }
+  return n;
+}
+
+}  // namespace
+
+TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet features, int patch)
+    : features_(features), channels_(feature_channels(features)), patch_(patch) {
+  for (const auto& dir : scenes) {
+    LoadOptions lo;
+    lo.reference = dir / "reference.exr";
+    const AovStack a = load_aov_stack({dir / "noisy_a.exr"}, lo);
+    if (a.width() < patch || a.height() < patch)
+      throw Error(ErrorKind::Input, "scene '" + dir.string() + "' is smaller than one " + std::to_string(patch) + " px patch");
+    TrainingScene s;
+    s.name = dir.filename().string();
+    const Rect all{0, 0, a.width(), a.height()};
+    Image f;
+    make_features(a, features, compute_feature_stats(a), all, f);
+    s.inputs.push_back(std::move(f));
+    std::optional<AovStack> b;
+    if (fs::exists(dir / "noisy_b.exr")) {
+      LoadOptions lb;
+      lb.load_reference = false;
+      b = load_aov_stack({dir / "noisy_b.exr"}, lb);
+      Image fb;
+      make_features(*b, features, compute_feature_stats(*b), all, fb);
+      s.inputs.push_back(std::move(fb));
+    }
+    s.target = Image(a.width(), a.height(), 3);
+    for (int64_t y = 0; y < a.height(); ++y)
+      for (int64_t x = 0; x < a.width(); ++x)
+        for (int c = 0; c < 3; ++c) s.target.at(x, y, c) = compress_color(a.reference->image.at(x, y, c));
+
+    // Patch weights: mean relative noise inside the patch, plus a floor so flat regions still appear.
+    const Image noise = noise_map(a, b ? &*b : nullptr, a.reference->image);
+    Image integral(a.width() + 1, a.height() + 1, 1);  // summed-area table
+    for (int64_t y = 0; y < a.height(); ++y)
+      for (int64_t x = 0; x < a.width(); ++x)
+        integral.at(x + 1, y + 1) = noise.at(x, y) + integral.at(x, y + 1) + integral.at(x + 1, y) - integral.at(x, y);
+    const int64_t step = 8;
+    double total = 0;
+    for (int64_t y = 0; y + patch <= a.height(); y += step)
+      for (int64_t x = 0; x + patch <= a.width(); x += step) {
+        const double sum = integral.at(x + patch, y + patch) - integral.at(x, y + patch) - integral.at(x + patch, y) +
+                           integral.at(x, y);
+        s.corners.emplace_back(x, y);
+        s.weights.push_back(sum / (patch * patch));
+        total += s.weights.back();
+      }
+    const double floor = 0.25 * total / static_cast<double>(s.weights.size()) + 1e-6;
+    for (double& w : s.weights) w += floor;
+    scenes_.push_back(std::move(s));
+  }
+  if (scenes_.empty()) throw Error(ErrorKind::Input, "no training scenes");
+}
+
+void TrainingSet::sample(std::mt19937& rng, int batch, torch::Tensor& inputs, torch::Tensor& targets) const {
+  const int64_t P = patch_;
+  inputs = torch::empty({batch, channels_, P, P}, torch::kFloat32);
+  targets = torch::empty({batch, 3, P, P}, torch::kFloat32);
+  float* in = inputs.data_ptr<float>();
+  float* tg = targets.data_ptr<float>();
+  const int np = normal_plane(features_);
+  std::uniform_int_distribution<size_t> pick_scene(0, scenes_.size() - 1);
+  std::uniform_int_distribution<int> pick_transform(0, 7);
+  for (int b = 0; b < batch; ++b) {
+    const TrainingScene& s = scenes_[pick_scene(rng)];
+    std::discrete_distribution<size_t> pick_corner(s.weights.begin(), s.weights.end());
+    const auto [x0, y0] = s.corners[pick_corner(rng)];
+    const Image& src = s.inputs[std::uniform_int_distribution<size_t>(0, s.inputs.size() - 1)(rng)];
+    const int t = pick_transform(rng);
+    const bool flip_x = t & 1, flip_y = t & 2, transpose = t & 4;
+    for (int64_t v = 0; v < P; ++v)
+      for (int64_t u = 0; u < P; ++u) {
+        // Output pixel (u, v) reads source pixel (sx, sy) of the patch under the transform.
+        int64_t sx = transpose ? v : u, sy = transpose ? u : v;
+        if (flip_x) sx = P - 1 - sx;
+        if (flip_y) sy = P - 1 - sy;
+        const int64_t px = x0 + sx, py = y0 + sy;
+        for (int c = 0; c < channels_; ++c)
+          in[((static_cast<int64_t>(b) * channels_ + c) * P + v) * P + u] = src.at(px, py, c);
+        for (int c = 0; c < 3; ++c) tg[((static_cast<int64_t>(b) * 3 + c) * P + v) * P + u] = s.target.at(px, py, c);
+        if (np >= 0) {
+          // Turn the normal with the image: in image axes (right, down) it is (nx, -ny); the pixel mapping
+          // above applied to a vector is: flips negate, then the transpose swaps.
+          float nu = src.at(px, py, np), nv = -src.at(px, py, np + 1);
+          if (flip_x) nu = -nu;
+          if (flip_y) nv = -nv;
+          if (transpose) std::swap(nu, nv);
+          in[((static_cast<int64_t>(b) * channels_ + np) * P + v) * P + u] = nu;
+          in[((static_cast<int64_t>(b) * channels_ + np + 1) * P + v) * P + u] = -nv;
+        }
+      }
+  }
+}
+
+}  // namespace residue::train

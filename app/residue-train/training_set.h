@@ -1,0 +1,52 @@
+// Training data: scenes laid out like ../shared/datasets/cycles-starter (s<seed>/noisy_a.exr, noisy_b.exr,
+// reference.exr), turned into the network's feature planes by core's loader and feature code (the same code
+// inference uses), and sampled as augmented 64x64 patches that prefer noisy, non-flat regions.
+#pragma once
+
+#include <filesystem>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <torch/torch.h>
+
+#include "core/aov/aov_stack.h"
+#include "core/features/feature_set.h"
+#include "core/image/image.h"
+
+namespace residue::train {
+
+struct TrainingScene {
+  std::string name;
+  std::vector<Image> inputs;  // feature planes of each noisy half, H x W x C
+  Image target;               // log(1 + reference), H x W x 3
+  // Patch sampling: top-left corners on a grid and their probabilities.
+  std::vector<std::pair<int64_t, int64_t>> corners;
+  std::vector<double> weights;
+};
+
+// Scene folders under `root` (those with noisy_a.exr and reference.exr), sorted by name.
+std::vector<std::filesystem::path> list_scenes(const std::filesystem::path& root);
+
+class TrainingSet {
+ public:
+  TrainingSet(const std::vector<std::filesystem::path>& scenes, FeatureSet features, int patch);
+
+  // A batch: inputs B x C x P x P, targets B x 3 x P x P. Patches from random scenes, corners drawn by
+  // the noise weights, one of the 8 flips/rotations applied (normals turned with the image).
+  void sample(std::mt19937& rng, int batch, torch::Tensor& inputs, torch::Tensor& targets) const;
+
+  size_t size() const { return scenes_.size(); }
+  int channels() const { return channels_; }
+
+ private:
+  std::vector<TrainingScene> scenes_;
+  FeatureSet features_;
+  int channels_;
+  int patch_;
+};
+
+// Index of the view-space normal's x plane in a feature set (y follows); -1 when it has none.
+int normal_plane(FeatureSet set);
+
+}  // namespace residue::train
