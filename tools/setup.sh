@@ -33,9 +33,20 @@ fi
 cmake --preset release
 cmake --build --preset release -j "$(nproc)"
 
+# The default model: the one the README's first command denoises the example with.
+default_model=tiny
+
 if [ "${RESIDUE_SKIP_EXAMPLE:-0}" != 1 ]; then
+  cli=build/release/app/residue-cli/residue-cli
+  example=resources/examples/room
   echo
-  echo "== residue-cli eval on the bundled example (resources/examples/room) =="
-  build/release/app/residue-cli/residue-cli eval resources/examples/room/noisy.exr \
-    --reference resources/examples/room/reference.exr
+  echo "== residue-cli eval on the bundled example ($example) =="
+  "$cli" eval "$example/noisy.exr" --reference "$example/reference.exr"
+  if [ -f "resources/models/$default_model.safetensors" ]; then
+    echo
+    echo "== residue-cli denoise on the bundled example, model '$default_model' =="
+    mkdir -p build/example
+    "$cli" denoise "$example/noisy.exr" --reference "$example/reference.exr" --model "$default_model" \
+      --output build/example/room-denoised.exr --force
+  fi
 fi

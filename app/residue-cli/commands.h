@@ -17,5 +17,6 @@ Command add_info_command(CLI::App& app);
 Command add_eval_command(CLI::App& app);
 Command add_denoise_command(CLI::App& app);
 Command add_bench_command(CLI::App& app);
+Command add_evaluate_set_command(CLI::App& app);
 
 }  // namespace residue::cli

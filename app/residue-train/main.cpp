@@ -15,6 +15,7 @@
 #include <torch/torch.h>
 
 #include "core/aov/aov_loader.h"
+#include "core/aov/dataset.h"
 #include "core/denoise/denoiser.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_file.h"
@@ -113,7 +114,7 @@ int run(const Options& o) {
   // Scenes: the last `val` of each data folder (sorted by name) are held out for validation.
   std::vector<fs::path> train_scenes, val_scenes;
   for (const auto& d : o.data) {
-    const auto s = train::list_scenes(d);
+    const auto s = list_dataset_scenes(d);
     const size_t nval = std::min<size_t>(static_cast<size_t>(o.val), s.size() / 2);
     train_scenes.insert(train_scenes.end(), s.begin(), s.end() - static_cast<std::ptrdiff_t>(nval));
     val_scenes.insert(val_scenes.end(), s.end() - static_cast<std::ptrdiff_t>(nval), s.end());

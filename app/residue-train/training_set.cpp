@@ -18,15 +18,6 @@ int normal_plane(FeatureSet set) {
   return -1;
 }
 
-std::vector<fs::path> list_scenes(const fs::path& root) {
-  std::vector<fs::path> scenes;
-  for (const auto& e : fs::directory_iterator(root))
-    if (e.is_directory() && fs::exists(e.path() / "noisy_a.exr") && fs::exists(e.path() / "reference.exr"))
-      scenes.push_back(e.path());
-  std::sort(scenes.begin(), scenes.end());
-  return scenes;
-}
-
 namespace {
 
 // Per-pixel relative noise of the colour from the two halves: sum over RGB of (a - b)^2 / (r^2 + 0.01).

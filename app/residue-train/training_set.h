@@ -25,9 +25,6 @@ struct TrainingScene {
   std::vector<double> weights;
 };
 
-// Scene folders under `root` (those with noisy_a.exr and reference.exr), sorted by name.
-std::vector<std::filesystem::path> list_scenes(const std::filesystem::path& root);
-
 class TrainingSet {
  public:
   TrainingSet(const std::vector<std::filesystem::path>& scenes, FeatureSet features, int patch);

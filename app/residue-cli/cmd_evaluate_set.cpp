@@ -1,0 +1,164 @@
+// residue-cli evaluate-set: runs models over a data set's scenes and writes one table (scene x model: relMSE,
+// SSIM, time) as Markdown and JSON: the measured speed/accuracy trade users pick from.
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "cli_common.h"
+#include "commands.h"
+#include "core/aov/dataset.h"
+#include "core/denoise/denoiser.h"
+#include "core/features/features.h"
+#include "core/io/atomic_file.h"
+#include "core/metrics/metrics.h"
+#include "core/util/error.h"
+
+namespace residue::cli {
+namespace {
+
+struct EvalSetOptions {
+  std::string dataset;
+  std::vector<std::string> models;
+  std::vector<std::string> precisions = {"fp32"};
+  std::string backend;
+  int last = 0;  // 0: every scene
+  std::string out_md, out_json;
+  int threads = 0;
+  bool force = false;
+};
+
+struct Cell {
+  double relmse = 0, ssim = 0, seconds = 0;
+};
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
+
+int run(const EvalSetOptions& o) {
+  std::vector<std::filesystem::path> scenes = list_dataset_scenes(o.dataset);
+  if (o.last > 0 && static_cast<size_t>(o.last) < scenes.size())
+    scenes.erase(scenes.begin(), scenes.end() - o.last);
+  if (scenes.empty()) throw Error(ErrorKind::Input, "no scenes in '" + o.dataset + "'");
+
+  struct Column {
+    std::string label, model, precision;
+  };
+  std::vector<Column> columns = {{"noisy", "", ""}};
+  for (const auto& m : o.models) {
+    // A file is labelled by its stem, a model name by itself.
+    const std::string label = std::filesystem::is_regular_file(m) ? std::filesystem::path(m).stem().string() : m;
+    for (const auto& p : o.precisions) columns.push_back({o.precisions.size() > 1 ? label + " " + p : label, m, p});
+  }
+
+  // results[scene][column]
+  std::vector<std::vector<Cell>> results(scenes.size(), std::vector<Cell>(columns.size()));
+  nlohmann::json json_scenes = nlohmann::json::array();
+  double megapixels_total = 0;
+  for (size_t si = 0; si < scenes.size(); ++si) {
+    LoadOptions lo;
+    lo.reference = scenes[si] / "reference.exr";
+    const AovStack stack = load_aov_stack({scenes[si] / "noisy_a.exr"}, lo);
+    const double mp = static_cast<double>(stack.width() * stack.height()) / 1e6;
+    megapixels_total += mp;
+    nlohmann::json js = {{"scene", scenes[si].filename().string()}, {"megapixels", mp}};
+    for (size_t ci = 0; ci < columns.size(); ++ci) {
+      Cell& cell = results[si][ci];
+      Image out;
+      std::string model_file;
+      if (columns[ci].model.empty()) {
+        out = stack.color.image;
+      } else {
+        const auto path = nn::find_model_for(columns[ci].model, feature_set_for(stack));
+        const nn::Model model = nn::load_model(path);
+        model_file = path.string();
+        DenoiseOptions d;
+        d.backend = o.backend;
+        d.precision = columns[ci].precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+        d.threads = o.threads;
+        DenoiseStats st;
+        out = denoise(stack, model, d, {}, &st);
+        cell.seconds = st.seconds;
+      }
+      const auto s = metrics::compare(out, stack.reference->image);
+      cell.relmse = s.relmse;
+      cell.ssim = s.ssim;
+      js["results"][columns[ci].label] = {{"relmse", s.relmse}, {"ssim", s.ssim}, {"seconds", cell.seconds},
+                                         {"model_file", model_file}};
+    }
+    json_scenes.push_back(js);
+    std::fprintf(stderr, "evaluate-set: %zu/%zu %s\n", si + 1, scenes.size(), scenes[si].filename().string().c_str());
+  }
+
+  // Markdown: one row per scene, then the means.
+  std::ostringstream md;
+  md << "| scene |";
+  for (const auto& c : columns) md << " " << c.label << " relMSE | " << c.label << " SSIM |" << (c.model.empty() ? "" : " " + c.label + " s |");
+  md << "\n|---|";
+  for (const auto& c : columns) md << "---|---|" << (c.model.empty() ? "" : "---|");
+  md << "\n";
+  std::vector<Cell> mean(columns.size());
+  for (size_t si = 0; si < scenes.size(); ++si) {
+    md << "| " << scenes[si].filename().string() << " |";
+    for (size_t ci = 0; ci < columns.size(); ++ci) {
+      const Cell& c = results[si][ci];
+      md << " " << fmt("%.4g", c.relmse) << " | " << fmt("%.4f", c.ssim) << " |"
+         << (columns[ci].model.empty() ? "" : " " + fmt("%.2f", c.seconds) + " |");
+      mean[ci].relmse += c.relmse / static_cast<double>(scenes.size());
+      mean[ci].ssim += c.ssim / static_cast<double>(scenes.size());
+      mean[ci].seconds += c.seconds;
+    }
+    md << "\n";
+  }
+  md << "| **mean** |";
+  for (size_t ci = 0; ci < columns.size(); ++ci)
+    md << " **" << fmt("%.4g", mean[ci].relmse) << "** | **" << fmt("%.4f", mean[ci].ssim) << "** |"
+       << (columns[ci].model.empty() ? "" : " " + fmt("%.2f", mean[ci].seconds / megapixels_total) + " s/MP |");
+  md << "\n";
+
+  nlohmann::json summary = nlohmann::json::array();
+  for (size_t ci = 0; ci < columns.size(); ++ci)
+    summary.push_back({{"label", columns[ci].label}, {"model", columns[ci].model}, {"precision", columns[ci].precision},
+                       {"mean_relmse", mean[ci].relmse}, {"mean_ssim", mean[ci].ssim},
+                       {"relmse_reduction", mean[0].relmse / mean[ci].relmse},
+                       {"seconds_per_megapixel", mean[ci].seconds / megapixels_total}});
+  const nlohmann::json j = {{"dataset", o.dataset}, {"scenes", json_scenes}, {"summary", summary},
+                            {"metrics", metrics::formula_text({})}};
+
+  auto write_text = [&](const std::string& path, const std::string& text) {
+    io::write_atomically(path, o.force, [&](const std::filesystem::path& tmp) {
+      std::ofstream out(tmp);
+      out << text;
+      if (!out) throw Error(ErrorKind::Output, "cannot write '" + path + "'");
+    });
+  };
+  if (!o.out_md.empty()) write_text(o.out_md, md.str());
+  if (!o.out_json.empty()) write_text(o.out_json, j.dump(2) + "\n");
+  std::cout << md.str();
+  return kOk;
+}
+
+}  // namespace
+
+Command add_evaluate_set_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("evaluate-set", "Run models over a data set; one table of relMSE, SSIM and time");
+  auto o = std::make_shared<EvalSetOptions>();
+  cmd->add_option("dataset", o->dataset, "Data set folder (s<seed>/noisy_a.exr, reference.exr)")->required();
+  cmd->add_option("--models", o->models, "Model names or files")->required()->delimiter(',');
+  cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
+  cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest)");
+  cmd->add_option("--last", o->last, "Only the last N scenes by name (the validation split)");
+  cmd->add_option("--md", o->out_md, "Write the table as Markdown");
+  cmd->add_option("--json", o->out_json, "Write every number as JSON");
+  cmd->add_option("--threads", o->threads, "Threads (default: every core)");
+  cmd->add_flag("-f,--force", o->force, "Replace output files");
+  return {cmd, [o]() { return run(*o); }};
+}
+
+}  // namespace residue::cli

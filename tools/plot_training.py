@@ -1,0 +1,52 @@
+#!/usr/bin/python3
+"""Plots a residue-train CSV log: training loss and validation relMSE / SSIM against steps.
+
+    /usr/bin/python3 tools/plot_training.py LOG.csv OUT.png [--title TITLE]
+
+Needs Debian's python3-matplotlib (apt-get install python3-matplotlib).
+"""
+import argparse
+import csv
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("log")
+    p.add_argument("out")
+    p.add_argument("--title", default="")
+    a = p.parse_args()
+    rows = list(csv.DictReader(open(a.log)))
+    steps = [int(r["step"]) for r in rows]
+    loss = [float(r["loss"]) for r in rows]
+    val = [r for r in rows if r["val_relmse"]]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.6))
+    ax1.plot(steps, loss, lw=1)
+    ax1.set_yscale("log")
+    ax1.set_xlabel("step")
+    ax1.set_ylabel("training L1 loss (log colour)")
+    ax1.grid(alpha=0.3)
+    if val:
+        vs = [int(r["step"]) for r in val]
+        ax2.plot(vs, [float(r["val_relmse"]) for r in val], "o-", label="denoised relMSE")
+        ax2.axhline(float(val[-1]["val_noisy_relmse"]), color="grey", ls="--", label="noisy relMSE")
+        ax2.set_yscale("log")
+        ax2.set_xlabel("step")
+        ax2.set_ylabel("validation relMSE")
+        ax2.grid(alpha=0.3)
+        ax3 = ax2.twinx()
+        ax3.plot(vs, [float(r["val_ssim"]) for r in val], "s-", color="tab:green", label="SSIM")
+        ax3.set_ylabel("validation SSIM")
+        lines = ax2.get_legend_handles_labels()
+        lines3 = ax3.get_legend_handles_labels()
+        ax2.legend(lines[0] + lines3[0], lines[1] + lines3[1], fontsize=8, loc="center right")
+    fig.suptitle(a.title)
+    fig.tight_layout()
+    fig.savefig(a.out, dpi=100)
+
+
+main()
