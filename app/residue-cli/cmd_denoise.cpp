@@ -3,12 +3,14 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <memory>
 
 #include "cli_common.h"
 #include "commands.h"
+#include "core/denoise/bilateral.h"
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
@@ -62,9 +64,6 @@ int run(const DenoiseCliOptions& o) {
   if (std::filesystem::exists(o.output) && !o.force)
     throw Error(ErrorKind::Output, "output '" + o.output + "' exists; pass --force to replace it");
   const AovStack stack = o.input.load();
-  // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
-  const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(stack)));
-
   DenoiseOptions d;
   d.backend = o.backend;
   d.precision = o.precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
@@ -79,14 +78,27 @@ int run(const DenoiseCliOptions& o) {
   std::signal(SIGINT, on_interrupt);
   DenoiseStats stats;
   Image denoised;
-  try {
-    denoised = denoise(stack, model, d, [&](const TileEvent& e, const Image&) {
-      progress.tile(e);
-      return !g_interrupted.load();
-    }, &stats);
-  } catch (const Cancelled&) {
-    std::fprintf(stderr, "\ndenoise: interrupted; nothing was written\n");
-    return 130;
+  std::string model_name = o.model, architecture = "cross-bilateral filter";
+  if (o.model == "bilateral") {  // the baseline, also a fast preview
+    const auto t0 = std::chrono::steady_clock::now();
+    denoised = cross_bilateral(stack, {}, d.roi);
+    stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    stats.backend = "cross-bilateral (core)";
+    stats.tiles = 1;
+  } else {
+    // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
+    const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(stack)));
+    model_name = model.name;
+    architecture = model.network.arch.to_string();
+    try {
+      denoised = denoise(stack, model, d, [&](const TileEvent& e, const Image&) {
+        progress.tile(e);
+        return !g_interrupted.load();
+      }, &stats);
+    } catch (const Cancelled&) {
+      std::fprintf(stderr, "\ndenoise: interrupted; nothing was written\n");
+      return 130;
+    }
   }
   std::signal(SIGINT, SIG_DFL);
 
@@ -99,8 +111,8 @@ int run(const DenoiseCliOptions& o) {
   w.display_height = stack.display_height;
   w.overwrite = o.force;
   w.residue_attributes.attribute("residue:version", RESIDUE_VERSION);
-  w.residue_attributes.attribute("residue:model", model.name);
-  w.residue_attributes.attribute("residue:architecture", model.network.arch.to_string());
+  w.residue_attributes.attribute("residue:model", model_name);
+  w.residue_attributes.attribute("residue:architecture", architecture);
   w.residue_attributes.attribute("residue:backend", stats.backend);
   w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
   w.residue_attributes.attribute("residue:source", stack.color.source.file);
@@ -108,7 +120,7 @@ int run(const DenoiseCliOptions& o) {
 
   const double megapixels = static_cast<double>(d.roi ? d.roi->area() : stack.width() * stack.height()) / 1e6;
   std::printf("wrote      %s\n", display_path(o.output).c_str());
-  std::printf("model      %s (%s)\n", model.name.c_str(), model.network.arch.to_string().c_str());
+  std::printf("model      %s (%s)\n", model_name.c_str(), architecture.c_str());
   std::printf("backend    %s\n", stats.backend.c_str());
   std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
               stats.seconds / megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
@@ -132,7 +144,7 @@ Command add_denoise_command(CLI::App& app) {
   auto o = std::make_shared<DenoiseCliOptions>();
   o->input.add_to(*cmd, true);
   cmd->add_option("-o,--output", o->output, "The denoised EXR to write")->required();
-  cmd->add_option("-m,--model", o->model, "A model name (see resources/models) or a .safetensors file")->required();
+  cmd->add_option("-m,--model", o->model, "A model name (see resources/models), a .safetensors file, or \"bilateral\" (the baseline filter)")->required();
   cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest available)")
       ->check(CLI::IsMember(nn::available_backends()));
   cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")

@@ -1,5 +1,6 @@
 // residue-cli evaluate-set: runs models over a data set's scenes and writes one table (scene x model: relMSE,
 // SSIM, time) as Markdown and JSON: the measured speed/accuracy trade users pick from.
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -11,6 +12,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/aov/dataset.h"
+#include "core/denoise/bilateral.h"
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
@@ -74,6 +76,10 @@ int run(const EvalSetOptions& o) {
       std::string model_file;
       if (columns[ci].model.empty()) {
         out = stack.color.image;
+      } else if (columns[ci].model == "bilateral") {  // the baseline every model must beat
+        const auto t0 = std::chrono::steady_clock::now();
+        out = cross_bilateral(stack);
+        cell.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } else {
         const auto path = nn::find_model_for(columns[ci].model, feature_set_for(stack));
         const nn::Model model = nn::load_model(path);
@@ -150,7 +156,7 @@ Command add_evaluate_set_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("evaluate-set", "Run models over a data set; one table of relMSE, SSIM and time");
   auto o = std::make_shared<EvalSetOptions>();
   cmd->add_option("dataset", o->dataset, "Data set folder (s<seed>/noisy_a.exr, reference.exr)")->required();
-  cmd->add_option("--models", o->models, "Model names or files")->required()->delimiter(',');
+  cmd->add_option("--models", o->models, "Model names or files; \"bilateral\" is the cross-bilateral baseline")->required()->delimiter(',');
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
   cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest)");
   cmd->add_option("--last", o->last, "Only the last N scenes by name (the validation split)");
