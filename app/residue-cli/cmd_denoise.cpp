@@ -85,6 +85,7 @@ int run(const DenoiseCliOptions& o) {
     stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     stats.backend = "cross-bilateral (core)";
     stats.tiles = 1;
+    stats.tile_size = std::max(stack.width(), stack.height());
   } else {
     // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
     const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(stack)));
