@@ -1,0 +1,891 @@
+"""One seeded procedural scene for Residue's training data, rendered by Debian's Blender (Cycles, CPU).
+
+  blender -b --factory-startup -noaudio -t 2 --python tools/datagen/make_scene.py -- \
+      --scene-seed 1000 --renders 8:1001,8:1002,1024:1007 --outdir DIR --res 256 --threads 2
+
+The same --scene-seed always builds the same scene (geometry, materials, lights, camera). Even seeds are
+interiors (a room lit through one or two windows and/or by lamps), odd seeds open-air scenes. Every entry of
+--renders is SPP:SAMPLING_SEED; they are rendered in this one process (the scene is built once) and named by
+--names (default noisy_a,noisy_b,reference for three renders). Noisy renders carry the full AOV set of the
+cycles-starter data set (21 channels); the last render (the reference) only ViewLayer.Combined. Writes
+DIR/<name>.exr for each render and DIR/scene.json (same format as /work/shared/datasets/cycles-starter).
+
+Brightness: before the real renders a small probe render measures the log-average luminance, and every light
+(lamps, emitters, sky) is scaled so that it lands at 0.18 * 2^ev, ev drawn per scene in [-1.5, 1.5]. Lights,
+not the film, are scaled, so the indirect clamp (10) means the same thing in every scene.
+See tools/datagen/README.md.
+"""
+import argparse
+import json
+import math
+import os
+import random
+import resource
+import subprocess
+import sys
+import time
+
+import bpy
+import bmesh
+from mathutils import Matrix, Vector
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import exr_metrics  # noqa: E402  (numpy + OpenImageIO; Blender's Python on Debian is the system Python)
+
+T0 = time.time()
+NOISY_PASSES = "Combined, Denoising Albedo/Depth/Normal, Depth, DiffCol, GlossCol, Normal"
+
+
+def parse_args():
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    p = argparse.ArgumentParser(prog="make_scene.py")
+    p.add_argument("--scene-seed", type=int, required=True)
+    p.add_argument("--renders", default="8:1001,8:1002,1024:1007", help="SPP:SEED,... (last = reference)")
+    p.add_argument("--names", default=None, help="file names without .exr, one per render")
+    p.add_argument("--outdir", required=True)
+    p.add_argument("--res", type=int, default=256)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--max-bounces", type=int, default=8)
+    p.add_argument("--clamp-indirect", type=float, default=10.0)
+    p.add_argument("--probe-res", type=int, default=48, help="auto-exposure probe resolution (0 = no probe)")
+    p.add_argument("--probe-spp", type=int, default=16)
+    p.add_argument("--save-blend", action="store_true", help="also save DIR/scene.blend (debugging)")
+    a = p.parse_args(argv)
+    a.render_list = []
+    for item in a.renders.split(","):
+        spp, seed = item.split(":")
+        a.render_list.append((int(spp), int(seed)))
+    if a.names:
+        a.name_list = a.names.split(",")
+    elif len(a.render_list) == 3:
+        a.name_list = ["noisy_a", "noisy_b", "reference"]
+    elif len(a.render_list) == 2:
+        a.name_list = ["noisy_a", "reference"]
+    else:
+        a.name_list = [f"render_{i}" for i in range(len(a.render_list) - 1)] + ["reference"]
+    if len(a.name_list) != len(a.render_list):
+        p.error("--names must have one entry per --renders entry")
+    return a
+
+
+def r3(v):
+    return [round(float(x), 3) for x in v]
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Scene context: the random stream, the description written into scene.json, and the light sources that the
+# auto-exposure scales.
+class Ctx:
+    def __init__(self, seed):
+        self.seed = seed
+        self.rng = random.Random(seed * 7919 + 17)
+        self.desc = {"scene_seed": seed, "objects": [], "lights": [], "features": []}
+        self.light_scalers = []  # (get, set) pairs
+        self.collection = bpy.context.scene.collection
+        self.protos = {}
+        self.mat_count = 0
+
+    def u(self, a, b):
+        return self.rng.uniform(a, b)
+
+    def chance(self, p):
+        return self.rng.random() < p
+
+    def choice(self, seq):
+        return self.rng.choice(seq)
+
+    def feature(self, name):
+        if name not in self.desc["features"]:
+            self.desc["features"].append(name)
+
+    def scalable(self, owner, attr, index=None):
+        if index is None:
+            self.light_scalers.append((lambda: getattr(owner, attr), lambda v: setattr(owner, attr, v)))
+        else:
+            self.light_scalers.append((lambda: owner.default_value, lambda v: setattr(owner, "default_value", v)))
+
+    def scale_lights(self, k):
+        for get, put in self.light_scalers:
+            put(get() * k)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Materials. Each returns (material, kind). Texture coordinates are Object coordinates (metres on the boxes,
+# which are built at their real size; unit-prototype props get them in their local frame).
+def _principled(ctx, name):
+    ctx.mat_count += 1
+    m = bpy.data.materials.new(f"{name}.{ctx.mat_count}")
+    m.use_nodes = True
+    nt = m.node_tree
+    return m, nt, nt.nodes["Principled BSDF"]
+
+
+def _coords(nt, scale, rotation=(0.0, 0.0, 0.0)):
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    mp = nt.nodes.new("ShaderNodeMapping")
+    mp.inputs["Scale"].default_value = scale
+    mp.inputs["Rotation"].default_value = rotation
+    nt.links.new(tc.outputs["Object"], mp.inputs["Vector"])
+    return mp.outputs["Vector"]
+
+
+def _bump(nt, bsdf, height_socket, strength, distance=0.02):
+    b = nt.nodes.new("ShaderNodeBump")
+    b.inputs["Strength"].default_value = strength
+    b.inputs["Distance"].default_value = distance
+    nt.links.new(height_socket, b.inputs["Height"])
+    nt.links.new(b.outputs["Normal"], bsdf.inputs["Normal"])
+
+
+def _ramp(nt, fac_socket, c0, c1):
+    r = nt.nodes.new("ShaderNodeValToRGB")
+    r.color_ramp.elements[0].color = (*c0, 1.0)
+    r.color_ramp.elements[1].color = (*c1, 1.0)
+    nt.links.new(fac_socket, r.inputs["Fac"])
+    return r.outputs["Color"]
+
+
+def _hsv(ctx, h=None, s=(0.3, 0.9), v=(0.2, 0.9)):
+    import colorsys
+    hh = ctx.u(0, 1) if h is None else h
+    return colorsys.hsv_to_rgb(hh, ctx.u(*s), ctx.u(*v))
+
+
+def _scale(c, k):
+    return tuple(min(1.0, x * k) for x in c)
+
+
+def mat_diffuse(ctx, color=None):
+    m, nt, b = _principled(ctx, "diffuse")
+    b.inputs["Base Color"].default_value = (*(color or _hsv(ctx, s=(0.0, 0.7), v=(0.15, 0.85))), 1)
+    b.inputs["Roughness"].default_value = ctx.u(0.7, 1.0)
+    b.inputs["Specular"].default_value = 0.3
+    return m, "diffuse"
+
+
+def mat_plastic(ctx):
+    m, nt, b = _principled(ctx, "plastic")
+    b.inputs["Base Color"].default_value = (*_hsv(ctx, s=(0.4, 1.0), v=(0.1, 0.85)), 1)
+    b.inputs["Roughness"].default_value = ctx.u(0.08, 0.5)
+    if ctx.chance(0.3):
+        b.inputs["Clearcoat"].default_value = 1.0
+        b.inputs["Clearcoat Roughness"].default_value = ctx.u(0.0, 0.1)
+    return m, "plastic"
+
+
+def mat_metal(ctx, rough=None):
+    m, nt, b = _principled(ctx, "metal")
+    tint = ctx.choice([(0.91, 0.92, 0.92), (0.95, 0.64, 0.54), (1.0, 0.78, 0.34), (0.56, 0.57, 0.58),
+                       (0.97, 0.96, 0.91), (0.3, 0.5, 0.8)])
+    b.inputs["Base Color"].default_value = (*tint, 1)
+    b.inputs["Metallic"].default_value = 1.0
+    rough = ctx.choice([ctx.u(0.0, 0.08), ctx.u(0.1, 0.45)]) if rough is None else rough
+    b.inputs["Roughness"].default_value = rough
+    if ctx.chance(0.25):
+        b.inputs["Anisotropic"].default_value = ctx.u(0.5, 0.9)
+    ctx.feature("metal")
+    return m, "metal" if rough < 0.1 else "rough_metal"
+
+
+def mat_glass(ctx, rough=None):
+    m, nt, b = _principled(ctx, "glass")
+    tint = ctx.choice([(1, 1, 1), (1, 1, 1), (0.8, 0.95, 0.85), (0.95, 0.85, 0.7), (0.75, 0.85, 1.0)])
+    b.inputs["Base Color"].default_value = (*tint, 1)
+    b.inputs["Transmission"].default_value = 1.0
+    b.inputs["IOR"].default_value = ctx.u(1.4, 1.6)
+    rough = ctx.choice([0.0, 0.0, ctx.u(0.05, 0.3)]) if rough is None else rough
+    b.inputs["Roughness"].default_value = rough
+    ctx.feature("glass")
+    return m, "glass" if rough == 0.0 else "rough_glass"
+
+
+def mat_emission(ctx, strength=None, color=None):
+    ctx.mat_count += 1
+    m = bpy.data.materials.new(f"emission.{ctx.mat_count}")
+    m.use_nodes = True
+    nt = m.node_tree
+    nt.nodes.remove(nt.nodes["Principled BSDF"])
+    e = nt.nodes.new("ShaderNodeEmission")
+    col = color or ctx.choice([(1.0, 0.85, 0.6), (1.0, 0.75, 0.45), (1.0, 0.95, 0.9), (0.7, 0.85, 1.0),
+                               _hsv(ctx, s=(0.5, 1.0), v=(1.0, 1.0))])
+    e.inputs["Color"].default_value = (*col, 1)
+    e.inputs["Strength"].default_value = strength if strength is not None else ctx.u(3.0, 25.0)
+    nt.links.new(e.outputs["Emission"], nt.nodes["Material Output"].inputs["Surface"])
+    ctx.scalable(e.inputs["Strength"], "default_value", index=0)
+    ctx.feature("emissive")
+    return m, "emission"
+
+
+def mat_wood(ctx, gloss=True):
+    """Planks (an elongated Brick texture: per-plank colour, grooves) with Wave/Noise grain."""
+    m, nt, b = _principled(ctx, "wood")
+    v = _coords(nt, (1.0, 1.0, 1.0), (0.0, 0.0, ctx.choice([0.0, math.pi / 2])))
+    base = _hsv(ctx, h=ctx.u(0.04, 0.1), s=(0.45, 0.8), v=(0.15, 0.6))
+    brick = nt.nodes.new("ShaderNodeTexBrick")
+    brick.inputs["Color1"].default_value = (*base, 1)
+    brick.inputs["Color2"].default_value = (*_scale(base, ctx.u(0.6, 0.85)), 1)
+    brick.inputs["Mortar"].default_value = (*_scale(base, 0.3), 1)
+    brick.inputs["Scale"].default_value = 1.0
+    brick.inputs["Mortar Size"].default_value = 0.004
+    brick.inputs["Brick Width"].default_value = ctx.u(0.8, 2.0)
+    brick.inputs["Row Height"].default_value = ctx.u(0.1, 0.25)
+    brick.offset = ctx.u(0.3, 0.7)
+    nt.links.new(v, brick.inputs["Vector"])
+    wave = nt.nodes.new("ShaderNodeTexWave")
+    wave.wave_type = "BANDS"
+    wave.bands_direction = "X"
+    wave.inputs["Scale"].default_value = ctx.u(2.0, 6.0)
+    wave.inputs["Distortion"].default_value = ctx.u(3.0, 10.0)
+    wave.inputs["Detail"].default_value = 3.0
+    wave.inputs["Detail Scale"].default_value = ctx.u(1.0, 3.0)
+    mp = nt.nodes.new("ShaderNodeMapping")
+    mp.inputs["Scale"].default_value = (0.25, 4.0, 1.0)
+    nt.links.new(v, mp.inputs["Vector"])
+    nt.links.new(mp.outputs["Vector"], wave.inputs["Vector"])
+    grain = _ramp(nt, wave.outputs["Fac"], (0.55, 0.55, 0.55), (1.0, 1.0, 1.0))
+    mix = nt.nodes.new("ShaderNodeMixRGB")
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Fac"].default_value = 1.0
+    nt.links.new(brick.outputs["Color"], mix.inputs["Color1"])
+    nt.links.new(grain, mix.inputs["Color2"])
+    nt.links.new(mix.outputs["Color"], b.inputs["Base Color"])
+    _bump(nt, b, brick.outputs["Fac"], 0.3, 0.005)
+    b.inputs["Roughness"].default_value = ctx.u(0.08, 0.3) if gloss else ctx.u(0.4, 0.7)
+    if gloss and ctx.chance(0.5):
+        b.inputs["Clearcoat"].default_value = ctx.u(0.3, 1.0)
+    return m, "wood"
+
+
+def mat_plaster(ctx, color=None):
+    """Painted plaster: Musgrave colour variation, Noise bump."""
+    m, nt, b = _principled(ctx, "plaster")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    c = color or ctx.choice([(0.8, 0.78, 0.72), (0.85, 0.85, 0.85), (0.75, 0.7, 0.62)] +
+                            [_hsv(ctx, s=(0.1, 0.45), v=(0.45, 0.85))] * 2)
+    mus = nt.nodes.new("ShaderNodeTexMusgrave")
+    mus.inputs["Scale"].default_value = ctx.u(1.0, 4.0)
+    nt.links.new(v, mus.inputs["Vector"])
+    col = _ramp(nt, mus.outputs["Fac"], _scale(c, ctx.u(0.8, 0.95)), c)
+    nt.links.new(col, b.inputs["Base Color"])
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = ctx.u(20.0, 80.0)
+    noise.inputs["Detail"].default_value = 8.0
+    nt.links.new(v, noise.inputs["Vector"])
+    _bump(nt, b, noise.outputs["Fac"], ctx.u(0.05, 0.25), 0.01)
+    b.inputs["Roughness"].default_value = ctx.u(0.75, 0.95)
+    b.inputs["Specular"].default_value = 0.3
+    return m, "plaster"
+
+
+def mat_tiles(ctx, size=None):
+    """Glazed tiles: Brick texture with no offset, mortar grooves as bump."""
+    m, nt, b = _principled(ctx, "tiles")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    s = size or ctx.u(0.1, 0.4)
+    c = _hsv(ctx, s=(0.0, 0.6), v=(0.2, 0.9))
+    brick = nt.nodes.new("ShaderNodeTexBrick")
+    brick.offset = ctx.choice([0.0, 0.0, 0.5])
+    brick.inputs["Color1"].default_value = (*c, 1)
+    brick.inputs["Color2"].default_value = (*_scale(c, ctx.u(0.75, 1.0)), 1)
+    brick.inputs["Mortar"].default_value = (*ctx.choice([(0.6, 0.6, 0.58), (0.1, 0.1, 0.1), (0.85, 0.85, 0.8)]), 1)
+    brick.inputs["Scale"].default_value = 1.0
+    brick.inputs["Mortar Size"].default_value = s * ctx.u(0.03, 0.06)
+    brick.inputs["Brick Width"].default_value = s * ctx.choice([1.0, 1.0, 2.0])
+    brick.inputs["Row Height"].default_value = s
+    nt.links.new(v, brick.inputs["Vector"])
+    nt.links.new(brick.outputs["Color"], b.inputs["Base Color"])
+    _bump(nt, b, brick.outputs["Fac"], -0.6, 0.004)
+    b.inputs["Roughness"].default_value = ctx.u(0.03, 0.25)
+    return m, "tiles"
+
+
+def mat_fabric(ctx):
+    """Cloth: Checker (gingham) or Voronoi colour, sheen, fine Wave bump for the weave."""
+    m, nt, b = _principled(ctx, "fabric")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    c0 = _hsv(ctx, s=(0.3, 0.9), v=(0.1, 0.7))
+    c1 = _scale(c0, ctx.u(0.3, 0.7)) if ctx.chance(0.5) else _hsv(ctx, s=(0.0, 0.5), v=(0.5, 0.9))
+    if ctx.chance(0.5):
+        t = nt.nodes.new("ShaderNodeTexChecker")
+        t.inputs["Scale"].default_value = ctx.u(4.0, 30.0)
+        t.inputs["Color1"].default_value = (*c0, 1)
+        t.inputs["Color2"].default_value = (*c1, 1)
+        nt.links.new(v, t.inputs["Vector"])
+        nt.links.new(t.outputs["Color"], b.inputs["Base Color"])
+    else:
+        t = nt.nodes.new("ShaderNodeTexVoronoi")
+        t.inputs["Scale"].default_value = ctx.u(5.0, 40.0)
+        nt.links.new(v, t.inputs["Vector"])
+        nt.links.new(_ramp(nt, t.outputs["Distance"], c0, c1), b.inputs["Base Color"])
+    wv = nt.nodes.new("ShaderNodeTexWave")
+    wv.inputs["Scale"].default_value = ctx.u(80.0, 200.0)
+    nt.links.new(v, wv.inputs["Vector"])
+    _bump(nt, b, wv.outputs["Fac"], 0.2, 0.002)
+    b.inputs["Roughness"].default_value = 1.0
+    b.inputs["Sheen"].default_value = ctx.u(0.3, 1.0)
+    b.inputs["Specular"].default_value = 0.2
+    return m, "fabric"
+
+
+def mat_marble(ctx):
+    m, nt, b = _principled(ctx, "marble")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    n = nt.nodes.new("ShaderNodeTexNoise")
+    n.inputs["Scale"].default_value = ctx.u(1.0, 5.0)
+    n.inputs["Detail"].default_value = 10.0
+    n.inputs["Distortion"].default_value = ctx.u(2.0, 8.0)
+    nt.links.new(v, n.inputs["Vector"])
+    c = ctx.choice([(0.9, 0.9, 0.88), (0.1, 0.1, 0.1), (0.6, 0.5, 0.4), (0.3, 0.45, 0.35)])
+    nt.links.new(_ramp(nt, n.outputs["Fac"], _scale(c, 0.4), c), b.inputs["Base Color"])
+    b.inputs["Roughness"].default_value = ctx.u(0.05, 0.25)
+    return m, "marble"
+
+
+def mat_checker(ctx):
+    m, nt, b = _principled(ctx, "checker")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    t = nt.nodes.new("ShaderNodeTexChecker")
+    t.inputs["Scale"].default_value = ctx.u(0.5, 4.0)
+    t.inputs["Color1"].default_value = (*_hsv(ctx, s=(0.0, 0.6), v=(0.5, 0.9)), 1)
+    t.inputs["Color2"].default_value = (*_hsv(ctx, s=(0.0, 0.6), v=(0.03, 0.3)), 1)
+    nt.links.new(v, t.inputs["Vector"])
+    nt.links.new(t.outputs["Color"], b.inputs["Base Color"])
+    b.inputs["Roughness"].default_value = ctx.u(0.2, 0.9)
+    return m, "checker"
+
+
+def mat_noise_color(ctx):
+    m, nt, b = _principled(ctx, "noise")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    n = nt.nodes.new("ShaderNodeTexNoise")
+    n.inputs["Scale"].default_value = ctx.u(2.0, 20.0)
+    n.inputs["Detail"].default_value = 6.0
+    nt.links.new(v, n.inputs["Vector"])
+    nt.links.new(_ramp(nt, n.outputs["Fac"], _hsv(ctx, v=(0.05, 0.5)), _hsv(ctx, v=(0.4, 0.9))),
+                 b.inputs["Base Color"])
+    b.inputs["Roughness"].default_value = ctx.u(0.3, 0.9)
+    return m, "noise"
+
+
+def mat_prop(ctx):
+    """A material for a small object: anything but the room's own surfaces."""
+    f = ctx.choice([mat_plastic, mat_plastic, mat_diffuse, mat_metal, mat_metal, mat_glass, mat_glass,
+                    mat_marble, mat_fabric, mat_checker, mat_noise_color, mat_wood])
+    if ctx.chance(0.04):
+        return mat_emission(ctx)
+    return f(ctx)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Geometry. Props share unit prototype meshes (size 1, centred, base at z = -0.5) with object-linked
+# materials; boxes are built at their real size so bevels and textures are in metres.
+def _finish_mesh(me, smooth=True, angle=35.0):
+    for poly in me.polygons:
+        poly.use_smooth = smooth
+    me.use_auto_smooth = True
+    me.auto_smooth_angle = math.radians(angle)
+
+
+def _bm_to_mesh(bm, name, smooth=True):
+    me = bpy.data.meshes.new(name)
+    bm.to_mesh(me)
+    bm.free()
+    _finish_mesh(me, smooth)
+    return me
+
+
+def proto(ctx, kind):
+    if kind in ctx.protos:
+        return ctx.protos[kind]
+    bm = bmesh.new()
+    if kind == "cube":
+        bmesh.ops.create_cube(bm, size=1.0)
+    elif kind == "cylinder":
+        bmesh.ops.create_cone(bm, cap_ends=True, segments=32, radius1=0.5, radius2=0.5, depth=1.0)
+    elif kind == "cone":
+        bmesh.ops.create_cone(bm, cap_ends=True, segments=32, radius1=0.5, radius2=0.0, depth=1.0)
+    elif kind == "sphere":
+        bmesh.ops.create_uvsphere(bm, u_segments=48, v_segments=24, radius=0.5)
+    elif kind == "icosphere":
+        bmesh.ops.create_icosphere(bm, subdivisions=2, radius=0.5)
+    elif kind == "monkey":
+        bmesh.ops.create_monkey(bm)
+        bmesh.ops.scale(bm, vec=(0.37, 0.37, 0.37), verts=bm.verts)
+    elif kind == "torus":
+        big, small, nu, nv = 0.35, 0.15, 48, 16
+        grid = []
+        for i in range(nu):
+            a = 2 * math.pi * i / nu
+            row = []
+            for j in range(nv):
+                c = 2 * math.pi * j / nv
+                row.append(bm.verts.new(((big + small * math.cos(c)) * math.cos(a),
+                                         (big + small * math.cos(c)) * math.sin(a), small * math.sin(c))))
+            grid.append(row)
+        for i in range(nu):
+            for j in range(nv):
+                bm.faces.new((grid[i][j], grid[(i + 1) % nu][j], grid[(i + 1) % nu][(j + 1) % nv],
+                              grid[i][(j + 1) % nv]))
+    else:
+        raise ValueError(kind)
+    me = _bm_to_mesh(bm, f"proto_{kind}", smooth=kind != "cube")
+    me.materials.append(None)
+    ctx.protos[kind] = me
+    return me
+
+
+def link(ctx, obj):
+    ctx.collection.objects.link(obj)
+    return obj
+
+
+def prop(ctx, kind, mat, loc, size, rot=(0.0, 0.0, 0.0), record=True):
+    """A prototype object of the given overall size (scalar or xyz), resting with its base at loc.z."""
+    me = proto(ctx, kind)
+    obj = link(ctx, bpy.data.objects.new(kind, me))
+    sx, sy, sz = (size, size, size) if isinstance(size, (int, float)) else size
+    obj.scale = (sx, sy, sz)
+    obj.location = (loc[0], loc[1], loc[2] + (0.5 * sz if kind not in ("torus",) else 0.15 * sz))
+    obj.rotation_euler = rot
+    obj.material_slots[0].link = "OBJECT"
+    obj.material_slots[0].material = mat[0]
+    if kind == "monkey":
+        mod = obj.modifiers.new("subsurf", "SUBSURF")
+        mod.levels = mod.render_levels = 2
+    if record:
+        ctx.desc["objects"].append({"type": kind, "material": mat[1], "loc": r3(loc), "size": r3(obj.scale)})
+    return obj
+
+
+def box(ctx, mat, lo, hi, bevel=0.0, name="box", record=True, rot_z=0.0):
+    """An axis-aligned box from corner lo to corner hi (rotated by rot_z about its centre), optionally bevelled."""
+    lo, hi = Vector(lo), Vector(hi)
+    size = hi - lo
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=1.0)
+    bmesh.ops.scale(bm, vec=size, verts=bm.verts)
+    me = _bm_to_mesh(bm, name, smooth=bevel > 0)
+    me.materials.append(mat[0])
+    obj = link(ctx, bpy.data.objects.new(name, me))
+    obj.location = (lo + hi) * 0.5
+    obj.rotation_euler = (0.0, 0.0, rot_z)
+    if bevel > 0:
+        mod = obj.modifiers.new("bevel", "BEVEL")
+        mod.width = min(bevel, 0.45 * min(size))
+        mod.segments = 3
+        mod.limit_method = "ANGLE"
+    if record:
+        ctx.desc["objects"].append({"type": name, "material": mat[1], "loc": r3(obj.location), "size": r3(size)})
+    return obj
+
+
+def curves(ctx, mat, polylines, radius, name="wires", record=True):
+    """Many thin tubes (one curve object, one spline per polyline)."""
+    cu = bpy.data.curves.new(name, "CURVE")
+    cu.dimensions = "3D"
+    cu.bevel_depth = radius
+    cu.bevel_resolution = 1
+    cu.fill_mode = "FULL"
+    cu.use_fill_caps = True
+    for pts in polylines:
+        sp = cu.splines.new("POLY")
+        sp.points.add(len(pts) - 1)
+        for p, q in zip(sp.points, pts):
+            p.co = (q[0], q[1], q[2], 1.0)
+    cu.materials.append(mat[0])
+    obj = link(ctx, bpy.data.objects.new(name, cu))
+    if record:
+        ctx.desc["objects"].append({"type": name, "material": mat[1], "count": len(polylines),
+                                    "radius": round(radius, 4)})
+    ctx.feature("thin_geometry")
+    return obj
+
+
+def look_at(obj, target):
+    d = Vector(target) - obj.location
+    obj.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
+
+
+def add_light(ctx, kind, loc, energy, size=0.5, target=None, color=(1.0, 1.0, 1.0), rot=None, angle=None):
+    ld = bpy.data.lights.new(kind.lower(), kind)
+    ld.energy = energy
+    ld.color = color
+    if kind == "AREA":
+        ld.shape = "DISK" if ctx.chance(0.5) else "RECTANGLE"
+        ld.size = size
+        ld.size_y = size * ctx.u(0.5, 1.5)
+    elif kind in ("POINT", "SPOT"):
+        ld.shadow_soft_size = size
+    elif kind == "SUN":
+        ld.angle = angle if angle is not None else math.radians(ctx.u(0.5, 3.0))
+    obj = link(ctx, bpy.data.objects.new(kind.lower(), ld))
+    obj.location = loc
+    if target is not None:
+        look_at(obj, target)
+    elif rot is not None:
+        obj.rotation_euler = rot
+    ctx.scalable(ld, "energy")
+    ctx.desc["lights"].append({"type": kind, "loc": r3(loc), "energy": round(energy, 3), "size": round(size, 3),
+                               "color": r3(color)})
+    return obj
+
+
+def sun_towards(ctx, direction, strength, angle_deg=None):
+    """A sun lamp whose light travels along `direction`."""
+    d = Vector(direction).normalized()
+    ld = bpy.data.lights.new("sun", "SUN")
+    ld.energy = strength
+    ld.angle = math.radians(angle_deg if angle_deg is not None else ctx.u(0.5, 4.0))
+    ld.color = ctx.choice([(1.0, 0.95, 0.85), (1.0, 0.85, 0.65), (1.0, 1.0, 1.0)])
+    obj = link(ctx, bpy.data.objects.new("sun", ld))
+    obj.location = -d * 20
+    obj.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
+    ctx.scalable(ld, "energy")
+    ctx.desc["lights"].append({"type": "SUN", "direction": r3(d), "strength": round(strength, 3),
+                               "angle_deg": round(math.degrees(ld.angle), 2)})
+    return obj
+
+
+def world(ctx, kind, strength, sun_dir=None):
+    """kind: nishita (physical sky, no sun disc), hosek, gradient, constant."""
+    w = bpy.data.worlds.new("world")
+    w.use_nodes = True
+    nt = w.node_tree
+    bg = nt.nodes["Background"]
+    bg.inputs["Strength"].default_value = strength
+    info = {"type": kind, "strength": round(strength, 4)}
+    if kind in ("nishita", "hosek"):
+        sky = nt.nodes.new("ShaderNodeTexSky")
+        d = Vector(sun_dir or (0.3, 0.4, -0.6)).normalized()
+        elev = math.asin(max(0.02, -d.z))
+        rot = math.atan2(-d.x, -d.y)  # sky's sun azimuth: 0 = +Y, anticlockwise... close enough for a sky
+        if kind == "nishita":
+            sky.sky_type = "NISHITA"
+            sky.sun_disc = False
+            sky.sun_elevation = elev
+            sky.sun_rotation = rot
+            sky.air_density = ctx.u(0.5, 2.0)
+            sky.dust_density = ctx.u(0.0, 3.0)
+        else:
+            sky.sky_type = "HOSEK_WILKIE"
+            sky.sun_direction = -d
+            sky.turbidity = ctx.u(2.0, 6.0)
+            sky.ground_albedo = 0.3
+        nt.links.new(sky.outputs["Color"], bg.inputs["Color"])
+        info["sun_elevation_deg"] = round(math.degrees(elev), 1)
+    elif kind == "gradient":
+        tc = nt.nodes.new("ShaderNodeTexCoord")
+        sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+        nt.links.new(tc.outputs["Generated"], sep.inputs["Vector"])
+        top = ctx.choice([(0.35, 0.5, 0.9), (0.8, 0.85, 0.9), (0.1, 0.12, 0.3), (0.9, 0.6, 0.4)])
+        bottom = ctx.choice([(0.9, 0.85, 0.75), (0.3, 0.3, 0.3), (0.6, 0.7, 0.8), (1.0, 0.8, 0.6)])
+        ramp = _ramp(nt, sep.outputs["Z"], bottom, top)  # Generated = the view direction in the world
+        ramp.node.color_ramp.elements[0].position = 0.0
+        ramp.node.color_ramp.elements[1].position = ctx.u(0.3, 0.8)
+        nt.links.new(ramp, bg.inputs["Color"])
+        info["top"], info["bottom"] = r3(top), r3(bottom)
+    else:
+        c = _hsv(ctx, s=(0.0, 0.4), v=(0.5, 1.0))
+        bg.inputs["Color"].default_value = (*c, 1)
+        info["color"] = r3(c)
+    ctx.scalable(bg.inputs["Strength"], "default_value", index=0)
+    bpy.context.scene.world = w
+    ctx.desc["world"] = info
+    return w
+
+
+def camera(ctx, loc, target, lens, dof_focus=None, fstop=None):
+    cd = bpy.data.cameras.new("camera")
+    cd.lens = lens
+    cd.sensor_width = 36.0
+    cd.clip_start = 0.01
+    cd.clip_end = 1000.0
+    obj = link(ctx, bpy.data.objects.new("camera", cd))
+    obj.location = loc
+    look_at(obj, target)
+    if dof_focus is not None:
+        cd.dof.use_dof = True
+        cd.dof.focus_distance = dof_focus
+        cd.dof.aperture_fstop = fstop
+        cd.dof.aperture_blades = ctx.choice([0, 0, 5, 6])
+        ctx.feature("depth_of_field")
+    bpy.context.scene.camera = obj
+    ctx.desc["camera"] = {"lens_mm": round(lens, 2), "loc": r3(loc), "target": r3(target),
+                          "dof": dof_focus is not None,
+                          "fstop": round(fstop, 2) if fstop else None,
+                          "focus": round(dof_focus, 3) if dof_focus else None}
+    return obj
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Scene builders (interior / exterior), defined below.
+def build_interior(ctx):
+    raise NotImplementedError
+
+
+def build_exterior(ctx):
+    raise NotImplementedError
+
+
+def build_test(ctx):
+    """A minimal scene for checking the machinery."""
+    box(ctx, mat_wood(ctx), (-3, -3, -0.1), (3, 3, 0), name="floor")
+    prop(ctx, "monkey", mat_metal(ctx), (0, 0, 0), 0.8)
+    prop(ctx, "sphere", mat_glass(ctx), (0.8, 0.3, 0), 0.5)
+    sun_towards(ctx, (0.3, 0.5, -0.7), 3.0)
+    world(ctx, "nishita", 0.2, (0.3, 0.5, -0.7))
+    camera(ctx, (0, -4, 1.5), (0, 0, 0.4), 40)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Rendering and scene.json
+def configure(scene, args):
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device = "CPU"
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.sampling_pattern = "PROGRESSIVE_MULTI_JITTER"
+    c.max_bounces = args.max_bounces
+    c.diffuse_bounces = 4
+    c.glossy_bounces = 4
+    c.transmission_bounces = args.max_bounces
+    c.transparent_max_bounces = args.max_bounces
+    c.volume_bounces = 0
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = args.clamp_indirect
+    c.caustics_reflective = True
+    c.caustics_refractive = True
+    scene.render.film_transparent = False
+    scene.render.threads_mode = "FIXED"
+    scene.render.threads = args.threads
+    scene.render.resolution_x = scene.render.resolution_y = args.res
+    scene.render.resolution_percentage = 100
+    scene.render.use_persistent_data = False
+    s = scene.render.image_settings
+    s.file_format = "OPEN_EXR_MULTILAYER"
+    s.color_depth = "16"
+    s.exr_codec = "ZIP"
+    scene.view_settings.view_transform = "Standard"
+
+
+def set_passes(scene, full):
+    layer = scene.view_layers[0]
+    layer.cycles.denoising_store_passes = full
+    layer.use_pass_z = full
+    layer.use_pass_normal = full
+    layer.use_pass_diffuse_color = full
+    layer.use_pass_glossy_color = full
+
+
+def render_one(scene, path, spp, seed, full):
+    scene.cycles.samples = spp
+    scene.cycles.seed = seed
+    set_passes(scene, full)
+    w2c = scene.camera.matrix_world.inverted()
+    scene.render.use_stamp_note = True
+    scene.render.stamp_note_text = json.dumps({"worldToCamera": [round(v, 6) for row in w2c for v in row],
+                                               "spp": spp, "sampling_seed": seed})
+    scene.render.filepath = path
+    t = time.time()
+    bpy.ops.render.render(write_still=True)
+    return time.time() - t
+
+
+def probe_exposure(ctx, scene, args):
+    """Scales every light so the probe's log-average luminance lands at 0.18 * 2^ev."""
+    ev = round(ctx.u(-1.5, 1.5), 2)
+    info = {"target_ev": ev}
+    if args.probe_res <= 0:
+        ctx.desc["exposure"] = info
+        return
+    res = scene.render.resolution_x
+    scene.render.resolution_x = scene.render.resolution_y = args.probe_res
+    path = os.path.join(args.outdir, ".probe.exr")
+    t = time.time()
+    render_one(scene, path, args.probe_spp, 99991, False)
+    img = exr_metrics.read_exr(path)
+    os.remove(path)
+    scene.render.resolution_x = scene.render.resolution_y = res
+    lav = exr_metrics.log_average_luminance(exr_metrics.layer_rgb(img))
+    target = 0.18 * 2.0 ** ev
+    k = min(2.0 ** 8, max(2.0 ** -6, target / max(lav, 1e-6)))
+    k = 2.0 ** round(math.log2(k), 1)  # quantised: re-runs build the same lights despite probe noise
+    ctx.scale_lights(k)
+    info.update({"probe_log_average_lum": round(lav, 5), "light_scale": round(k, 5),
+                 "probe_s": round(time.time() - t, 2), "probe_res": args.probe_res, "probe_spp": args.probe_spp})
+    ctx.desc["exposure"] = info
+
+
+def parse_time(s):
+    try:
+        parts = [float(x) for x in str(s).split(":")]
+    except ValueError:
+        return None
+    v = 0.0
+    for x in parts:
+        v = v * 60 + x
+    return round(v, 3)
+
+
+def camera_json(scene, res):
+    cam = scene.camera
+    c2w = cam.matrix_world.copy()
+    w2c = c2w.inverted()
+    deps = bpy.context.evaluated_depsgraph_get()
+    proj = cam.calc_matrix_camera(deps, x=res, y=res)
+    flip = Matrix.Diagonal((1.0, 1.0, -1.0, 1.0))
+    exr_w2c = (flip @ w2c).transposed()
+    d = cam.data
+    return {
+        "cameraToWorld": [list(map(float, row)) for row in c2w],
+        "worldToCamera": [list(map(float, row)) for row in w2c],
+        "projection": [list(map(float, row)) for row in proj],
+        "lens_mm": float(d.lens),
+        "sensor_mm": float(d.sensor_width),
+        "fov_x_rad": float(d.angle_x),
+        "fov_y_rad": float(d.angle_y),
+        "fov_x_deg": math.degrees(d.angle_x),
+        "dof": bool(d.dof.use_dof),
+        "focus_distance": float(d.dof.focus_distance) if d.dof.use_dof else None,
+        "fstop": float(d.dof.aperture_fstop) if d.dof.use_dof else None,
+        "convention": "Blender: world Z-up right-handed; matrices row-major, column-vector (p_cam = "
+                      "worldToCamera @ [x,y,z,1]); camera looks down -Z, +Y up; projection = Blender/OpenGL "
+                      "clip matrix for this resolution",
+        "openexr_worldToCamera": [list(map(float, row)) for row in exr_w2c],
+        "openexr_convention": "OpenEXR standard attribute layout (Imath row-vector, p' = [x,y,z,1] @ M), "
+                              "left-handed camera (+z = view dir); not written into the EXRs",
+    }
+
+
+def blender_version():
+    v = bpy.app.version_string
+    try:
+        deb = subprocess.run(["dpkg-query", "-W", "-f=${Version}", "blender"], capture_output=True, text=True,
+                             timeout=10).stdout.strip()
+        if deb:
+            v += f" (Debian {deb})"
+    except Exception:  # noqa: BLE001 - informative only
+        pass
+    return v
+
+
+def process_wall():
+    try:
+        with open("/proc/self/stat") as f:
+            start_ticks = float(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as f:
+            up = float(f.read().split()[0])
+        return round(up - start_ticks / os.sysconf("SC_CLK_TCK"), 3)
+    except Exception:  # noqa: BLE001
+        return round(time.time() - T0, 3)
+
+
+def main():
+    args = parse_args()
+    os.makedirs(args.outdir, exist_ok=True)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    ctx = Ctx(args.scene_seed)
+    t = time.time()
+    kind = os.environ.get("RESIDUE_DATAGEN_KIND") or ("interior" if args.scene_seed % 2 == 0 else "exterior")
+    ctx.desc["kind"] = kind
+    {"interior": build_interior, "exterior": build_exterior, "test": build_test}[kind](ctx)
+    configure(scene, args)
+    build_s = time.time() - t
+    probe_exposure(ctx, scene, args)
+    if args.save_blend:
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(args.outdir, "scene.blend"))
+
+    files, walls, spp_of, seed_of = {}, {}, {}, {}
+    for i, ((spp, seed), name) in enumerate(zip(args.render_list, args.name_list)):
+        ref = i == len(args.render_list) - 1
+        path = os.path.join(args.outdir, name + ".exr")
+        walls[name] = round(render_one(scene, path, spp, seed, not ref), 2)
+        spp_of[name], seed_of[name] = spp, seed
+        print(f"make_scene: seed {args.scene_seed} {name} {spp} spp in {walls[name]:.2f} s", flush=True)
+
+    t = time.time()
+    images = {}
+    for name in args.name_list:
+        path = os.path.join(args.outdir, name + ".exr")
+        img = exr_metrics.read_exr(path)
+        images[name] = img
+        a = img["attrs"]
+        entry = {"spp": spp_of[name], "sampling_seed": seed_of[name], "bytes": os.path.getsize(path),
+                 "render_wall_s": walls[name],
+                 "cycles_render_time_s": parse_time(a.get("cycles.ViewLayer.render_time")),
+                 "cycles_sync_time_s": parse_time(a.get("cycles.ViewLayer.synchronization_time")),
+                 "cycles_samples_header": a.get("cycles.ViewLayer.samples"),
+                 "channels": img["channels"], "channel_types": img["types"]}
+        if name == args.name_list[-1]:
+            entry["note"] = f"ViewLayer.Combined RGBA only, {spp_of[name]} spp, its own sampling seed"
+        else:
+            entry["passes"] = NOISY_PASSES
+        files[name + ".exr"] = entry
+    ref_name = args.name_list[-1]
+    a_name = args.name_list[0]
+    b_name = args.name_list[1] if len(args.name_list) > 2 else None
+    metrics = exr_metrics.scene_metrics(images[a_name], images[b_name] if b_name else None, images[ref_name])
+
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    doc = {
+        "scene_seed": args.scene_seed,
+        "kind": kind,
+        "resolution": [args.res, args.res],
+        "spp": spp_of,
+        "sampling_seeds": seed_of,
+        "files": files,
+        "render_settings": {
+            "blender": blender_version(),
+            "engine": "CYCLES",
+            "device": "CPU",
+            "threads": args.threads,
+            "sampling_pattern": scene.cycles.sampling_pattern,
+            "adaptive_sampling": False,
+            "denoising": False,
+            "max_bounces": scene.cycles.max_bounces,
+            "diffuse_bounces": scene.cycles.diffuse_bounces,
+            "glossy_bounces": scene.cycles.glossy_bounces,
+            "transmission_bounces": scene.cycles.transmission_bounces,
+            "clamp_direct": scene.cycles.sample_clamp_direct,
+            "clamp_indirect": scene.cycles.sample_clamp_indirect,
+            "film_transparent": False,
+            "aovs": "minimal (noisy: " + NOISY_PASSES + "; reference: Combined)",
+            "exr": "OPEN_EXR_MULTILAYER, color_depth 16 (half colour passes, float data passes), ZIP",
+            "generator": "tools/datagen/make_scene.py",
+            "command": "blender -b --factory-startup -noaudio -t {t} --python tools/datagen/make_scene.py -- "
+                       "--scene-seed {s} --renders {r} --outdir <dir> --res {res} --threads {t}".format(
+                           t=args.threads, s=args.scene_seed, r=args.renders, res=args.res),
+        },
+        "timing": {
+            "process_wall_s": process_wall(),
+            "process_user_cpu_s": round(ru.ru_utime, 2),
+            "process_sys_cpu_s": round(ru.ru_stime, 2),
+            "process_max_rss_kb": ru.ru_maxrss,
+            "build_scene_s": round(build_s, 3),
+            "probe_s": ctx.desc.get("exposure", {}).get("probe_s"),
+            "render_wall_s": walls,
+            "loadavg_at_postproc": list(os.getloadavg()),
+            "postproc_s": round(time.time() - t, 3),
+        },
+        "camera": camera_json(scene, args.res),
+        "camera_identical_across_renders": True,
+        "scene": ctx.desc,
+        "metrics": metrics,
+    }
+    tmp = os.path.join(args.outdir, "scene.json.tmp")
+    with open(tmp, "w") as f:
+        json.dump(doc, f, indent=1)
+    os.replace(tmp, os.path.join(args.outdir, "scene.json"))
+    print(f"make_scene: seed {args.scene_seed} ({kind}) done in {process_wall():.1f} s, relMSE noisy_a "
+          f"{metrics['relmse_noisy_a']:.4f}, finite {metrics['all_finite']}", flush=True)
+
+
+try:
+    main()
+except Exception:  # noqa: BLE001 - make Blender exit non-zero instead of staying at the prompt
+    import traceback
+    traceback.print_exc()
+    sys.stdout.flush()
+    os._exit(1)
