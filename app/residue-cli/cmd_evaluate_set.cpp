@@ -56,6 +56,10 @@ int run(const EvalSetOptions& o) {
   for (const auto& m : o.models) {
     // A file is labelled by its stem, a model name by itself.
     const std::string label = std::filesystem::is_regular_file(m) ? std::filesystem::path(m).stem().string() : m;
+    if (m == "bilateral") {  // no network, no precision
+      columns.push_back({label, m, "fp32"});
+      continue;
+    }
     for (const auto& p : o.precisions) columns.push_back({o.precisions.size() > 1 ? label + " " + p : label, m, p});
   }
 
