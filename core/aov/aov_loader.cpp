@@ -165,6 +165,22 @@ ReadPlan plan_from_binding(AovRole role, const ChannelBinding& b, const OpenedFi
   return p;
 }
 
+// Where a plan's AOV comes from.
+AovSource describe(const ReadPlan& p) {
+  AovSource src;
+  src.file = p.file;
+  src.subimage = p.channels.front().subimage;
+  src.layer = p.layer;
+  for (const auto& c : p.channels) {
+    src.channels.push_back(c.name);
+    src.pixel_types.push_back(c.pixel_type);
+    if (c.subimage != src.subimage)
+      throw Error(ErrorKind::Mapping, "the " + std::string(to_string(p.role)) + " channels of '" + p.file +
+                                          "' come from different parts of the file");
+  }
+  return src;
+}
+
 // Reads every plan that uses `file` into `out[role]`, placing pixels on `grid` (display coordinates).
 void read_plans(const OpenedFile& file, const std::vector<const ReadPlan*>& plans, const Rect& grid,
                 std::map<AovRole, Aov>& out) {
@@ -174,16 +190,7 @@ void read_plans(const OpenedFile& file, const std::vector<const ReadPlan*>& plan
   for (const ReadPlan* p : plans) {
     Aov& aov = out[p->role];
     aov.image = Image(grid.width, grid.height, static_cast<int>(p->channels.size()));
-    aov.source.file = file.path;
-    aov.source.subimage = p->channels.front().subimage;
-    aov.source.layer = p->layer;
-    for (const auto& c : p->channels) {
-      aov.source.channels.push_back(c.name);
-      aov.source.pixel_types.push_back(c.pixel_type);
-      if (c.subimage != aov.source.subimage)
-        throw Error(ErrorKind::Mapping, "the " + std::string(to_string(p->role)) + " channels of '" + file.path +
-                                            "' come from different parts of the file");
-    }
+    aov.source = describe(*p);
     by_subimage[aov.source.subimage].push_back(p);
   }
 
@@ -274,9 +281,19 @@ FileChannels list_channels(const fs::path& file) {
   return {f.path, f.channels, f.specs.front().width, f.specs.front().height};
 }
 
-AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& options) {
+struct AovReader::Impl {
+  std::map<std::string, OpenedFile> opened;
+  std::map<AovRole, ReadPlan> plans;
+  AovStack layout;
+};
+
+AovReader::~AovReader() = default;
+
+AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& options) : impl_(std::make_unique<Impl>()) {
   if (inputs.empty()) throw Error(ErrorKind::Usage, "no input file given");
-  AovStack stack;
+  AovStack& stack = impl_->layout;
+  std::map<std::string, OpenedFile>& opened = impl_->opened;
+  std::map<AovRole, ReadPlan>& plans = impl_->plans;
 
   // 1. The primary file and what it holds by its own naming.
   std::vector<fs::path> files = inputs;
@@ -286,7 +303,6 @@ AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& 
     set = file_set_from_names(files);
     files = {set->files.at(AovRole::Color)};
   }
-  std::map<std::string, OpenedFile> opened;
   auto open_cached = [&](const fs::path& p) -> const OpenedFile& {
     auto it = opened.find(p.string());
     if (it == opened.end()) it = opened.emplace(p.string(), open_file(p)).first;
@@ -297,7 +313,6 @@ AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& 
   stack.convention = rec.convention;
   stack.notes = rec.notes;
 
-  std::map<AovRole, ReadPlan> plans;
   for (const RecognisedAov& a : rec.aovs) plans[a.role] = plan_from_recognition(a, primary.path);
 
   // 2. Single-AOV siblings for what the file itself lacks (Tungsten, OIDN, or files named on the command line).
@@ -351,11 +366,56 @@ AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& 
                                         std::to_string(cspec.full_width) + "x" + std::to_string(cspec.full_height));
   }
 
+  for (const auto& [role, plan] : plans) {
+    if (role == AovRole::Normal) stack.normal_space = plan.normal_space;
+    if (role == AovRole::Depth) stack.depth_kind = plan.depth_kind;
+  }
+  // The layout: every AOV present, described, without pixels.
+  for (const auto& [role, plan] : plans) {
+    Aov* slot = nullptr;
+    switch (role) {
+      case AovRole::Color: slot = &stack.color; break;
+      case AovRole::Albedo: slot = &stack.albedo.emplace(); break;
+      case AovRole::Normal: slot = &stack.normal.emplace(); break;
+      case AovRole::Depth: slot = &stack.depth.emplace(); break;
+      case AovRole::Variance: slot = &stack.variance.emplace(); break;
+      case AovRole::Reference: slot = &stack.reference.emplace(); break;
+    }
+    slot->source = describe(plan);
+  }
+  if (stack.normal_space == NormalSpace::Unknown && plans.count(AovRole::Normal))
+    stack.notes.push_back("normal space unknown: give --normal-space camera|world if the network should know");
+  stack.metadata = cspec.extra_attribs;
+  stack.world_to_camera = camera_from_header(cspec, stack.notes);
+  if (stack.normal_space == NormalSpace::World && !stack.world_to_camera)
+    stack.notes.push_back("normals are in world space and no camera is known: they cannot be made view-space");
+}
+
+const AovStack& AovReader::layout() const { return impl_->layout; }
+
+AovStack AovReader::read(const Rect& rect) const {
+  const AovStack& layout = impl_->layout;
+  if (rect.empty() || !Rect{0, 0, layout.data_window.width, layout.data_window.height}.contains(rect))
+    throw Error(ErrorKind::Usage, "region " + rect.to_string() + " is not inside the " +
+                                      std::to_string(layout.data_window.width) + "x" +
+                                      std::to_string(layout.data_window.height) + " image");
+  AovStack stack;  // everything but the pixels comes from the layout
+  stack.convention = layout.convention;
+  stack.normal_space = layout.normal_space;
+  stack.depth_kind = layout.depth_kind;
+  stack.data_window = layout.data_window;
+  stack.display_width = layout.display_width;
+  stack.display_height = layout.display_height;
+  stack.metadata = layout.metadata;
+  stack.world_to_camera = layout.world_to_camera;
+  stack.notes = layout.notes;
+  const Rect grid{layout.data_window.x + rect.x, layout.data_window.y + rect.y, rect.width, rect.height};
+  const std::map<AovRole, ReadPlan>& plans = impl_->plans;
   // 5. Read, one pass per file.
   std::map<std::string, std::vector<const ReadPlan*>> by_file;
   for (const auto& [role, plan] : plans) by_file[plan.file].push_back(&plan);
   std::map<AovRole, Aov> loaded;
-  for (const auto& [file, file_plans] : by_file) read_plans(opened.at(file), file_plans, stack.data_window, loaded);
+  for (const auto& [file, file_plans] : by_file) read_plans(impl_->opened.at(file), file_plans, grid, loaded);
 
   // 6. Normalise conventions and count what is unusual.
   for (auto& [role, aov] : loaded) {
@@ -370,16 +430,12 @@ AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& 
             v = 0.0f;
             ++stack.depth_background_pixels;
           }
-      stack.depth_kind = plan.depth_kind;
     }
-    if (role == AovRole::Normal) stack.normal_space = plan.normal_space;
     aov.non_finite = count_non_finite(aov.image);
     if (aov.uncovered_pixels > 0)
       stack.notes.push_back(std::string("the ") + to_string(role) + " AOV does not cover " +
                             std::to_string(aov.uncovered_pixels) + " pixels of the colour's data window (set to 0)");
   }
-  if (stack.normal_space == NormalSpace::Unknown && loaded.count(AovRole::Normal))
-    stack.notes.push_back("normal space unknown: give --normal-space camera|world if the network should know");
 
   stack.color = std::move(loaded.at(AovRole::Color));
   auto move_opt = [&](AovRole role, std::optional<Aov>& dst) {
@@ -391,11 +447,13 @@ AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& 
   move_opt(AovRole::Variance, stack.variance);
   move_opt(AovRole::Reference, stack.reference);
 
-  stack.metadata = cspec.extra_attribs;
-  stack.world_to_camera = camera_from_header(cspec, stack.notes);
-  if (stack.normal_space == NormalSpace::World && !stack.world_to_camera)
-    stack.notes.push_back("normals are in world space and no camera is known: they cannot be made view-space");
   return stack;
+}
+
+AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& options) {
+  const AovReader reader(inputs, options);
+  const Rect& dw = reader.layout().data_window;
+  return reader.read({0, 0, dw.width, dw.height});
 }
 
 }  // namespace residue

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -17,6 +18,27 @@ struct LoadOptions {
   std::optional<std::filesystem::path> reference;  // a reference colour in another file
   std::optional<NormalSpace> normal_space;         // override what the convention says
   bool load_reference = true;                      // attach a reference found by convention
+};
+
+// Reads an AOV stack lazily: the constructor opens the inputs, recognises and checks the channels (all errors
+// of load_aov_stack come from here) and reads no pixels; read() then loads any rectangle, so a huge render can
+// be processed band by band in bounded memory.
+class AovReader {
+ public:
+  AovReader(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {});
+  ~AovReader();
+  AovReader(const AovReader&) = delete;
+  AovReader& operator=(const AovReader&) = delete;
+
+  // Everything but the pixels: convention, sources, windows, metadata, camera, notes. AOV images are empty.
+  const AovStack& layout() const;
+  // The AOVs of `rect` (pixels of the data window), normalised as load_aov_stack does; the result's images are
+  // rect-sized (its data_window still describes the whole image).
+  AovStack read(const Rect& rect) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 // Loads the stack. `inputs`: one file, one folder, or several single-AOV files.
