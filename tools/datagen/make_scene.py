@@ -1170,8 +1170,318 @@ def build_interior(ctx):
             ctx.feature("sun_patch_out_of_view")
 
 
+# ----------------------------------------------------------------------------------------------------------
+# Open-air scenes: a textured ground, a cluster of primitives, thin high-frequency geometry (grass from particle
+# hair, fences, grilles, wires, wireframes, sticks), sun and sky or dusk with lamps. Built at garden scale and
+# then scaled as a whole (a parent empty): macro (x0.03-0.15), garden (x1) or monoliths (x4-12).
+def mat_grass_ground(ctx):
+    m, nt, b = _principled(ctx, "grass_ground")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    n = nt.nodes.new("ShaderNodeTexNoise")
+    n.inputs["Scale"].default_value = ctx.u(0.5, 3.0)
+    n.inputs["Detail"].default_value = 6.0
+    nt.links.new(v, n.inputs["Vector"])
+    green = _hsv(ctx, h=ctx.u(0.18, 0.33), s=(0.4, 0.8), v=(0.05, 0.3))
+    soil = _hsv(ctx, h=ctx.u(0.05, 0.1), s=(0.3, 0.6), v=(0.05, 0.25))
+    nt.links.new(_ramp(nt, n.outputs["Fac"], soil, green), b.inputs["Base Color"])
+    fine = nt.nodes.new("ShaderNodeTexNoise")
+    fine.inputs["Scale"].default_value = ctx.u(30.0, 120.0)
+    nt.links.new(v, fine.inputs["Vector"])
+    _bump(nt, b, fine.outputs["Fac"], 0.4, 0.01)
+    b.inputs["Roughness"].default_value = ctx.u(0.7, 1.0)
+    return m, "grass_ground"
+
+
+def mat_sand(ctx):
+    m, nt, b = _principled(ctx, "sand")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    mus = nt.nodes.new("ShaderNodeTexMusgrave")
+    mus.inputs["Scale"].default_value = ctx.u(0.3, 2.0)
+    nt.links.new(v, mus.inputs["Vector"])
+    c = _hsv(ctx, h=ctx.u(0.07, 0.12), s=(0.2, 0.5), v=(0.3, 0.75))
+    b.inputs["Base Color"].default_value = (*c, 1)
+    _bump(nt, b, mus.outputs["Fac"], ctx.u(0.2, 0.6), 0.05)
+    b.inputs["Roughness"].default_value = 0.95
+    return m, "sand"
+
+
+def mat_asphalt(ctx):
+    """Dark, sometimes wet: noise-driven roughness between puddles and rough tarmac."""
+    m, nt, b = _principled(ctx, "asphalt")
+    v = _coords(nt, (1.0, 1.0, 1.0))
+    n = nt.nodes.new("ShaderNodeTexNoise")
+    n.inputs["Scale"].default_value = ctx.u(0.3, 1.5)
+    nt.links.new(v, n.inputs["Vector"])
+    wet = ctx.chance(0.5)
+    rough = _ramp(nt, n.outputs["Fac"], (0.03, 0.03, 0.03) if wet else (0.5, 0.5, 0.5), (0.8, 0.8, 0.8))
+    nt.links.new(rough, b.inputs["Roughness"])
+    g = nt.nodes.new("ShaderNodeTexNoise")
+    g.inputs["Scale"].default_value = ctx.u(80.0, 200.0)
+    nt.links.new(v, g.inputs["Vector"])
+    nt.links.new(_ramp(nt, g.outputs["Fac"], (0.02, 0.02, 0.02), (0.12, 0.12, 0.11)), b.inputs["Base Color"])
+    return m, "wet_asphalt" if wet else "asphalt"
+
+
+def grass(ctx, center, radius, length, scale):
+    """Particle hair on a disc: thousands of thin strands. Built directly at the scene's final scale (not
+    parented to the scaled root), so that hair lengths and radii need no assumption about parent scaling."""
+    bm = bmesh.new()
+    bmesh.ops.create_circle(bm, cap_ends=True, segments=32, radius=radius * scale)
+    me = _bm_to_mesh(bm, "grass_patch", smooth=False)
+    obj = link(ctx, bpy.data.objects.new("grass", me))
+    obj.location = (center[0] * scale, center[1] * scale, 0.002 * scale)
+    obj["residue_unscaled"] = True
+    me.materials.append(mat_diffuse(ctx)[0])
+    hm = bpy.data.materials.new("grass_hair")
+    hm.use_nodes = True
+    nt = hm.node_tree
+    b = nt.nodes["Principled BSDF"]
+    hi = nt.nodes.new("ShaderNodeHairInfo")
+    h0 = ctx.u(0.12, 0.3)
+    nt.links.new(_ramp(nt, hi.outputs["Random"], _hsv(ctx, h=h0, s=(0.5, 0.9), v=(0.05, 0.2)),
+                       _hsv(ctx, h=h0 + ctx.u(-0.05, 0.05), s=(0.4, 0.9), v=(0.25, 0.6))), b.inputs["Base Color"])
+    b.inputs["Roughness"].default_value = ctx.u(0.3, 0.6)
+    me.materials.append(hm)
+    mod = obj.modifiers.new("grass", "PARTICLE_SYSTEM")
+    ps = obj.particle_systems[0]
+    ps.seed = ctx.rng.randint(0, 10000)
+    st = ps.settings
+    st.type = "HAIR"
+    area = math.pi * radius * radius
+    st.count = int(min(20000, max(2000, area * ctx.u(300, 1500))))
+    st.use_advanced_hair = True
+    # Blender's hair_length is 4 x normal_factor (the emission velocity); the random velocity is in the same
+    # units, so both scale with the length.
+    st.normal_factor = length * scale / 4.0
+    st.factor_random = st.normal_factor * ctx.u(0.3, 0.8)
+    st.hair_step = 4
+    st.render_step = 3
+    st.material = 2
+    obj.show_instancer_for_render = False
+    st.child_type = "SIMPLE" if ctx.chance(0.5) else "NONE"
+    st.rendered_child_count = 4
+    st.child_radius = 0.05
+    st.radius_scale = ctx.u(0.002, 0.006) * scale
+    st.root_radius = 1.0
+    st.tip_radius = ctx.u(0.0, 0.3)
+    ctx.desc["objects"].append({"type": "grass_hair", "material": "hair", "count": st.count,
+                                "children": st.child_type, "length": round(length, 3), "radius": round(radius, 2)})
+    ctx.feature("hair")
+    ctx.feature("thin_geometry")
+    return obj
+
+
+def fence(ctx, p0, p1, height, spacing, r, mat):
+    p0, p1 = Vector(p0), Vector(p1)
+    n = max(2, int((p1 - p0).length / spacing))
+    bars = [[p0.lerp(p1, i / n), p0.lerp(p1, i / n) + Vector((0, 0, height))] for i in range(n + 1)]
+    rails = [[p0 + Vector((0, 0, z)), p1 + Vector((0, 0, z))] for z in (height * 0.15, height * 0.9)]
+    return curves(ctx, mat, bars + rails, r, name="fence")
+
+
+def grille(ctx, center, yaw, w, h, spacing, r, mat):
+    t = Vector((math.cos(yaw), math.sin(yaw), 0))
+    c = Vector(center)
+    lines = []
+    n = int(w / spacing)
+    for i in range(n + 1):
+        a = -w / 2 + i * spacing
+        lines.append([c + t * a, c + t * a + Vector((0, 0, h))])
+    for j in range(int(h / spacing) + 1):
+        z = j * spacing
+        lines.append([c - t * (w / 2) + Vector((0, 0, z)), c + t * (w / 2) + Vector((0, 0, z))])
+    return curves(ctx, mat, lines, r, name="grille")
+
+
+def wires(ctx, center, yaw, span, height, count, r, mat):
+    t = Vector((math.cos(yaw), math.sin(yaw), 0))
+    c = Vector(center)
+    pole = mat_wood(ctx, gloss=False) if ctx.chance(0.5) else mat_metal(ctx, rough=0.4)
+    for s in (-1, 1):
+        q = c + t * (s * span / 2)
+        prop(ctx, "cylinder", pole, (q.x, q.y, 0), (0.12, 0.12, height + 0.3), record=False)
+    lines = []
+    for k in range(count):
+        z = height - k * ctx.u(0.1, 0.3)
+        off = Vector((-t.y, t.x, 0)) * ctx.u(-0.3, 0.3)
+        sag = ctx.u(0.1, 0.6)
+        pts = []
+        for i in range(17):
+            f = i / 16
+            p = c + t * (span * (f - 0.5)) + off
+            pts.append(p + Vector((0, 0, z - sag * 4 * f * (1 - f))))
+        lines.append(pts)
+    return curves(ctx, mat, lines, r, name="wires")
+
+
+def sticks(ctx, center, spread, count, length, r, mat):
+    c = Vector(center)
+    lines = []
+    for _ in range(count):
+        p = c + Vector((ctx.u(-spread, spread), ctx.u(-spread, spread), 0))
+        ang, tilt = ctx.u(0, 2 * math.pi), ctx.u(0.0, 1.2)
+        d = Vector((math.cos(ang) * math.sin(tilt), math.sin(ang) * math.sin(tilt), math.cos(tilt)))
+        lines.append([p, p + d * length * ctx.u(0.5, 1.0)])
+    return curves(ctx, mat, lines, r, name="sticks")
+
+
+def wireframe_object(ctx, at, size, mat):
+    kind = ctx.choice(["icosphere", "cube", "sphere", "torus"])
+    obj = prop(ctx, kind, mat, at, size, record=False)
+    mod = obj.modifiers.new("wire", "WIREFRAME")
+    mod.thickness = ctx.u(0.01, 0.04)
+    mod.use_replace = True
+    ctx.desc["objects"].append({"type": f"wireframe_{kind}", "material": mat[1], "loc": r3(at),
+                                "size": round(size, 3)})
+    ctx.feature("thin_geometry")
+    return obj
+
+
 def build_exterior(ctx):
-    raise NotImplementedError
+    ctx.blocks, ctx.spots = [], []
+    variant = ctx.rng.choices(["garden", "macro", "monoliths"], [0.55, 0.25, 0.2])[0]
+    scale = {"garden": 1.0, "macro": ctx.u(0.03, 0.15), "monoliths": ctx.u(4.0, 12.0)}[variant]
+    ctx.desc["variant"], ctx.desc["scale"] = variant, round(scale, 4)
+    root = link(ctx, bpy.data.objects.new("root", None))
+
+    gm = ctx.choice([mat_grass_ground, mat_grass_ground, mat_checker, mat_tiles, mat_sand, mat_asphalt,
+                     mat_noise_color, mat_wood, mat_marble])
+    gmat = mat_tiles(ctx, ctx.u(0.3, 0.8)) if gm is mat_tiles else gm(ctx)
+    box(ctx, gmat, (-300, -300, -0.2), (300, 300, 0), name="ground")
+
+    # A cluster of primitives around the origin.
+    pal = Palette(ctx, 6)
+    n = ctx.rng.randint(4, 12)
+    spread = ctx.u(1.5, 4.0)
+    kinds = ["cube", "sphere", "sphere", "cylinder", "cone", "torus", "monkey", "icosphere", "bevel_box",
+             "pillar", "bevel_box"]
+    for _ in range(n):
+        kind = ctx.choice(kinds)
+        x, y = ctx.u(-spread, spread), ctx.u(-spread, spread)
+        s = ctx.u(0.2, 1.6)
+        mat = pal.pick()
+        if kind == "bevel_box":
+            sx, sy, sz = s * ctx.u(0.5, 1.5), s * ctx.u(0.5, 1.5), s * ctx.u(0.3, 1.5)
+            obj = box(ctx, mat, (x - sx / 2, y - sy / 2, 0), (x + sx / 2, y + sy / 2, sz), bevel=ctx.u(0.01, 0.1),
+                      name="bevel_box")
+            obj.rotation_euler.z = ctx.u(0, math.pi)
+            top = sz
+        elif kind == "pillar":
+            r = s * ctx.u(0.1, 0.25)
+            prop(ctx, "cylinder", mat, (x, y, 0), (2 * r, 2 * r, s * ctx.u(1.5, 3.0)))
+            top = None
+        else:
+            rot = (0.0, 0.0, ctx.u(0, 2 * math.pi))
+            if kind == "torus" and ctx.chance(0.5):
+                rot = (math.pi / 2, 0.0, rot[2])
+                obj = prop(ctx, kind, mat, (x, y, 0), s, rot)
+                obj.location.z = 0.5 * s
+            else:
+                prop(ctx, kind, mat, (x, y, 0), s, rot)
+            top = s if kind in ("cube", "cylinder") else None
+        ctx.spots.append(Vector((x, y, s * 0.5)))
+        if top is not None and ctx.chance(0.35):  # something on top
+            small_object(ctx, pal, (x, y, top), s * ctx.u(0.3, 0.6))
+    if ctx.chance(0.3):  # a glowing thing
+        x, y = ctx.u(-spread, spread), ctx.u(-spread, spread)
+        s = ctx.u(0.1, 0.5)
+        prop(ctx, ctx.choice(["sphere", "cube", "cylinder"]), mat_emission(ctx, ctx.u(2, 20)), (x, y, 0), s)
+
+    # Thin, high-frequency geometry.
+    thin = ctx.rng.sample(["grass", "fence", "grille", "wires", "wireframe", "sticks"],
+                          ctx.rng.choices([0, 1, 2, 3], [0.2, 0.4, 0.3, 0.1])[0])
+    for t in thin:
+        if t == "grass":
+            grass(ctx, (ctx.u(-1, 1), ctx.u(-1, 1)), ctx.u(2.0, 6.0), ctx.u(0.05, 0.35), scale)
+        elif t == "fence":
+            yaw = ctx.u(0, math.pi)
+            d = Vector((math.cos(yaw), math.sin(yaw), 0)) * ctx.u(2, 6)
+            off = Vector((ctx.u(-3, 3), ctx.u(-3, 3), 0))
+            fence(ctx, off - d, off + d, ctx.u(0.5, 1.8), ctx.u(0.05, 0.2), ctx.u(0.004, 0.02),
+                  ctx.choice([mat_metal(ctx), mat_diffuse(ctx), mat_wood(ctx, gloss=False)]))
+        elif t == "grille":
+            grille(ctx, (ctx.u(-2, 2), ctx.u(-2, 2), 0), ctx.u(0, math.pi), ctx.u(1, 4), ctx.u(0.8, 2.5),
+                   ctx.u(0.02, 0.1), ctx.u(0.002, 0.008), ctx.choice([mat_metal(ctx), mat_diffuse(ctx)]))
+        elif t == "wires":
+            wires(ctx, (ctx.u(-2, 2), ctx.u(-2, 2), 0), ctx.u(0, math.pi), ctx.u(6, 15), ctx.u(2, 5),
+                  ctx.rng.randint(2, 8), ctx.u(0.004, 0.015), mat_diffuse(ctx, (0.03, 0.03, 0.03)))
+        elif t == "wireframe":
+            wireframe_object(ctx, (ctx.u(-2, 2), ctx.u(-2, 2), 0), ctx.u(0.5, 2.0),
+                             ctx.choice([mat_metal(ctx), mat_plastic(ctx), mat_emission(ctx, ctx.u(2, 10))]))
+        else:
+            sticks(ctx, (ctx.u(-2, 2), ctx.u(-2, 2), 0), ctx.u(0.5, 2.0), ctx.rng.randint(30, 200),
+                   ctx.u(0.3, 1.2), ctx.u(0.003, 0.015), ctx.choice([mat_wood(ctx, gloss=False), mat_plastic(ctx)]))
+
+    # Light.
+    mode = ctx.rng.choices(["sun", "overcast", "dusk", "studio"], [0.45, 0.2, 0.2, 0.15])[0]
+    ctx.desc["lighting"] = mode
+    if mode == "sun":
+        e, az = math.radians(ctx.u(8, 70)), ctx.u(0, 2 * math.pi)
+        d = Vector((math.cos(az) * math.cos(e), math.sin(az) * math.cos(e), -math.sin(e)))
+        sun_towards(ctx, d, ctx.u(2.0, 5.0))
+        sky = ctx.choice(["nishita", "hosek"])
+        world(ctx, sky, ctx.u(0.2, 0.6) if sky == "nishita" else ctx.u(2.0, 5.0), d)
+    elif mode == "overcast":
+        world(ctx, ctx.choice(["gradient", "constant"]), ctx.u(0.5, 2.0))
+    elif mode == "dusk":
+        if ctx.chance(0.5):
+            e, az = math.radians(ctx.u(-2, 4)), ctx.u(0, 2 * math.pi)
+            world(ctx, "nishita", ctx.u(0.2, 0.6), (math.cos(az), math.sin(az), -math.sin(e)))
+        else:
+            world(ctx, "constant", ctx.u(0.01, 0.05))
+            bpy.context.scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.1, 0.15, 0.4, 1)
+        for _ in range(ctx.rng.randint(1, 3)):
+            ang, dist = ctx.u(0, 2 * math.pi), ctx.u(2, 6)
+            add_light(ctx, ctx.choice(["AREA", "POINT", "SPOT"]),
+                      (math.cos(ang) * dist, math.sin(ang) * dist, ctx.u(1.5, 5)), ctx.u(100, 1500),
+                      size=ctx.u(0.1, 1.5), target=(ctx.u(-1, 1), ctx.u(-1, 1), 0),
+                      color=ctx.choice([(1, 0.8, 0.6), (1, 1, 1), (0.7, 0.8, 1.0), (1, 0.6, 0.4)]))
+        for _ in range(ctx.rng.randint(0, 3)):  # lamp posts
+            x, y = ctx.u(-spread - 1, spread + 1), ctx.u(-spread - 1, spread + 1)
+            h = ctx.u(1.5, 3.5)
+            prop(ctx, "cylinder", mat_metal(ctx, rough=0.4), (x, y, 0), (0.08, 0.08, h), record=False)
+            prop(ctx, "sphere", mat_emission(ctx, ctx.u(5, 30)), (x, y, h), 0.25)
+    else:  # studio: the starter set's look
+        world(ctx, "constant", ctx.u(0.05, 0.6))
+        add_light(ctx, "AREA", (ctx.u(-4, 4), ctx.u(-4, 4), ctx.u(4, 8)), ctx.u(300, 1500), size=ctx.u(0.5, 3),
+                  target=(0, 0, 0))
+
+    # Camera: orbit the cluster, look at one of its objects; depth of field on ~40 %.
+    ang = ctx.u(0, 2 * math.pi)
+    dist = ctx.u(3.0, 12.0)
+    loc = Vector((math.cos(ang) * dist, math.sin(ang) * dist, ctx.u(0.25, 3.0)))
+    target = ctx.choice(ctx.spots) if ctx.spots else Vector((0, 0, 0.5))
+    lens = ctx.u(24, 85) if dist > 5 else ctx.u(20, 50)
+    dof = ctx.chance(0.4)
+    fstop = ctx.u(1.2, 5.6) if variant != "macro" else ctx.u(2.8, 16.0)
+    cam = camera(ctx, loc, target, lens, (target - loc).length if dof else None, fstop if dof else None)
+    # Slightly off-centre framing.
+    cam.rotation_euler.z += ctx.u(-0.12, 0.12)
+    cam.rotation_euler.x += ctx.u(-0.08, 0.08)
+
+    # Scale the whole scene: geometry is parented to the root (textures, bevels, hair and curves follow);
+    # lamps and the camera are moved instead (no scale in their matrices), lamp power goes with the area.
+    for obj in list(bpy.context.scene.objects):
+        if obj is root or obj.parent is not None or obj.get("residue_unscaled"):
+            continue
+        if obj.type in ("LIGHT", "CAMERA"):
+            obj.location = obj.location * scale
+        else:
+            obj.parent = root
+    root.scale = (scale, scale, scale)
+    for obj in bpy.context.scene.objects:
+        if obj.type == "LIGHT" and obj.data.type != "SUN":
+            obj.data.energy *= scale * scale
+            obj.data.shadow_soft_size *= scale
+            if obj.data.type == "AREA":
+                obj.data.size *= scale
+                obj.data.size_y *= scale
+    cam.data.clip_start = 0.01 * scale
+    cam.data.clip_end = 2000.0 * scale
+    if dof:
+        cam.data.dof.focus_distance *= scale
+        ctx.desc["camera"]["focus"] = round(cam.data.dof.focus_distance, 4)
+    bpy.context.view_layer.update()
 
 
 def build_test(ctx):
@@ -1203,6 +1513,7 @@ def configure(scene, args):
     c.sample_clamp_indirect = args.clamp_indirect
     # No caustics (diffuse -> specular -> light paths) and glossy filtering: they are what turns small lamps
     # and sun patches into fireflies that no 1024-spp reference resolves. Same for noisy and reference.
+    scene.cycles_curves.shape = "THICK"
     c.caustics_reflective = False
     c.caustics_refractive = False
     c.blur_glossy = 1.0
