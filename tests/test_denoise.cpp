@@ -14,6 +14,7 @@
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
 #include "core/metrics/metrics.h"
+#include "core/io/exr_writer.h"
 #include "core/nn/model_file.h"
 #include "core/util/error.h"
 #include "support/reference_network.h"
@@ -445,6 +446,78 @@ TEST(DenoiseJob, ErrorsAreValues) {
   EXPECT_EQ(job.status(), DenoiseJob::Status::Failed);
   EXPECT_EQ(job.error_kind(), ErrorKind::Input);
   EXPECT_NE(job.error().find("depth"), std::string::npos) << job.error();
+}
+
+// --- streamed denoise (band by band, bounded memory) ------------------------------------------------------
+
+Image read_exr_float(const std::filesystem::path& p) {
+  LoadOptions lo;
+  lo.load_reference = false;
+  return load_aov_stack({p}, lo).color.image;
+}
+
+TEST(DenoiseStreamed, EqualsTheInMemoryDenoise) {
+  const auto dir = testing::shared_dataset("cycles-starter/s104");
+  RESIDUE_REQUIRE_SHARED(dir);
+  const nn::Model model = small_model(FeatureSet::Full, 2, 8, 9);
+  const AovReader reader({dir / "noisy_a.exr"});
+  const AovStack whole = load_aov_stack({dir / "noisy_a.exr"});
+  TempDir tmp;
+  for (const std::optional<Rect>& roi : {std::optional<Rect>{}, std::optional<Rect>{Rect{30, 50, 100, 77}}}) {
+    DenoiseOptions o = eigen_options(64);
+    o.roi = roi;
+    const Image in_memory = denoise(whole, model, o);
+    io::ExrWriteOptions exr;
+    exr.pixel_type = io::PixelType::Float;
+    const auto out = tmp / (roi ? "roi.exr" : "all.exr");
+    const DenoiseStats stats = denoise_to_exr(reader, model, o, out, exr);
+    EXPECT_EQ(stats.tile_size, 64);
+    const Image streamed = read_exr_float(out);
+    EXPECT_LT(max_rel_diff(streamed, in_memory), 1e-5) << (roi ? "with ROI" : "whole image");
+  }
+  // The written file keeps the source's metadata and says which backend ran.
+  OIIO::ImageBuf img((tmp / "all.exr").string());
+  ASSERT_TRUE(img.read());
+  EXPECT_NE(img.spec().get_string_attribute("residue:backend").find("eigen"), std::string::npos);
+  EXPECT_FALSE(img.spec().get_string_attribute("Note").empty());
+}
+
+TEST(DenoiseStreamed, MemoryBoundPicksTheTileAndCancelLeavesNoFile) {
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  const AovReader reader({ex / "noisy.exr"});
+  const nn::Model model = small_model(FeatureSet::Full, 2, 16, 3);
+  TempDir tmp;
+  DenoiseOptions o;
+  o.backend = "eigen";
+  o.max_memory = size_t{6} << 20;  // 6 MiB: room for bands of small tiles only
+  const DenoiseStats stats = denoise_to_exr(reader, model, o, tmp / "a.exr", {});
+  EXPECT_GT(stats.tile_size, 0);
+  EXPECT_LT(stats.tile_size, 192) << "the bound forces bands narrower than the image";
+  o.max_memory = 1 << 16;
+  EXPECT_THROW(denoise_to_exr(reader, model, o, tmp / "b.exr", {}), Error);
+  o.max_memory = size_t{6} << 20;
+  EXPECT_THROW(denoise_to_exr(reader, model, o, tmp / "c.exr", {}, [](const TileEvent& e, const Image&) { return e.done < 2; }),
+               Cancelled);
+  EXPECT_FALSE(std::filesystem::exists(tmp / "c.exr"));
+  int files = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(tmp.path())) ++files;
+  EXPECT_EQ(files, 1) << "only a.exr: no temporary file left behind";
+}
+
+TEST(CliDenoise, LargeRendersAreStreamedWithinMaxMemory) {
+  TempDir tmp;
+  nn::write_safetensors(tmp / "m.safetensors", nn::to_safetensors(nn::random_network({1, 8, FeatureSet::Full}, 1)), false);
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  std::string text;
+  ASSERT_EQ(testing::run_cli({"denoise", (ex / "noisy.exr").string(), "-r", (ex / "reference.exr").string(), "-o",
+                              (tmp / "s.exr").string(), "-m", (tmp / "m.safetensors").string(), "--backend", "eigen",
+                              "--max-memory", "1"},
+                             &text),
+            0)
+      << text;
+  EXPECT_NE(text.find("streamed band by band"), std::string::npos) << text;
+  EXPECT_NE(text.find("denoised"), std::string::npos) << text;
+  EXPECT_EQ(read_exr_float(tmp / "s.exr").width(), 192);
 }
 
 // --- the shipped models ---------------------------------------------------------------------------------

@@ -60,10 +60,21 @@ class ProgressReporter {
   bool tty_;
 };
 
+// Bytes an in-memory denoise holds for the whole image: every AOV as float, plus the output.
+size_t whole_image_bytes(const AovStack& layout) {
+  int64_t channels = 3;
+  for (AovRole role : kAllAovRoles)
+    if (const Aov* a = layout.find(role)) channels += static_cast<int64_t>(a->source.channels.size());
+  return static_cast<size_t>(channels * layout.data_window.area()) * sizeof(float);
+}
+
 int run(const DenoiseCliOptions& o) {
   if (std::filesystem::exists(o.output) && !o.force)
     throw Error(ErrorKind::Output, "output '" + o.output + "' exists; pass --force to replace it");
-  const AovStack stack = o.input.load();
+  const std::vector<std::filesystem::path> inputs(o.input.inputs.begin(), o.input.inputs.end());
+  const AovReader reader(inputs, o.input.load_options());
+  const AovStack& layout = reader.layout();
+  const Rect whole{0, 0, layout.data_window.width, layout.data_window.height};
   DenoiseOptions d;
   d.backend = o.backend;
   d.precision = o.precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
@@ -73,64 +84,83 @@ int run(const DenoiseCliOptions& o) {
   d.skip_empty_tiles = !o.no_skip;
   if (!o.roi.empty()) d.roi = parse_roi(o.roi);
 
-  ProgressReporter progress;
-  g_interrupted = false;
-  std::signal(SIGINT, on_interrupt);
-  DenoiseStats stats;
-  Image denoised;
-  std::string model_name = o.model, architecture = "cross-bilateral filter";
-  if (o.model == "bilateral") {  // the baseline, also a fast preview
-    const auto t0 = std::chrono::steady_clock::now();
-    denoised = cross_bilateral(stack, {}, d.roi);
-    stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    stats.backend = "cross-bilateral (core)";
-    stats.tiles = 1;
-    stats.tile_size = std::max(stack.width(), stack.height());
-  } else {
-    // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
-    const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(stack)));
-    model_name = model.name;
-    architecture = model.network.arch.to_string();
-    try {
-      denoised = denoise(stack, model, d, [&](const TileEvent& e, const Image&) {
-        progress.tile(e);
-        return !g_interrupted.load();
-      }, &stats);
-    } catch (const Cancelled&) {
-      std::fprintf(stderr, "\ndenoise: interrupted; nothing was written\n");
-      return 130;
-    }
-  }
-  std::signal(SIGINT, SIG_DFL);
-
   io::ExrWriteOptions w;
   w.pixel_type = o.float_output ? io::PixelType::Float : io::PixelType::Half;
   w.compression = o.compression;
-  w.metadata = stack.metadata;
-  w.data_window = stack.data_window;
-  w.display_width = stack.display_width;
-  w.display_height = stack.display_height;
+  w.metadata = layout.metadata;
+  w.data_window = layout.data_window;
+  w.display_width = layout.display_width;
+  w.display_height = layout.display_height;
   w.overwrite = o.force;
   w.residue_attributes.attribute("residue:version", RESIDUE_VERSION);
-  w.residue_attributes.attribute("residue:model", model_name);
-  w.residue_attributes.attribute("residue:architecture", architecture);
-  w.residue_attributes.attribute("residue:backend", stats.backend);
-  w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
-  w.residue_attributes.attribute("residue:source", stack.color.source.file);
-  io::write_exr(o.output, denoised, w);
+  w.residue_attributes.attribute("residue:source", layout.color.source.file);
 
-  const double megapixels = static_cast<double>(d.roi ? d.roi->area() : stack.width() * stack.height()) / 1e6;
-  std::printf("wrote      %s\n", display_path(o.output).c_str());
+  ProgressReporter progress;
+  g_interrupted = false;
+  std::signal(SIGINT, on_interrupt);
+  auto on_tile = [&](const TileEvent& e, const Image&) {
+    progress.tile(e);
+    return !g_interrupted.load();
+  };
+  DenoiseStats stats;
+  std::string model_name = o.model, architecture = "cross-bilateral filter";
+  // Renders that fit in --max-memory are denoised in memory; larger ones band by band from and to the files
+  // (then the header cannot carry the time, which is known only at the end).
+  const bool streamed = o.model != "bilateral" && whole_image_bytes(layout) > d.max_memory;
+  try {
+    if (o.model == "bilateral") {  // the baseline, also a fast preview
+      const AovStack stack = reader.read(whole);
+      const auto t0 = std::chrono::steady_clock::now();
+      const Image out = cross_bilateral(stack, {}, d.roi);
+      stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      stats.backend = "cross-bilateral (core)";
+      stats.tiles = 1;
+      stats.tile_size = std::max(stack.width(), stack.height());
+      w.residue_attributes.attribute("residue:model", model_name);
+      w.residue_attributes.attribute("residue:architecture", architecture);
+      w.residue_attributes.attribute("residue:backend", stats.backend);
+      w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
+      io::write_exr(o.output, out, w);
+    } else {
+      // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
+      const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(layout)));
+      model_name = model.name;
+      architecture = model.network.arch.to_string();
+      w.residue_attributes.attribute("residue:model", model_name);
+      w.residue_attributes.attribute("residue:architecture", architecture);
+      if (streamed) {
+        stats = denoise_to_exr(reader, model, d, o.output, w, on_tile);
+      } else {
+        const AovStack stack = reader.read(whole);
+        const Image out = denoise(stack, model, d, on_tile, &stats);
+        w.residue_attributes.attribute("residue:backend", stats.backend);
+        w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
+        io::write_exr(o.output, out, w);
+      }
+    }
+  } catch (const Cancelled&) {
+    std::fprintf(stderr, "\ndenoise: interrupted; nothing was written\n");
+    return 130;
+  }
+  std::signal(SIGINT, SIG_DFL);
+
+  const double megapixels = static_cast<double>(d.roi ? d.roi->area() : whole.area()) / 1e6;
+  std::printf("wrote      %s%s\n", display_path(o.output).c_str(), streamed ? " (streamed band by band)" : "");
   std::printf("model      %s (%s)\n", model_name.c_str(), architecture.c_str());
   std::printf("backend    %s\n", stats.backend.c_str());
   std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
               stats.seconds / megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
               static_cast<long long>(stats.skipped));
-  if (stack.reference) {
+  if (layout.reference) {
+    // Scored from the file written, as the user will see it.
+    const AovStack stack = reader.read(whole);
+    LoadOptions lo;
+    lo.load_reference = false;
+    const Image denoised = load_aov_stack({o.output}, lo).color.image;
     metrics::Options m;
     m.roi = d.roi;
-    io::MetricsReport report{stack.reference->source.file, stack.width(), stack.height(), m, {}};
-    report.rows.push_back({"noisy", stack.color.source.file, metrics::compare(stack.color.image, stack.reference->image, m)});
+    io::MetricsReport report{layout.reference->source.file, whole.width, whole.height, m, {}};
+    report.rows.push_back({"noisy", layout.color.source.file, metrics::compare(stack.color.image, stack.reference->image, m)});
     report.rows.push_back({"denoised", o.output, metrics::compare(denoised, stack.reference->image, m)});
     std::printf("\n");
     print_metrics_table(report);
@@ -157,7 +187,7 @@ Command add_denoise_command(CLI::App& app) {
   cmd->add_option("--roi", o->roi, "Denoise only the rectangle x,y,w,h; elsewhere the noisy colour is kept");
   cmd->add_option("--max-memory", o->max_memory_mib, "Memory for tiles and the output, in MiB")
       ->capture_default_str()
-      ->check(CLI::Range(size_t{16}, size_t{1} << 24));
+      ->check(CLI::Range(size_t{1}, size_t{1} << 24));
   cmd->add_flag("--no-skip", o->no_skip, "Run the network on empty (all-black) tiles too");
   cmd->add_flag("--float", o->float_output, "Write 32-bit float channels (default: half)");
   cmd->add_option("--compression", o->compression, "EXR compression (zip, piz, dwaa, none, ...)")->capture_default_str();

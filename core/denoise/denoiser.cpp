@@ -8,6 +8,7 @@
 #include <tbb/task_arena.h>
 
 #include "core/features/features.h"
+#include "core/io/exr_writer.h"
 #include "core/util/error.h"
 
 namespace residue {
@@ -31,6 +32,38 @@ bool colour_is_empty(const Image& colour, const Rect& r) {
       }
   return true;
 }
+
+Rect expand(const Rect& r, int64_t halo, const Rect& bounds);
+
+// Denoises one tile. `src` holds the image's pixels of `src_rect` (image coordinates; it covers the tile and
+// its halo); the result goes to `out` at the tile's position minus (out_x0, out_y0). Returns true when skipped.
+struct TileRunner {
+  const nn::Architecture& arch;
+  nn::Backend& backend;
+  const FeatureStats& stats;
+  bool skip_empty;
+  Image features, result;
+
+  bool run(const AovStack& src, const Rect& src_rect, const Rect& bounds, const Rect& t, Image& out, int64_t out_x0,
+           int64_t out_y0) {
+    Rect in = expand(t, arch.halo(), bounds);
+    in.x -= src_rect.x;
+    in.y -= src_rect.y;
+    const int64_t tx = t.x - src_rect.x, ty = t.y - src_rect.y;
+    if (skip_empty && colour_is_empty(src.color.image, in)) {
+      for (int64_t y = t.y; y < t.y + t.height; ++y)
+        std::memset(&out.at(t.x - out_x0, y - out_y0, 0), 0, static_cast<size_t>(t.width * 3) * sizeof(float));
+      return true;
+    }
+    make_features(src, arch.features, stats, in, features);
+    backend.run(features, result);
+    for (int64_t y = 0; y < t.height; ++y)
+      for (int64_t x = 0; x < t.width; ++x)
+        for (int c = 0; c < 3; ++c)
+          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = expand_color(result.at(tx - in.x + x, ty - in.y + y, c));
+    return false;
+  }
+};
 
 Rect expand(const Rect& r, int64_t halo, const Rect& bounds) {
   const int64_t x0 = std::max(bounds.x, r.x - halo), y0 = std::max(bounds.y, r.y - halo);
@@ -97,29 +130,106 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
     local.backend = backend->description();
     local.features = arch.features;
 
-    Image features, result;
+    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, {}, {}};
     for (size_t i = 0; i < tiles.size(); ++i) {
-      const Rect& t = tiles[i];
-      const Rect in = expand(t, arch.halo(), bounds);
-      const bool skip = options.skip_empty_tiles && colour_is_empty(stack.color.image, in);
-      if (skip) {
-        ++local.skipped;
-        for (int64_t y = t.y; y < t.y + t.height; ++y)
-          std::memset(&output.at(t.x, y, 0), 0, static_cast<size_t>(t.width * 3) * sizeof(float));
-      } else {
-        make_features(stack, arch.features, fstats, in, features);
-        backend->run(features, result);
-        for (int64_t y = 0; y < t.height; ++y)
-          for (int64_t x = 0; x < t.width; ++x)
-            for (int c = 0; c < 3; ++c)
-              output.at(t.x + x, t.y + y, c) = expand_color(result.at(t.x - in.x + x, t.y - in.y + y, c));
-      }
-      if (on_tile && !on_tile({t, skip, static_cast<int64_t>(i + 1), local.tiles}, output)) throw Cancelled();
+      const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
+      if (skip) ++local.skipped;
+      if (on_tile && !on_tile({tiles[i], skip, static_cast<int64_t>(i + 1), local.tiles}, output)) throw Cancelled();
     }
   });
   local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (stats) *stats = local;
   return output;
+}
+
+DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, const DenoiseOptions& options,
+                            const std::filesystem::path& output, io::ExrWriteOptions exr, const TileCallback& on_tile) {
+  const auto start = std::chrono::steady_clock::now();
+  const AovStack& layout = reader.layout();
+  const nn::Architecture& arch = model.network.arch;
+  check_features_available(layout, arch.features);
+  const int64_t W = layout.data_window.width, H = layout.data_window.height;
+  const Rect bounds{0, 0, W, H};
+  const Rect region = options.roi.value_or(bounds);
+  if (region.empty() || !bounds.contains(region))
+    throw Error(ErrorKind::Usage, "the region " + region.to_string() + " is not inside the " + std::to_string(W) +
+                                      "x" + std::to_string(H) + " image");
+  // Floats per pixel of a band as read: every AOV the render has.
+  int64_t stack_channels = 0;
+  for (AovRole role : kAllAovRoles)
+    if (const Aov* a = layout.find(role)) stack_channels += static_cast<int64_t>(a->source.channels.size());
+
+  if (exr.data_window.empty()) exr.data_window = layout.data_window;
+  if (exr.display_width <= 0) exr.display_width = layout.display_width;
+  if (exr.display_height <= 0) exr.display_height = layout.display_height;
+  if (exr.metadata.empty()) exr.metadata = layout.metadata;
+  std::string backend_name = options.backend.empty() ? nn::available_backends().back() : options.backend;
+  const int threads = options.threads > 0 ? options.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  DenoiseStats local;
+  arena.execute([&] {
+    auto backend = nn::make_backend(backend_name, model.network, {options.precision});
+    const int64_t h = arch.halo();
+    // Memory of one band of tile rows: its input rows with halos, its output rows, and one tile's work.
+    auto band_bytes = [&](int64_t tile) {
+      return static_cast<size_t>(((tile + 2 * h) * stack_channels + tile * 3) * W) * sizeof(float) +
+             tile_bytes(*backend, arch, tile);
+    };
+    int64_t tile = options.tile;
+    if (tile <= 0)
+      for (int64_t t = kMaxAutoTile; t >= 16 && tile <= 0; t = t * 3 / 4)
+        if (band_bytes(t) <= options.max_memory) tile = t;
+    if (tile <= 0 || band_bytes(tile) > options.max_memory)
+      throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) + " MiB cannot hold a band of " +
+                                        std::to_string(std::max<int64_t>(tile, 16)) + "-pixel tiles of this " +
+                                        std::to_string(W) + "-pixel-wide image");
+    local.tile_size = tile;
+    local.backend = backend->description();
+    local.features = arch.features;
+    exr.residue_attributes.attribute("residue:backend", local.backend);
+
+    // Pass 1: the whole-image statistics the features need (the same depth sample denoise() draws).
+    FeatureStats fstats = compute_feature_stats(layout);
+    if (layout.depth) {
+      const int64_t stride = depth_sample_stride(W * H);
+      std::vector<float> samples;
+      for (int64_t y0 = 0; y0 < H; y0 += tile) {
+        const AovStack band = reader.read({0, y0, W, std::min(tile, H - y0)});
+        for (int64_t i = 0; i < band.depth->image.pixel_count(); ++i)
+          if ((y0 * W + i) % stride == 0) samples.push_back(band.depth->image.data()[i]);
+      }
+      fstats.depth_scale = depth_scale_from_samples(samples);
+    }
+
+    // Pass 2: bands of tile rows, denoised and written as they finish. Tiles sit on the image's grid (so each
+    // lies in one band), cut to the region.
+    std::vector<Rect> tiles;
+    for (const Rect& t : make_tiles(bounds, tile)) {
+      const int64_t x0 = std::max(t.x, region.x), y0 = std::max(t.y, region.y);
+      const int64_t x1 = std::min(t.x + t.width, region.x + region.width);
+      const int64_t y1 = std::min(t.y + t.height, region.y + region.height);
+      if (x1 > x0 && y1 > y0) tiles.push_back({x0, y0, x1 - x0, y1 - y0});
+    }
+    local.tiles = static_cast<int64_t>(tiles.size());
+    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, {}, {}};
+    int64_t done = 0;
+    io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
+      const int64_t in_y0 = std::max<int64_t>(0, y0 - h), in_y1 = std::min(H, y0 + rows + h);
+      const Rect src_rect{0, in_y0, W, in_y1 - in_y0};
+      const AovStack src = reader.read(src_rect);
+      Image out = crop(src.color.image, {0, y0 - in_y0, W, rows});  // outside the region the noisy colour stays
+      for (const Rect& t : tiles) {
+        if (t.y < y0 || t.y >= y0 + rows) continue;
+        const bool skip = runner.run(src, src_rect, bounds, t, out, 0, y0);
+        if (skip) ++local.skipped;
+        ++done;
+        if (on_tile && !on_tile({t, skip, done, local.tiles}, out)) throw Cancelled();
+      }
+      return out;
+    });
+  });
+  local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return local;
 }
 
 }  // namespace residue

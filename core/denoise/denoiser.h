@@ -11,7 +11,9 @@
 #include <stdexcept>
 #include <string>
 
+#include "core/aov/aov_loader.h"
 #include "core/aov/aov_stack.h"
+#include "core/io/exr_writer.h"
 #include "core/nn/backend.h"
 #include "core/nn/model_file.h"
 
@@ -56,6 +58,15 @@ using TileCallback = std::function<bool(const TileEvent&, const Image& output)>;
 // bad options), or Cancelled.
 Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
               const TileCallback& on_tile = {}, DenoiseStats* stats = nullptr);
+
+// The same denoise, streamed: the render is read band by band (rows of tiles with their halos) and the EXR is
+// written band by band, so memory stays within options.max_memory whatever the image size (a 16K x 16K render
+// in 4 GiB). `exr` says how to write (its data/display windows and metadata are taken from the reader when
+// unset). The callback's image is the current band's output (tile rectangles are in image coordinates; the
+// band starts at the tile row's y). Cancelling leaves no file. The output equals denoise()'s (tiles on the
+// image's grid; tiled output equals untiled).
+DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, const DenoiseOptions& options,
+                            const std::filesystem::path& output, io::ExrWriteOptions exr, const TileCallback& on_tile = {});
 
 // Tile rectangles covering `region`, row by row.
 std::vector<Rect> make_tiles(const Rect& region, int64_t tile);

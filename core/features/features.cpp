@@ -24,23 +24,26 @@ float expand_color(float y) {
   return std::min(std::expm1(std::min(y, kMaxLog)), FLT_MAX);
 }
 
+int64_t depth_sample_stride(int64_t pixel_count) { return std::max<int64_t>(1, pixel_count / (int64_t{1} << 20)); }
+
+double depth_scale_from_samples(std::vector<float>& samples) {
+  // The median of the hits, rounded to 1/8 octave: robust to outliers, and one odd pixel almost never moves
+  // it, so bad pixels stay local (their receptive field).
+  std::erase_if(samples, [](float v) { return !(std::isfinite(v) && v > 0); });
+  if (samples.empty()) return 1.0;
+  auto mid = samples.begin() + static_cast<std::ptrdiff_t>(samples.size() / 2);
+  std::nth_element(samples.begin(), mid, samples.end());
+  return std::exp2(std::round(std::log2(static_cast<double>(*mid)) * 8.0) / 8.0);
+}
+
 FeatureStats compute_feature_stats(const AovStack& stack) {
   FeatureStats s;
   if (stack.depth) {
-    // The median of the hit depths (a strided sample of at most ~1M pixels), rounded to 1/8 octave: robust to
-    // outliers, and one odd pixel almost never moves it, so bad pixels stay local (their receptive field).
     const Image& d = stack.depth->image;
-    const int64_t stride = std::max<int64_t>(1, d.pixel_count() / (int64_t{1} << 20));
+    const int64_t stride = depth_sample_stride(d.pixel_count());
     std::vector<float> hits;
-    for (int64_t i = 0; i < d.pixel_count(); i += stride) {
-      const float v = d.data()[i];
-      if (std::isfinite(v) && v > 0) hits.push_back(v);
-    }
-    if (!hits.empty()) {
-      auto mid = hits.begin() + static_cast<std::ptrdiff_t>(hits.size() / 2);
-      std::nth_element(hits.begin(), mid, hits.end());
-      s.depth_scale = std::exp2(std::round(std::log2(static_cast<double>(*mid)) * 8.0) / 8.0);
-    }
+    for (int64_t i = 0; i < d.pixel_count(); i += stride) hits.push_back(d.data()[i]);
+    s.depth_scale = depth_scale_from_samples(hits);
   }
   if (stack.normal && stack.normal_space == NormalSpace::World && stack.world_to_camera) {
     s.rotate_normals = true;

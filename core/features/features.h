@@ -14,6 +14,7 @@
 #include <array>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/aov/aov_stack.h"
 #include "core/features/feature_set.h"
@@ -28,6 +29,11 @@ struct FeatureStats {
 };
 
 FeatureStats compute_feature_stats(const AovStack& stack);
+
+// The depth scale is the median of a sample of the depth plane: every stride-th pixel in row-major order,
+// at most ~1M of them. Exposed so a band-by-band reader can draw exactly the same sample.
+int64_t depth_sample_stride(int64_t pixel_count);
+double depth_scale_from_samples(std::vector<float>& samples);  // drops non-hits; 1 when none
 
 // The richest feature set the stack can feed without inventing data.
 FeatureSet feature_set_for(const AovStack& stack);

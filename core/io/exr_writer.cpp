@@ -40,8 +40,7 @@ void check_compression(const std::string& compression) {
                                     " (optionally with a level, e.g. zip:9 or dwaa:45)");
 }
 
-std::vector<std::string> channel_names(const Image& image, const ExrWriteOptions& options) {
-  const int n = image.channels();
+std::vector<std::string> channel_names(int n, const ExrWriteOptions& options) {
   if (!options.channel_names.empty()) {
     if (static_cast<int>(options.channel_names.size()) != n)
       throw Error(ErrorKind::Usage, std::to_string(options.channel_names.size()) +
@@ -89,26 +88,25 @@ int to_int(int64_t v, const char* what, const fs::path& path) {
   return static_cast<int>(v);
 }
 
-OIIO::ImageSpec make_spec(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
-  if (image.empty() || image.channels() < 1)
+OIIO::ImageSpec make_spec(const fs::path& path, int64_t width, int64_t height, int channels,
+                          const ExrWriteOptions& options) {
+  if (width <= 0 || height <= 0 || channels < 1)
     throw Error(ErrorKind::Usage, "cannot write an empty image to " + quoted(path));
   const Rect& dw = options.data_window;
-  if ((dw.width != 0 || dw.height != 0) && (dw.width != image.width() || dw.height != image.height()))
-    throw Error(ErrorKind::Usage, "data window " + dw.to_string() + " does not match the " +
-                                      std::to_string(image.width()) + "x" + std::to_string(image.height()) +
-                                      " image written to " + quoted(path));
+  if ((dw.width != 0 || dw.height != 0) && (dw.width != width || dw.height != height))
+    throw Error(ErrorKind::Usage, "data window " + dw.to_string() + " does not match the " + std::to_string(width) +
+                                      "x" + std::to_string(height) + " image written to " + quoted(path));
   const auto format = options.pixel_type == PixelType::Half ? OIIO::TypeHalf : OIIO::TypeFloat;
-  OIIO::ImageSpec spec(to_int(image.width(), "width", path), to_int(image.height(), "height", path),
-                       image.channels(), format);
+  OIIO::ImageSpec spec(to_int(width, "width", path), to_int(height, "height", path), channels, format);
   spec.x = to_int(dw.x, "data window x", path);
   spec.y = to_int(dw.y, "data window y", path);
   spec.full_x = 0;
   spec.full_y = 0;
   spec.full_width =
-      to_int(options.display_width > 0 ? options.display_width : image.width(), "display width", path);
+      to_int(options.display_width > 0 ? options.display_width : width, "display width", path);
   spec.full_height =
-      to_int(options.display_height > 0 ? options.display_height : image.height(), "display height", path);
-  spec.channelnames = channel_names(image, options);
+      to_int(options.display_height > 0 ? options.display_height : height, "display height", path);
+  spec.channelnames = channel_names(channels, options);
   const auto alpha = std::find(spec.channelnames.begin(), spec.channelnames.end(), "A");
   spec.alpha_channel =
       alpha == spec.channelnames.end() ? -1 : static_cast<int>(alpha - spec.channelnames.begin());
@@ -127,12 +125,35 @@ OIIO::ImageSpec make_spec(const fs::path& path, const Image& image, const ExrWri
 
 void write_exr(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
   check_compression(options.compression);
-  const OIIO::ImageSpec spec = make_spec(path, image, options);
+  const OIIO::ImageSpec spec = make_spec(path, image.width(), image.height(), image.channels(), options);
   write_atomically(path, options.overwrite, [&](const fs::path& temp) {
     auto out = OIIO::ImageOutput::create("openexr");
     if (!out) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + OIIO::geterror());
     if (!out->open(temp.string(), spec) || !out->write_image(OIIO::TypeFloat, image.data()) || !out->close())
       throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
+  });
+}
+
+void write_exr_bands(const fs::path& path, int64_t width, int64_t height, int channels, int64_t band_rows,
+                     const ExrWriteOptions& options, const BandSource& band) {
+  check_compression(options.compression);
+  const OIIO::ImageSpec spec = make_spec(path, width, height, channels, options);
+  write_atomically(path, options.overwrite, [&](const fs::path& temp) {
+    auto out = OIIO::ImageOutput::create("openexr");
+    if (!out) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + OIIO::geterror());
+    if (!out->open(temp.string(), spec))
+      throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
+    for (int64_t y0 = 0; y0 < height; y0 += band_rows) {
+      const int64_t rows = std::min(band_rows, height - y0);
+      const Image rows_image = band(y0, rows);
+      if (rows_image.width() != width || rows_image.height() != rows || rows_image.channels() != channels)
+        throw Error(ErrorKind::Usage, "band of rows " + std::to_string(y0) + "+" + std::to_string(rows) +
+                                          " has the wrong size for " + quoted(path));
+      if (!out->write_scanlines(spec.y + static_cast<int>(y0), spec.y + static_cast<int>(y0 + rows), 0,
+                                OIIO::TypeFloat, rows_image.data()))
+        throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
+    }
+    if (!out->close()) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
   });
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -38,5 +39,12 @@ struct ExrWriteOptions {
 // channel-name count or data window that does not match the image; residue::Error(Output), with the path and
 // OpenImageIO's message, on write failure or an existing file.
 void write_exr(const std::filesystem::path& path, const Image& image, const ExrWriteOptions& options);
+
+// Writes a width x height image that `band(y0, rows)` produces band by band (an Image of width x rows x
+// channels, rows = band_rows except maybe the last), so memory stays one band whatever the image size.
+// Atomic like write_exr: an exception from `band` (a cancelled denoise, say) leaves no file behind.
+using BandSource = std::function<Image(int64_t y0, int64_t rows)>;
+void write_exr_bands(const std::filesystem::path& path, int64_t width, int64_t height, int channels,
+                     int64_t band_rows, const ExrWriteOptions& options, const BandSource& band);
 
 }  // namespace residue::io
