@@ -1,0 +1,200 @@
+#!/usr/bin/python3
+"""Renders a Residue training data set: one Blender process per scene (tools/datagen/make_scene.py), resumable.
+
+  /usr/bin/python3 tools/datagen/render_dataset.py --out /work/datasets/residue-v1 --seeds 1000-1329
+  /usr/bin/python3 tools/datagen/render_dataset.py --out DIR --seeds 1000-1005,1010 --res 256 \
+      --spp 4,8,16,32 --ref-spp 1024 --threads 2
+
+Each scene goes to OUT/s<seed>/ (noisy_a.exr, noisy_b.exr, reference.exr, scene.json; the layout of
+/work/shared/datasets/cycles-starter). It is rendered into OUT/.tmp-s<seed>/scene/ and renamed when complete, so an
+interrupted run leaves no half scene behind; scenes whose scene.json exists are skipped, so re-running the same
+command resumes. The noisy spp cycles over --spp by seed (spp[seed % len]); sampling seeds are 1001 and 1002
+for the two noisy renders and 1007 for the reference. One line per scene is printed and appended to
+OUT/render_log.txt; Blender's own output goes to OUT/logs/s<seed>.log. OUT/index.json lists every complete
+scene of OUT with its split (seed % 11 == 10: validation, else train), rewritten after each scene.
+Exit status: 0 when every requested scene exists at the end, 1 otherwise.
+"""
+import argparse
+import datetime
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+MAKE_SCENE = os.path.join(HERE, "make_scene.py")
+SEEDS = {"noisy_a": 1001, "noisy_b": 1002, "reference": 1007}
+
+
+def parse_seeds(text):
+    seeds = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part:
+            continue
+        lo, sep, hi = part.partition("-")
+        seeds.extend(range(int(lo), int(hi) + 1) if sep else [int(lo)])
+    return list(dict.fromkeys(seeds))
+
+
+def split_of(seed):
+    return "validation" if seed % 11 == 10 else "train"
+
+
+def write_json(path, doc):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(doc, f, indent=1)
+    os.replace(tmp, path)
+
+
+def write_index(out, args):
+    scenes = []
+    for name in sorted(os.listdir(out)):
+        if not (name.startswith("s") and name[1:].isdigit()):
+            continue
+        path = os.path.join(out, name, "scene.json")
+        if not os.path.isfile(path):
+            continue
+        try:
+            with open(path) as f:
+                doc = json.load(f)
+        except (OSError, ValueError):
+            continue
+        seed = int(name[1:])
+        m = doc.get("metrics", {})
+        scenes.append({
+            "seed": seed,
+            "folder": name,
+            "split": split_of(seed),
+            "kind": doc.get("kind"),
+            "spp": doc.get("spp", {}).get("noisy_a"),
+            "ref_spp": doc.get("spp", {}).get("reference"),
+            "resolution": doc.get("resolution"),
+            "relmse_noisy_a": m.get("relmse_noisy_a"),
+            "all_finite": m.get("all_finite"),
+            "process_wall_s": doc.get("timing", {}).get("process_wall_s"),
+        })
+    scenes.sort(key=lambda s: s["seed"])
+    counts = {}
+    for s in scenes:
+        counts[s["split"]] = counts.get(s["split"], 0) + 1
+    write_json(os.path.join(out, "index.json"), {
+        "generator": "tools/datagen/render_dataset.py + make_scene.py",
+        "updated": datetime.datetime.now().isoformat(timespec="seconds"),
+        "split_rule": "seed % 11 == 10 -> validation, else train",
+        "files": ["noisy_a.exr", "noisy_b.exr", "reference.exr", "scene.json"],
+        "counts": counts,
+        "scenes": scenes,
+    })
+
+
+def log(out, line):
+    stamp = datetime.datetime.now().strftime("%Y-%m-%d %H:%M:%S")
+    text = f"{stamp} {line}"
+    print(text, flush=True)
+    with open(os.path.join(out, "render_log.txt"), "a") as f:
+        f.write(text + "\n")
+
+
+def render_scene(args, seed, spp):
+    """Renders one scene into OUT/.tmp-s<seed> and renames it; returns (ok, message)."""
+    final = os.path.join(args.out, f"s{seed}")
+    # The files go one level down, OUT/.tmp-s<seed>/scene/: a data set scanner that takes any folder of OUT
+    # holding noisy_a.exr and reference.exr (core's list_dataset_scenes) never sees a scene being written.
+    tmp_root = os.path.join(args.out, f".tmp-s{seed}")
+    tmp = os.path.join(tmp_root, "scene")
+    shutil.rmtree(tmp_root, ignore_errors=True)
+    os.makedirs(tmp)
+    renders = f"{spp}:{SEEDS['noisy_a']},{spp}:{SEEDS['noisy_b']},{args.ref_spp}:{SEEDS['reference']}"
+    cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python", MAKE_SCENE,
+           "--", "--scene-seed", str(seed), "--renders", renders, "--outdir", tmp, "--res", str(args.res),
+           "--threads", str(args.threads)]
+    logdir = os.path.join(args.out, "logs")
+    os.makedirs(logdir, exist_ok=True)
+    with open(os.path.join(logdir, f"s{seed}.log"), "w") as logf:
+        logf.write(" ".join(cmd) + "\n\n")
+        logf.flush()
+        proc = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            rc = proc.wait(timeout=args.timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+            return False, f"timed out after {args.timeout} s"
+        except KeyboardInterrupt:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+            raise
+    expected = ["noisy_a.exr", "noisy_b.exr", "reference.exr", "scene.json"]
+    missing = [f for f in expected if not os.path.isfile(os.path.join(tmp, f))]
+    if rc != 0 or missing:
+        return False, f"blender exit {rc}, missing {missing} (see logs/s{seed}.log)"
+    for f in os.listdir(tmp):  # nothing but the four files in a scene folder
+        if f not in expected:
+            os.remove(os.path.join(tmp, f))
+    shutil.rmtree(final, ignore_errors=True)
+    os.replace(tmp, final)
+    shutil.rmtree(tmp_root, ignore_errors=True)
+    return True, ""
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True)
+    p.add_argument("--seeds", required=True, help="A-B and/or comma-separated seeds, e.g. 1000-1329")
+    p.add_argument("--res", type=int, default=256)
+    p.add_argument("--spp", default="4,8,16,32", help="noisy spp, cycled by seed (spp[seed %% len])")
+    p.add_argument("--ref-spp", type=int, default=1024)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--blender", default="/usr/bin/blender")
+    p.add_argument("--timeout", type=float, default=3600.0, help="seconds per scene before giving up on it")
+    args = p.parse_args()
+    args.out = os.path.abspath(args.out)
+    spp_list = [int(s) for s in args.spp.split(",")]
+    seeds = parse_seeds(args.seeds)
+    if not os.path.isfile(args.blender):
+        sys.exit(f"render_dataset: no Blender at {args.blender} (apt-get install blender)")
+    os.makedirs(args.out, exist_ok=True)
+
+    todo = [s for s in seeds if not os.path.isfile(os.path.join(args.out, f"s{s}", "scene.json"))]
+    log(args.out, f"render_dataset: {len(seeds)} scenes requested, {len(seeds) - len(todo)} already done, "
+                  f"{len(todo)} to render at {args.res}x{args.res}, spp {spp_list}, reference {args.ref_spp} spp, "
+                  f"{args.threads} threads -> {args.out}")
+    failed, times = [], []
+    t_all = time.time()
+    for i, seed in enumerate(todo):
+        spp = spp_list[seed % len(spp_list)]
+        t = time.time()
+        ok, msg = render_scene(args, seed, spp)
+        dt = time.time() - t
+        kind = "interior" if seed % 2 == 0 else "exterior"
+        if ok:
+            times.append(dt)
+            with open(os.path.join(args.out, f"s{seed}", "scene.json")) as f:
+                doc = json.load(f)
+            m = doc["metrics"]
+            rt = doc["timing"]["render_wall_s"]
+            left = (len(todo) - i - 1) * sum(times) / len(times)
+            log(args.out, f"[{i + 1}/{len(todo)}] s{seed} {kind:8s} {split_of(seed):10s} {spp:3d} spp  "
+                          f"{dt:6.1f} s (reference {rt['reference']:.1f} s)  relMSE a {m['relmse_noisy_a']:.4f} "
+                          f"b {m['relmse_noisy_b']:.4f}  finite {m['all_finite']}  ~{left / 60:.0f} min left")
+            write_index(args.out, args)
+        else:
+            failed.append(seed)
+            log(args.out, f"[{i + 1}/{len(todo)}] s{seed} {kind:8s} FAILED after {dt:.1f} s: {msg}")
+    write_index(args.out, args)
+    done = [s for s in seeds if os.path.isfile(os.path.join(args.out, f"s{s}", "scene.json"))]
+    log(args.out, f"render_dataset: {len(done)}/{len(seeds)} requested scenes present, {len(failed)} failed "
+                  f"this run{' ' + str(failed) if failed else ''}, {time.time() - t_all:.0f} s")
+    return 0 if len(done) == len(seeds) else 1
+
+
+if __name__ == "__main__":
+    try:
+        sys.exit(main())
+    except KeyboardInterrupt:
+        sys.exit(130)
