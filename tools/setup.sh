@@ -16,6 +16,8 @@ packages=(
   libtorch-dev
   # tests: GoogleTest, and scikit-image + OpenImageIO's Python bindings for the independent metric checks
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
+  # data generation: Blender (Cycles) for tools/datagen
+  blender
 )
 
 missing=()
