@@ -1568,12 +1568,17 @@ def probe_exposure(ctx, scene, args):
     img = exr_metrics.read_exr(path)
     os.remove(path)
     scene.render.resolution_x = scene.render.resolution_y = res
-    lav = exr_metrics.log_average_luminance(exr_metrics.layer_rgb(img))
+    rgb = exr_metrics.layer_rgb(img)
+    lav = exr_metrics.log_average_luminance(rgb)
+    mean = float(exr_metrics.luminance(rgb).mean())
     target = 0.18 * 2.0 ** ev
-    k = min(2.0 ** 8, max(2.0 ** -6, target / max(lav, 1e-6)))
+    # The log-average sets the key; a mean luminance cap keeps a view dominated by a bright window or sky
+    # from being blown out (the log-average of a dark room with a bright window is low, its mean high).
+    k = min(target / max(lav, 1e-6), 2.0 * 2.0 ** ev / max(mean, 1e-6))
+    k = min(2.0 ** 8, max(2.0 ** -6, k))
     k = 2.0 ** round(math.log2(k), 1)  # quantised: re-runs build the same lights despite probe noise
     ctx.scale_lights(k)
-    info.update({"probe_log_average_lum": round(lav, 5), "light_scale": round(k, 5),
+    info.update({"probe_log_average_lum": round(lav, 5), "probe_mean_lum": round(mean, 5), "light_scale": round(k, 5),
                  "probe_s": round(time.time() - t, 2), "probe_res": args.probe_res, "probe_spp": args.probe_spp})
     ctx.desc["exposure"] = info
 
