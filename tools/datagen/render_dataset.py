@@ -8,7 +8,8 @@
 Each scene goes to OUT/s<seed>/ (noisy_a.exr, noisy_b.exr, reference.exr, scene.json; the layout of
 /work/shared/datasets/cycles-starter). It is rendered into OUT/.tmp-s<seed>/scene/ and renamed when complete, so an
 interrupted run leaves no half scene behind; scenes whose scene.json exists are skipped, so re-running the same
-command resumes. The noisy spp cycles over --spp by seed (spp[seed % len]); sampling seeds are 1001 and 1002
+command resumes. The noisy spp cycles over --spp by seed pairs (spp[(seed // 2) % len]: an interior and an
+open-air scene per level, as even seeds are interiors and odd ones open-air); sampling seeds are 1001 and 1002
 for the two noisy renders and 1007 for the reference. One line per scene is printed and appended to
 OUT/render_log.txt; Blender's own output goes to OUT/logs/s<seed>.log. OUT/index.json lists every complete
 scene of OUT with its split (seed % 11 == 10: validation, else train), rewritten after each scene.
@@ -147,7 +148,7 @@ def main():
     p.add_argument("--out", required=True)
     p.add_argument("--seeds", required=True, help="A-B and/or comma-separated seeds, e.g. 1000-1329")
     p.add_argument("--res", type=int, default=256)
-    p.add_argument("--spp", default="4,8,16,32", help="noisy spp, cycled by seed (spp[seed %% len])")
+    p.add_argument("--spp", default="4,8,16,32", help="noisy spp, cycled by seed pair (spp[(seed // 2) %% len])")
     p.add_argument("--ref-spp", type=int, default=1024)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--blender", default="/usr/bin/blender")
@@ -167,7 +168,7 @@ def main():
     failed, times = [], []
     t_all = time.time()
     for i, seed in enumerate(todo):
-        spp = spp_list[seed % len(spp_list)]
+        spp = spp_list[(seed // 2) % len(spp_list)]
         t = time.time()
         ok, msg = render_scene(args, seed, spp)
         dt = time.time() - t
