@@ -1446,11 +1446,20 @@ def build_exterior(ctx):
         add_light(ctx, "AREA", (ctx.u(-4, 4), ctx.u(-4, 4), ctx.u(4, 8)), ctx.u(300, 1500), size=ctx.u(0.5, 3),
                   target=(0, 0, 0))
 
-    # Camera: orbit the cluster, look at one of its objects; depth of field on ~40 %.
-    ang = ctx.u(0, 2 * math.pi)
-    dist = ctx.u(3.0, 12.0)
-    loc = Vector((math.cos(ang) * dist, math.sin(ang) * dist, ctx.u(0.25, 3.0)))
-    target = ctx.choice(ctx.spots) if ctx.spots else Vector((0, 0, 0.5))
+    # Camera: orbit the cluster, look at one of its objects, with a clear line of sight to it (no object
+    # right in front of the lens, camera not inside anything); depth of field on ~40 %.
+    bpy.context.view_layer.update()
+    deps = bpy.context.evaluated_depsgraph_get()
+    for attempt in range(16):
+        ang = ctx.u(0, 2 * math.pi)
+        dist = ctx.u(3.0, 12.0)
+        loc = Vector((math.cos(ang) * dist, math.sin(ang) * dist, ctx.u(0.25, 3.0)))
+        target = ctx.choice(ctx.spots) if ctx.spots else Vector((0, 0, 0.5))
+        ray = target - loc
+        hit, where, *_ = bpy.context.scene.ray_cast(deps, loc, ray.normalized(), distance=ray.length)
+        if not hit or (where - loc).length > 0.75 * ray.length:
+            break
+    ctx.desc["camera_attempts"] = attempt + 1
     lens = ctx.u(24, 85) if dist > 5 else ctx.u(20, 50)
     dof = ctx.chance(0.4)
     fstop = ctx.u(1.2, 5.6) if variant != "macro" else ctx.u(2.8, 16.0)
