@@ -62,10 +62,7 @@ class ProgressReporter {
 
 // Bytes an in-memory denoise holds for the whole image: every AOV as float, plus the output.
 size_t whole_image_bytes(const AovStack& layout) {
-  int64_t channels = 3;
-  for (AovRole role : kAllAovRoles)
-    if (const Aov* a = layout.find(role)) channels += static_cast<int64_t>(a->source.channels.size());
-  return static_cast<size_t>(channels * layout.data_window.area()) * sizeof(float);
+  return static_cast<size_t>((layout.channel_count() + 3) * layout.data_window.area()) * sizeof(float);
 }
 
 int run(const DenoiseCliOptions& o) {

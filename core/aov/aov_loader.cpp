@@ -399,16 +399,7 @@ AovStack AovReader::read(const Rect& rect) const {
     throw Error(ErrorKind::Usage, "region " + rect.to_string() + " is not inside the " +
                                       std::to_string(layout.data_window.width) + "x" +
                                       std::to_string(layout.data_window.height) + " image");
-  AovStack stack;  // everything but the pixels comes from the layout
-  stack.convention = layout.convention;
-  stack.normal_space = layout.normal_space;
-  stack.depth_kind = layout.depth_kind;
-  stack.data_window = layout.data_window;
-  stack.display_width = layout.display_width;
-  stack.display_height = layout.display_height;
-  stack.metadata = layout.metadata;
-  stack.world_to_camera = layout.world_to_camera;
-  stack.notes = layout.notes;
+  AovStack stack = layout;  // everything but the pixels, which are read below
   const Rect grid{layout.data_window.x + rect.x, layout.data_window.y + rect.y, rect.width, rect.height};
   const std::map<AovRole, ReadPlan>& plans = impl_->plans;
   // 5. Read, one pass per file.

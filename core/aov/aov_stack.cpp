@@ -59,6 +59,13 @@ const char* to_string(DepthKind kind) {
   return "?";
 }
 
+int64_t AovStack::channel_count() const {
+  int64_t n = 0;
+  for (AovRole role : kAllAovRoles)
+    if (const Aov* a = find(role)) n += static_cast<int64_t>(a->source.channels.size());
+  return n;
+}
+
 const Aov* AovStack::find(AovRole role) const { return const_cast<AovStack*>(this)->find(role); }
 
 Aov* AovStack::find(AovRole role) {

@@ -73,6 +73,8 @@ struct AovStack {
   int64_t width() const { return color.image.width(); }
   int64_t height() const { return color.image.height(); }
   const Aov* find(AovRole role) const;
+  // Floats per pixel of every AOV present (from the channel lists, so a layout without pixels answers too).
+  int64_t channel_count() const;
   Aov* find(AovRole role);
 };
 

@@ -154,10 +154,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
   if (region.empty() || !bounds.contains(region))
     throw Error(ErrorKind::Usage, "the region " + region.to_string() + " is not inside the " + std::to_string(W) +
                                       "x" + std::to_string(H) + " image");
-  // Floats per pixel of a band as read: every AOV the render has.
-  int64_t stack_channels = 0;
-  for (AovRole role : kAllAovRoles)
-    if (const Aov* a = layout.find(role)) stack_channels += static_cast<int64_t>(a->source.channels.size());
+  const int64_t stack_channels = layout.channel_count();  // floats per pixel of a band as read
 
   if (exr.data_window.empty()) exr.data_window = layout.data_window;
   if (exr.display_width <= 0) exr.display_width = layout.display_width;
