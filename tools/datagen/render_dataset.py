@@ -3,14 +3,16 @@
 
   /usr/bin/python3 tools/datagen/render_dataset.py --out /work/datasets/residue-v1 --seeds 1000-1329
   /usr/bin/python3 tools/datagen/render_dataset.py --out DIR --seeds 1000-1005,1010 --res 256 \
-      --spp 4,8,16,32 --ref-spp 1024 --threads 2
+      --spp 4,8,16,32 --ref-spp 512 --val-ref-spp 1024 --threads 2
 
 Each scene goes to OUT/s<seed>/ (noisy_a.exr, noisy_b.exr, reference.exr, scene.json; the layout of
 /work/shared/datasets/cycles-starter). It is rendered into OUT/.tmp-s<seed>/scene/ and renamed when complete, so an
 interrupted run leaves no half scene behind; scenes whose scene.json exists are skipped, so re-running the same
 command resumes. The noisy spp cycles over --spp by seed pairs (spp[(seed // 2) % len]: an interior and an
 open-air scene per level, as even seeds are interiors and odd ones open-air); sampling seeds are 1001 and 1002
-for the two noisy renders and 1007 for the reference. One line per scene is printed and appended to
+for the two noisy renders and 1007 for the reference. Training scenes get --ref-spp references (a noisy target
+only adds zero-mean noise to the loss), validation scenes --val-ref-spp (the reference's own error is a floor
+under every relMSE we report, so it is kept lower where we measure). One line per scene is printed and appended to
 OUT/render_log.txt; Blender's own output goes to OUT/logs/s<seed>.log. OUT/index.json lists every complete
 scene of OUT with its split (seed % 11 == 10: validation, else train), rewritten after each scene.
 Exit status: 0 when every requested scene exists at the end, 1 otherwise.
@@ -101,6 +103,10 @@ def log(out, line):
         f.write(text + "\n")
 
 
+def ref_spp_of(args, seed):
+    return args.val_ref_spp if split_of(seed) == "validation" else args.ref_spp
+
+
 def render_scene(args, seed, spp):
     """Renders one scene into OUT/.tmp-s<seed> and renames it; returns (ok, message)."""
     final = os.path.join(args.out, f"s{seed}")
@@ -110,7 +116,7 @@ def render_scene(args, seed, spp):
     tmp = os.path.join(tmp_root, "scene")
     shutil.rmtree(tmp_root, ignore_errors=True)
     os.makedirs(tmp)
-    renders = f"{spp}:{SEEDS['noisy_a']},{spp}:{SEEDS['noisy_b']},{args.ref_spp}:{SEEDS['reference']}"
+    renders = f"{spp}:{SEEDS['noisy_a']},{spp}:{SEEDS['noisy_b']},{ref_spp_of(args, seed)}:{SEEDS['reference']}"
     cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python", MAKE_SCENE,
            "--", "--scene-seed", str(seed), "--renders", renders, "--outdir", tmp, "--res", str(args.res),
            "--threads", str(args.threads)]
@@ -149,7 +155,8 @@ def main():
     p.add_argument("--seeds", required=True, help="A-B and/or comma-separated seeds, e.g. 1000-1329")
     p.add_argument("--res", type=int, default=256)
     p.add_argument("--spp", default="4,8,16,32", help="noisy spp, cycled by seed pair (spp[(seed // 2) %% len])")
-    p.add_argument("--ref-spp", type=int, default=1024)
+    p.add_argument("--ref-spp", type=int, default=512, help="reference spp of training scenes")
+    p.add_argument("--val-ref-spp", type=int, default=1024, help="reference spp of validation scenes")
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--blender", default="/usr/bin/blender")
     p.add_argument("--timeout", type=float, default=3600.0, help="seconds per scene before giving up on it")
@@ -163,7 +170,8 @@ def main():
 
     todo = [s for s in seeds if not os.path.isfile(os.path.join(args.out, f"s{s}", "scene.json"))]
     log(args.out, f"render_dataset: {len(seeds)} scenes requested, {len(seeds) - len(todo)} already done, "
-                  f"{len(todo)} to render at {args.res}x{args.res}, spp {spp_list}, reference {args.ref_spp} spp, "
+                  f"{len(todo)} to render at {args.res}x{args.res}, spp {spp_list}, reference {args.ref_spp} spp "
+                  f"(validation {args.val_ref_spp}), "
                   f"{args.threads} threads -> {args.out}")
     failed, times = [], []
     t_all = time.time()

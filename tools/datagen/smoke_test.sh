@@ -35,7 +35,7 @@ fail() {
   exit 1
 }
 
-"$py" "$here/render_dataset.py" --out "$dir" --seeds "$seed" --res 32 --spp 2 --ref-spp 16 --threads 2 ||
+"$py" "$here/render_dataset.py" --out "$dir" --seeds "$seed" --res 32 --spp 2 --ref-spp 16 --val-ref-spp 16 --threads 2 ||
   { cat "$dir/logs/s$seed.log" >&2 || true; fail "render_dataset.py failed"; }
 scene="$dir/s$seed"
 for f in noisy_a.exr noisy_b.exr reference.exr scene.json; do
