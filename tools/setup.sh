@@ -14,6 +14,8 @@ packages=(
   libeigen3-dev libdnnl-dev
   # training: libtorch (residue-train, and the trainer/inference parity test)
   libtorch-dev
+  # viewer: Qt6 Widgets, OpenColorIO, and Xvfb for the screenshot script
+  qt6-base-dev libopencolorio-dev xvfb
   # tests: GoogleTest, and scikit-image + OpenImageIO's Python bindings for the independent metric checks
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
   # data generation: Blender (Cycles) for tools/datagen

@@ -3,6 +3,7 @@
 #include <cstdlib>
 
 #include "core/util/error.h"
+#include "core/util/resources.h"
 
 namespace residue::nn {
 namespace {
@@ -119,8 +120,7 @@ namespace {
 std::vector<std::filesystem::path> model_dirs() {
   std::vector<std::filesystem::path> dirs;
   if (const char* env = std::getenv("RESIDUE_MODEL_PATH")) dirs.emplace_back(env);
-  dirs.emplace_back(std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "models");
-  dirs.emplace_back(std::filesystem::path(RESIDUE_INSTALL_DATADIR) / "models");
+  for (const auto& d : resource_dirs()) dirs.push_back(d / "models");
   return dirs;
 }
 }  // namespace

@@ -1,0 +1,2 @@
+// Placeholder until the viewer lands (issue 4).
+int main() { return 0; }
