@@ -1,2 +1,135 @@
-// Placeholder until the viewer lands (issue 4).
-int main() { return 0; }
+// residue: the viewer. Opens the renders named on the command line; the options below also let scripts
+// (tools/screenshots.sh) put the window in a given state and save a screenshot of it.
+#include <QApplication>
+#include <QCommandLineParser>
+#include <QScreen>
+#include <QTimer>
+#include <cstdio>
+
+#include "core/util/openmp_env.h"
+#include "ui/canvas.h"
+#include "ui/denoise_panel.h"
+#include "ui/heatmap_panel.h"
+#include "ui/main_window.h"
+
+using residue::ui::MainWindow;
+
+int main(int argc, char** argv) {
+  residue::ensure_passive_openmp(argc, argv);
+  QApplication app(argc, argv);
+  QApplication::setApplicationName("residue");
+  QApplication::setOrganizationName("Residue");
+  QApplication::setApplicationVersion(RESIDUE_VERSION);
+
+  QCommandLineParser cli;
+  cli.setApplicationDescription("Residue viewer: noisy, denoised and reference renders side by side.");
+  cli.addHelpOption();
+  cli.addVersionOption();
+  cli.addPositionalArgument("files", "A render: one EXR (multilayer/multipart), a folder, or single-AOV files.");
+  const QCommandLineOption reference({"r", "reference"}, "A reference image in another file.", "file");
+  const QCommandLineOption map("map", "Channel mapping ROLE=[FILE:]CHANNELS (repeatable), as residue-cli.", "flag");
+  const QCommandLineOption layout("layout", "side, single or wipe.", "layout");
+  const QCommandLineOption pane("pane", "In single layout: noisy, denoised, reference or heatmap.", "pane");
+  const QCommandLineOption heatmap("heatmap", "Heatmap display: pane, overlay or off.", "display");
+  const QCommandLineOption model("model", "Model to select in the denoise panel.", "name");
+  const QCommandLineOption denoise("denoise", "Denoise once loaded.");
+  const QCommandLineOption exposure("exposure", "Exposure in stops.", "stops");
+  const QCommandLineOption roi("roi", "Region of interest x,y,w,h.", "rect");
+  const QCommandLineOption zoom("zoom", "Zoom (screen pixels per image pixel) instead of fit.", "factor");
+  const QCommandLineOption size("size", "Window size WxH.", "size");
+  const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window to FILE and quit.", "file");
+  const QCommandLineOption when("screenshot-when",
+                                "loaded (default), denoised, or progress:F (a denoise F of the way through).", "when");
+  for (const auto* o : {&reference, &map, &layout, &pane, &heatmap, &model, &denoise, &exposure, &roi, &zoom, &size,
+                        &screenshot, &when})
+    cli.addOption(*o);
+  cli.process(app);
+
+  MainWindow window;
+  if (cli.isSet(size)) {
+    const QStringList wh = cli.value(size).split('x');
+    if (wh.size() == 2) window.resize(wh[0].toInt(), wh[1].toInt());
+  }
+  if (cli.isSet(screenshot)) window.setInteractive(false);
+  window.show();
+
+  residue::LoadOptions options;
+  try {
+    for (const QString& f : cli.values(map)) options.mapping.add_flag(f.toStdString());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "residue: %s\n", e.what());
+    return 2;
+  }
+  if (cli.isSet(reference)) options.reference = cli.value(reference).toStdString();
+  if (cli.isSet(model) && !window.denoisePanel()->selectModel(cli.value(model))) {
+    std::fprintf(stderr, "residue: no model named %s\n", qPrintable(cli.value(model)));
+    return 2;
+  }
+  if (cli.isSet(heatmap)) {
+    const QString h = cli.value(heatmap);
+    window.heatmapPanel()->setDisplay(h == "overlay" ? residue::ui::HeatmapPanel::Display::Overlay
+                                      : h == "off"   ? residue::ui::HeatmapPanel::Display::Off
+                                                     : residue::ui::HeatmapPanel::Display::Pane);
+  }
+  if (cli.isSet(exposure)) window.setExposure(cli.value(exposure).toDouble());
+
+  // Applies the view options once the first images are on screen.
+  bool configured = false;
+  const auto configure = [&] {
+    if (configured) return;
+    configured = true;
+    if (cli.isSet(roi)) {
+      const QStringList r = cli.value(roi).split(',');
+      if (r.size() == 4) window.setRoi(residue::Rect{r[0].toLongLong(), r[1].toLongLong(), r[2].toLongLong(), r[3].toLongLong()});
+    }
+    const QString l = cli.value(layout);
+    if (l == "wipe") window.canvas()->setWipePair(window.paneIndex(residue::ui::Source::Noisy),
+                                                  window.paneIndex(residue::ui::Source::Denoised));
+    if (l == "single" || cli.isSet(pane)) {
+      const QString p = cli.value(pane);
+      window.showPane(p == "denoised"    ? residue::ui::Source::Denoised
+                      : p == "reference" ? residue::ui::Source::Reference
+                      : p == "heatmap"   ? residue::ui::Source::Heatmap
+                                         : residue::ui::Source::Noisy);
+    } else if (l == "wipe") {
+      window.canvas()->setLayout(residue::ui::ImageCanvas::Layout::Wipe);
+    }
+    if (cli.isSet(zoom)) window.canvas()->setView(cli.value(zoom).toDouble(), window.canvas()->center());
+    if (cli.isSet(denoise)) window.denoisePanel()->start();
+  };
+  QObject::connect(&window, &MainWindow::panesRendered, &app, configure);
+
+  if (cli.isSet(screenshot)) {
+    // Polls the window's state and saves the picture when it matches --screenshot-when and nothing is pending.
+    const QString file = cli.value(screenshot);
+    const QString condition = cli.isSet(when) ? cli.value(when) : QStringLiteral("loaded");
+    auto* timer = new QTimer(&app);
+    QObject::connect(timer, &QTimer::timeout, &app, [&, timer, file, condition] {
+      if (!window.lastError().isEmpty()) {
+        std::fprintf(stderr, "residue: %s\n", qPrintable(window.lastError()));
+        QApplication::exit(1);
+        return;
+      }
+      if (!configured || !window.session()->hasStack()) return;
+      bool ready = false;
+      if (condition.startsWith("progress:")) {
+        // Mid-denoise: the bar and half-finished tiles are the point of this picture.
+        ready = window.denoisePanel()->running() && window.denoisePanel()->progressFraction() >= condition.mid(9).toDouble();
+      } else {
+        const bool denoised = condition != "denoised" || (window.session()->denoised() && !window.denoisePanel()->running());
+        ready = denoised && !window.busy();
+      }
+      if (!ready) return;
+      timer->stop();
+      const QImage shot = window.grab().toImage();
+      const bool ok = shot.save(file);
+      std::fprintf(stderr, "residue: %s %s\n", ok ? "wrote" : "could not write", qPrintable(file));
+      QApplication::exit(ok ? 0 : 1);
+    });
+    timer->start(100);
+  }
+
+  QStringList files = cli.positionalArguments();
+  if (!files.isEmpty()) window.openFiles(files, options);
+  return QApplication::exec();
+}

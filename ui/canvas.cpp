@@ -1,0 +1,419 @@
+#include "ui/canvas.h"
+
+#include <QDragEnterEvent>
+#include <QMimeData>
+#include <QMouseEvent>
+#include <QPainter>
+#include <QWheelEvent>
+#include <algorithm>
+#include <cmath>
+
+namespace residue::ui {
+
+namespace {
+constexpr int kGap = 2;               // pixels between side-by-side panes
+constexpr double kMinZoom = 1.0 / 64.0;
+constexpr double kMaxZoom = 256.0;
+constexpr int kWipeGrab = 6;          // how close to the split line a press grabs it
+}  // namespace
+
+ImageCanvas::ImageCanvas(QWidget* parent) : QWidget(parent) {
+  setMouseTracking(true);
+  setAcceptDrops(true);
+  setFocusPolicy(Qt::StrongFocus);
+  setMinimumSize(320, 200);
+  setAttribute(Qt::WA_OpaquePaintEvent);
+}
+
+void ImageCanvas::setPanes(std::vector<Pane> panes, QSize image_size) {
+  const bool same_size = image_size == image_size_;
+  panes_ = std::move(panes);
+  image_size_ = image_size;
+  const int n = static_cast<int>(panes_.size());
+  current_ = std::clamp(current_, 0, std::max(0, n - 1));
+  wipe_a_ = std::clamp(wipe_a_, 0, std::max(0, n - 1));
+  wipe_b_ = std::clamp(wipe_b_, 0, std::max(0, n - 1));
+  if (!same_size || !fitted_) fit();
+  update();
+}
+
+void ImageCanvas::patchPane(int index, QPoint at, const QImage& pixels) {
+  if (index < 0 || index >= static_cast<int>(panes_.size())) return;
+  QImage& d = panes_[static_cast<size_t>(index)].display;
+  if (d.isNull()) return;
+  QPainter p(&d);
+  p.setCompositionMode(QPainter::CompositionMode_Source);
+  p.drawImage(at, pixels);
+  p.end();
+  update();
+}
+
+void ImageCanvas::setPaneValues(int index, std::shared_ptr<const Image> values) {
+  if (index < 0 || index >= static_cast<int>(panes_.size())) return;
+  panes_[static_cast<size_t>(index)].values = std::move(values);
+}
+
+void ImageCanvas::setPaneDisplay(int index, QImage display) {
+  if (index < 0 || index >= static_cast<int>(panes_.size())) return;
+  panes_[static_cast<size_t>(index)].display = std::move(display);
+  update();
+}
+
+void ImageCanvas::setOverlay(int index, QImage overlay) {
+  if (index < 0 || index >= static_cast<int>(panes_.size())) return;
+  panes_[static_cast<size_t>(index)].overlay = std::move(overlay);
+  update();
+}
+
+void ImageCanvas::clearOverlays() {
+  for (auto& p : panes_) p.overlay = QImage();
+  update();
+}
+
+void ImageCanvas::setLayout(Layout layout) {
+  layout_ = layout;
+  if (auto_fit_) fit();  // the pane size changed
+  update();
+  emit viewChanged();
+}
+
+void ImageCanvas::setCurrent(int index) {
+  if (index < 0 || index >= static_cast<int>(panes_.size())) return;
+  current_ = index;
+  update();
+}
+
+void ImageCanvas::setWipePair(int a, int b) {
+  const int n = static_cast<int>(panes_.size());
+  if (a < 0 || b < 0 || a >= n || b >= n) return;
+  wipe_a_ = a;
+  wipe_b_ = b;
+  update();
+}
+
+void ImageCanvas::flipAB() {
+  current_ = current_ == wipe_a_ ? wipe_b_ : wipe_a_;
+  update();
+}
+
+void ImageCanvas::setWipePosition(double fraction) {
+  wipe_position_ = std::clamp(fraction, 0.0, 1.0);
+  update();
+}
+
+void ImageCanvas::setOverlayOpacity(double opacity) {
+  overlay_opacity_ = std::clamp(opacity, 0.0, 1.0);
+  update();
+}
+
+std::vector<ImageCanvas::Slot> ImageCanvas::paneSlots() const {
+  std::vector<Slot> out;
+  const int n = static_cast<int>(panes_.size());
+  if (n == 0) return out;
+  const QRect all = rect();
+  switch (layout_) {
+    case Layout::SideBySide: {
+      const int w = (all.width() - kGap * (n - 1)) / n;
+      for (int i = 0; i < n; ++i) {
+        const QRect r(all.x() + i * (w + kGap), all.y(), w, all.height());
+        out.push_back({i, r, r});
+      }
+      break;
+    }
+    case Layout::Single: out.push_back({current_, all, all}); break;
+    case Layout::Wipe: {
+      const int split = wipeSplitX();
+      out.push_back({wipe_a_, all, QRect(all.left(), all.top(), split - all.left(), all.height())});
+      out.push_back({wipe_b_, all, QRect(split, all.top(), all.right() - split + 1, all.height())});
+      break;
+    }
+  }
+  return out;
+}
+
+std::vector<QRect> ImageCanvas::paneRects() const {
+  std::vector<QRect> r;
+  for (const auto& s : paneSlots()) r.push_back(s.clip);
+  return r;
+}
+
+int ImageCanvas::wipeSplitX() const {
+  return rect().left() + static_cast<int>(std::lround(wipe_position_ * rect().width()));
+}
+
+QPointF ImageCanvas::toImage(const QRect& pane_rect, QPointF widget_pos) const {
+  const QPointF c(pane_rect.x() + pane_rect.width() / 2.0, pane_rect.y() + pane_rect.height() / 2.0);
+  return center_ + (widget_pos - c) / zoom_;
+}
+
+QPointF ImageCanvas::toWidget(const QRect& pane_rect, QPointF image_pos) const {
+  const QPointF c(pane_rect.x() + pane_rect.width() / 2.0, pane_rect.y() + pane_rect.height() / 2.0);
+  return c + (image_pos - center_) * zoom_;
+}
+
+void ImageCanvas::fit() {
+  fitted_ = true;
+  auto_fit_ = true;
+  if (image_size_.isEmpty()) return;
+  const auto s = paneSlots();
+  const QRect r = s.empty() ? rect() : s.front().rect;
+  const double z = std::min(r.width() / static_cast<double>(image_size_.width()),
+                            r.height() / static_cast<double>(image_size_.height()));
+  zoom_ = std::clamp(z, kMinZoom, kMaxZoom);
+  center_ = QPointF(image_size_.width() / 2.0, image_size_.height() / 2.0);
+  update();
+  emit viewChanged();
+}
+
+void ImageCanvas::oneToOne() {
+  auto_fit_ = false;
+  zoom_ = 1.0;
+  clampView();
+  update();
+  emit viewChanged();
+}
+
+void ImageCanvas::zoomBy(double factor) {
+  const auto s = paneSlots();
+  if (s.empty()) return;
+  zoomAbout(factor, QPointF(s.front().rect.center()));
+}
+
+void ImageCanvas::zoomAbout(double factor, QPointF widget_pos) {
+  // Keep the image point under `widget_pos` where it is.
+  for (const auto& s : paneSlots()) {
+    if (!s.rect.contains(widget_pos.toPoint())) continue;
+    const QPointF img = toImage(s.rect, widget_pos);
+    auto_fit_ = false;
+    zoom_ = std::clamp(zoom_ * factor, kMinZoom, kMaxZoom);
+    const QPointF c(s.rect.x() + s.rect.width() / 2.0, s.rect.y() + s.rect.height() / 2.0);
+    center_ = img - (widget_pos - c) / zoom_;
+    clampView();
+    update();
+    emit viewChanged();
+    return;
+  }
+}
+
+void ImageCanvas::setView(double zoom, QPointF center) {
+  zoom_ = std::clamp(zoom, kMinZoom, kMaxZoom);
+  center_ = center;
+  fitted_ = true;
+  auto_fit_ = false;
+  clampView();
+  update();
+  emit viewChanged();
+}
+
+void ImageCanvas::clampView() {
+  // The centre stays on the image so that it can never be panned out of sight.
+  center_.setX(std::clamp(center_.x(), 0.0, static_cast<double>(image_size_.width())));
+  center_.setY(std::clamp(center_.y(), 0.0, static_cast<double>(image_size_.height())));
+}
+
+void ImageCanvas::setRoi(std::optional<Rect> roi) {
+  if (roi && roi->empty()) roi.reset();
+  roi_ = roi;
+  update();
+}
+
+std::optional<QPoint> ImageCanvas::pixelAt(QPointF widget_pos) const {
+  for (const auto& s : paneSlots()) {
+    if (!s.clip.contains(widget_pos.toPoint())) continue;
+    const QPointF img = toImage(s.rect, widget_pos);
+    const int x = static_cast<int>(std::floor(img.x())), y = static_cast<int>(std::floor(img.y()));
+    if (x < 0 || y < 0 || x >= image_size_.width() || y >= image_size_.height()) return std::nullopt;
+    return QPoint(x, y);
+  }
+  return std::nullopt;
+}
+
+void ImageCanvas::paintEvent(QPaintEvent*) {
+  QPainter p(this);
+  p.fillRect(rect(), QColor(38, 38, 38));
+  if (panes_.empty()) {
+    p.setPen(QColor(170, 170, 170));
+    p.drawText(rect(), Qt::AlignCenter, tr("Open a render (Ctrl+O) or drop EXR files here"));
+    return;
+  }
+  for (const auto& s : paneSlots()) drawPane(p, s);
+  if (layout_ == Layout::Wipe) {
+    const int x = wipeSplitX();
+    p.setPen(QPen(QColor(255, 255, 255, 200), 1));
+    p.drawLine(x, rect().top(), x, rect().bottom());
+  }
+}
+
+void ImageCanvas::drawPane(QPainter& p, const Slot& s) const {
+  const Pane& pane = panes_[static_cast<size_t>(s.pane)];
+  p.save();
+  p.setClipRect(s.clip);
+  if (!pane.display.isNull()) {
+    // Draw only the visible source pixels: a zoomed-in view of a large image then costs what the screen costs.
+    const QPointF tl = toImage(s.rect, QPointF(s.clip.topLeft()));
+    const QPointF br = toImage(s.rect, QPointF(s.clip.bottomRight()) + QPointF(1, 1));
+    const int x0 = std::max(0, static_cast<int>(std::floor(tl.x())));
+    const int y0 = std::max(0, static_cast<int>(std::floor(tl.y())));
+    const int x1 = std::min(pane.display.width(), static_cast<int>(std::ceil(br.x())));
+    const int y1 = std::min(pane.display.height(), static_cast<int>(std::ceil(br.y())));
+    if (x1 > x0 && y1 > y0) {
+      const QRect src(x0, y0, x1 - x0, y1 - y0);
+      const QRectF dst(toWidget(s.rect, QPointF(x0, y0)), toWidget(s.rect, QPointF(x1, y1)));
+      // Below 1:1, smooth sampling avoids aliasing; above, nearest neighbour shows the pixels.
+      p.setRenderHint(QPainter::SmoothPixmapTransform, zoom_ < 1.0);
+      p.drawImage(dst, pane.display, src);
+      if (!pane.overlay.isNull()) {
+        p.setOpacity(overlay_opacity_);
+        p.drawImage(dst, pane.overlay, src);
+        p.setOpacity(1.0);
+      }
+    }
+    if (zoom_ >= kValueTextZoom && pane.values) drawValues(p, s, pane);
+  } else {
+    p.setPen(QColor(150, 150, 150));
+    p.drawText(s.rect, Qt::AlignCenter,
+               pane.placeholder.isEmpty() ? tr("%1\n(not available)").arg(pane.label) : pane.placeholder);
+  }
+  drawRoi(p, s);
+  // Label, on a dark plate so it reads over any image.
+  const QString label = pane.label;
+  const QFontMetrics fm(font());
+  QRect box = fm.boundingRect(label).adjusted(-5, -3, 5, 3);
+  box.moveTopLeft(s.clip.topLeft() + QPoint(6, 6));
+  if (layout_ == Layout::Wipe && s.pane == wipe_b_) box.moveTopRight(s.clip.topRight() + QPoint(-6, 6));
+  p.fillRect(box, QColor(0, 0, 0, 150));
+  p.setPen(Qt::white);
+  p.drawText(box, Qt::AlignCenter, label);
+  p.restore();
+}
+
+void ImageCanvas::drawValues(QPainter& p, const Slot& s, const Pane& pane) const {
+  const Image& v = *pane.values;
+  const QPointF tl = toImage(s.rect, QPointF(s.clip.topLeft()));
+  const QPointF br = toImage(s.rect, QPointF(s.clip.bottomRight()));
+  const int64_t x0 = std::max<int64_t>(0, static_cast<int64_t>(std::floor(tl.x())));
+  const int64_t y0 = std::max<int64_t>(0, static_cast<int64_t>(std::floor(tl.y())));
+  const int64_t x1 = std::min<int64_t>(v.width() - 1, static_cast<int64_t>(std::floor(br.x())));
+  const int64_t y1 = std::min<int64_t>(v.height() - 1, static_cast<int64_t>(std::floor(br.y())));
+  QFont f = font();
+  f.setPointSizeF(std::max(6.0, std::min(10.0, zoom_ / 9.0)));
+  p.setFont(f);
+  const int count = std::min(pane.channel_count, v.channels() - pane.first_channel);
+  static const QColor kChannelColors[] = {QColor(255, 120, 120), QColor(120, 230, 120), QColor(130, 170, 255)};
+  for (int64_t y = y0; y <= y1; ++y) {
+    for (int64_t x = x0; x <= x1; ++x) {
+      const QRectF cell(toWidget(s.rect, QPointF(static_cast<double>(x), static_cast<double>(y))),
+                        QSizeF(zoom_, zoom_));
+      const QRgb bg = pane.display.pixel(static_cast<int>(x), static_cast<int>(y));
+      const bool dark = qGray(bg) < 128;
+      for (int c = 0; c < count; ++c) {
+        const float value = v.at(x, y, pane.first_channel + c);
+        const QRectF line(cell.x(), cell.y() + cell.height() * (c + 0.5) / (count + 1.0), cell.width(),
+                          cell.height() / (count + 1.0));
+        QColor col = count == 1 ? (dark ? Qt::white : Qt::black) : kChannelColors[c % 3];
+        if (!dark) col = col.darker(250);
+        p.setPen(col);
+        p.drawText(line, Qt::AlignCenter, QString::number(static_cast<double>(value), 'g', 4));
+      }
+    }
+  }
+}
+
+void ImageCanvas::drawRoi(QPainter& p, const Slot& s) const {
+  if (!roi_) return;
+  const QPointF a = toWidget(s.rect, QPointF(static_cast<double>(roi_->x), static_cast<double>(roi_->y)));
+  const QPointF b = toWidget(s.rect, QPointF(static_cast<double>(roi_->x + roi_->width),
+                                             static_cast<double>(roi_->y + roi_->height)));
+  p.setBrush(Qt::NoBrush);
+  p.setPen(QPen(QColor(0, 0, 0, 200), 3));
+  p.drawRect(QRectF(a, b));
+  p.setPen(QPen(QColor(255, 220, 0), 1, Qt::DashLine));
+  p.drawRect(QRectF(a, b));
+}
+
+void ImageCanvas::wheelEvent(QWheelEvent* e) {
+  const double steps = e->angleDelta().y() / 120.0;
+  if (steps != 0) zoomAbout(std::pow(2.0, steps / 4.0), e->position());
+  e->accept();
+}
+
+void ImageCanvas::mousePressEvent(QMouseEvent* e) {
+  drag_last_ = e->position();
+  if (e->button() == Qt::LeftButton && layout_ == Layout::Wipe && std::abs(e->position().x() - wipeSplitX()) <= kWipeGrab) {
+    drag_ = Drag::Wipe;
+  } else if ((e->button() == Qt::LeftButton && (e->modifiers() & Qt::ShiftModifier)) ||
+             e->button() == Qt::RightButton) {
+    for (const auto& s : paneSlots()) {
+      if (!s.clip.contains(e->position().toPoint())) continue;
+      drag_ = Drag::Roi;
+      roi_anchor_ = toImage(s.rect, e->position());
+    }
+  } else if (e->button() == Qt::LeftButton || e->button() == Qt::MiddleButton) {
+    drag_ = Drag::Pan;
+    setCursor(Qt::ClosedHandCursor);
+  }
+}
+
+void ImageCanvas::mouseMoveEvent(QMouseEvent* e) {
+  const QPointF pos = e->position();
+  switch (drag_) {
+    case Drag::Pan:
+      auto_fit_ = false;
+      center_ -= (pos - drag_last_) / zoom_;
+      clampView();
+      update();
+      emit viewChanged();
+      break;
+    case Drag::Wipe: setWipePosition((pos.x() - rect().left()) / std::max(1, rect().width())); break;
+    case Drag::Roi:
+      for (const auto& s : paneSlots()) {
+        if (!s.rect.contains(drag_last_.toPoint())) continue;
+        const QPointF img = toImage(s.rect, pos);
+        const auto clampx = [&](double v) { return std::clamp(v, 0.0, static_cast<double>(image_size_.width())); };
+        const auto clampy = [&](double v) { return std::clamp(v, 0.0, static_cast<double>(image_size_.height())); };
+        const int64_t xa = static_cast<int64_t>(std::floor(clampx(std::min(img.x(), roi_anchor_.x()))));
+        const int64_t ya = static_cast<int64_t>(std::floor(clampy(std::min(img.y(), roi_anchor_.y()))));
+        const int64_t xb = static_cast<int64_t>(std::ceil(clampx(std::max(img.x(), roi_anchor_.x()))));
+        const int64_t yb = static_cast<int64_t>(std::ceil(clampy(std::max(img.y(), roi_anchor_.y()))));
+        roi_ = Rect{xa, ya, xb - xa, yb - ya};
+        update();
+        break;
+      }
+      break;
+    case Drag::None:
+      if (layout_ == Layout::Wipe)
+        setCursor(std::abs(pos.x() - wipeSplitX()) <= kWipeGrab ? Qt::SplitHCursor : Qt::ArrowCursor);
+      break;
+  }
+  if (drag_ != Drag::Roi) drag_last_ = pos;
+  emit hovered(pixelAt(pos));
+}
+
+void ImageCanvas::mouseReleaseEvent(QMouseEvent*) {
+  if (drag_ == Drag::Roi) {
+    if (roi_ && roi_->area() < 4) roi_.reset();  // a click, not a drag: clears the ROI
+    update();
+    emit roiChanged(roi_);
+  }
+  if (drag_ == Drag::Pan) unsetCursor();
+  drag_ = Drag::None;
+}
+
+void ImageCanvas::leaveEvent(QEvent*) { emit hovered(std::nullopt); }
+
+void ImageCanvas::resizeEvent(QResizeEvent*) {
+  if (!fitted_ || auto_fit_) fit();
+}
+
+void ImageCanvas::dragEnterEvent(QDragEnterEvent* e) {
+  if (e->mimeData()->hasUrls()) e->acceptProposedAction();
+}
+
+void ImageCanvas::dropEvent(QDropEvent* e) {
+  QStringList files;
+  for (const auto& url : e->mimeData()->urls())
+    if (url.isLocalFile()) files << url.toLocalFile();
+  if (!files.isEmpty()) emit filesDropped(files);
+}
+
+}  // namespace residue::ui

@@ -1,0 +1,73 @@
+// The viewer's display maths, in one place (as in tev): exposure and offset, then an OpenColorIO display/view
+// transform, from linear float pixels to an 8-bit QImage, plus the same maths for one pixel (the pixel
+// inspector and the tests). OCIO stays behind a pimpl so that widgets do not include its headers.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <QImage>
+
+#include "core/image/image.h"
+
+namespace residue::ui {
+
+struct DisplaySettings {
+  double exposure = 0.0;  // stops: values are multiplied by 2^exposure
+  double offset = 0.0;    // added after the exposure
+  std::string display;    // OCIO display; empty = the config's default
+  std::string view;       // OCIO view; empty = the display's default
+};
+
+// How a buffer's values are meant: radiance/albedo go through OCIO; Data (normals remapped to [0,1], depth
+// normalised, heatmaps already in display colour) is only exposure/offset + clamp, no transform.
+enum class Encoding { SceneLinear, Data };
+
+class DisplayTransform {
+ public:
+  // $OCIO when set and it loads; else the shipped fallback config (find_resource("ocio/config.ocio")).
+  // Never throws: if nothing loads, an internal fallback (the sRGB OETF, no OCIO) is used and note() says why.
+  static std::shared_ptr<const DisplayTransform> load_default();
+  // Throws residue::Error(Input) naming the file and OCIO's message. The default display/view's processor
+  // is built here, so a config whose LUTs are missing fails now rather than on the first frame.
+  static std::shared_ptr<const DisplayTransform> load(const std::filesystem::path& config);
+  // The internal fallback without OCIO: display "sRGB" with the shipped config's views ("Filmic (Hable)",
+  // the default, = residue::tonemap_filmic_srgb; "Standard" = residue::srgb_oetf; "Raw" = clamp only).
+  static std::shared_ptr<const DisplayTransform> builtin(std::string note = {});
+
+  ~DisplayTransform();
+  DisplayTransform(const DisplayTransform&) = delete;
+  DisplayTransform& operator=(const DisplayTransform&) = delete;
+
+  std::string source() const;  // config path, or "built-in sRGB (no OCIO config)"
+  std::string note() const;    // why this config (e.g. "$OCIO=/x failed: ...; using the shipped fallback")
+  bool uses_ocio() const;      // false for the built-in fallback
+  std::vector<std::string> displays() const;
+  std::vector<std::string> views(const std::string& display) const;  // empty for an unknown display
+  std::string default_display() const;
+  std::string default_view(const std::string& display) const;
+
+  // One pixel: linear RGB -> display RGB in [0,1] (exposure, offset, then OCIO scene_linear -> display/view for
+  // SceneLinear; clamp only for Data). NaN/Inf input -> returns {NaN,NaN,NaN} so callers can flag it.
+  // Throws residue::Error(Usage) for a display/view the config does not have, Error(Input) when OCIO cannot
+  // build that view (e.g. its LUT file is missing).
+  std::array<float, 3> apply(std::array<float, 3> linear, const DisplaySettings& settings, Encoding enc) const;
+
+  // `rect` of `image` -> QImage::Format_RGB32 of rect's size, channels [first, first+count): count 1 = grey
+  // (replicated to RGB), count 2 = (c0, c1, 0), count >= 3 = the first three. Pixels with a NaN/Inf in those
+  // channels are drawn magenta (255,0,255) so they stand out. Parallel (oneTBB parallel_for over rows); safe to
+  // call from several threads at once. An empty rect gives a null QImage. Throws residue::Error(Usage) for a
+  // rect outside the image or channels out of range, and as apply() for display/view.
+  QImage render(const Image& image, int first_channel, int count, const Rect& rect, const DisplaySettings& s,
+                Encoding enc) const;
+
+ private:
+  struct Impl;
+  explicit DisplayTransform(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace residue::ui

@@ -1,0 +1,255 @@
+#include "ui/heatmap_panel.h"
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QFormLayout>
+#include <QLineEdit>
+#include <QPainter>
+#include <QVBoxLayout>
+#include <QtConcurrent/QtConcurrentRun>
+#include <cmath>
+
+namespace residue::ui {
+
+// ---------------------------------------------------------------------------------------------------------------
+// ColorBar
+
+ColorBar::ColorBar(QWidget* parent) : QWidget(parent) {
+  setObjectName("colorBar");
+  setMinimumHeight(44);
+}
+
+void ColorBar::setScale(Colormap map, double lo, double hi, bool log, QString title) {
+  map_ = map;
+  lo_ = lo;
+  hi_ = hi;
+  log_ = log;
+  title_ = std::move(title);
+  update();
+}
+
+namespace {
+QString tick(double v) { return QString::number(v, 'g', 3); }
+
+void paintBar(QPainter& p, QRect area, Colormap map, double lo, double hi, bool log, const QString& title,
+              const QColor& text) {
+  const QFontMetrics fm = p.fontMetrics();
+  const int th = fm.height();
+  const QRect bar(area.left() + 4, area.top() + th + 2, area.width() - 8, std::max(6, area.height() - 2 * th - 6));
+  for (int x = 0; x < bar.width(); ++x) {
+    const auto c = colormap_lookup(map, bar.width() > 1 ? x / static_cast<double>(bar.width() - 1) : 0.0);
+    p.setPen(QColor(c[0], c[1], c[2]));
+    p.drawLine(bar.left() + x, bar.top(), bar.left() + x, bar.bottom());
+  }
+  p.setPen(text);
+  p.drawText(QRect(area.left() + 4, area.top(), area.width() - 8, th), Qt::AlignLeft | Qt::AlignVCenter, title);
+  // Ticks at the ends and in the middle of the (linear or log) scale.
+  const double mid = log ? std::sqrt(lo * hi) : 0.5 * (lo + hi);
+  const int ty = bar.bottom() + 2;
+  p.drawText(QRect(bar.left(), ty, bar.width() / 3, th), Qt::AlignLeft, tick(lo));
+  p.drawText(QRect(bar.left() + bar.width() / 3, ty, bar.width() / 3, th), Qt::AlignHCenter, tick(mid));
+  p.drawText(QRect(bar.left() + 2 * bar.width() / 3, ty, bar.width() - 2 * bar.width() / 3, th), Qt::AlignRight,
+             tick(hi));
+}
+}  // namespace
+
+void ColorBar::paintEvent(QPaintEvent*) {
+  QPainter p(this);
+  paintBar(p, rect(), map_, lo_, hi_, log_, title_, palette().color(QPalette::WindowText));
+}
+
+QImage ColorBar::render(Colormap map, double lo, double hi, bool log, const QString& title, QSize size) {
+  QImage img(size, QImage::Format_RGB32);
+  img.fill(QColor(30, 30, 30));
+  QPainter p(&img);
+  paintBar(p, img.rect(), map, lo, hi, log, title, Qt::white);
+  return img;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+
+QImage colorize(const Image& map, Colormap colormap, const ColorScale& scale) {
+  const Image rgb = apply_colormap(map, colormap, scale);  // values k / 255
+  QImage img(static_cast<int>(rgb.width()), static_cast<int>(rgb.height()), QImage::Format_RGB32);
+  for (int64_t y = 0; y < rgb.height(); ++y) {
+    auto* line = reinterpret_cast<QRgb*>(img.scanLine(static_cast<int>(y)));
+    for (int64_t x = 0; x < rgb.width(); ++x) {
+      const auto byte = [&](int c) { return static_cast<int>(std::lround(rgb.at(x, y, c) * 255.0f)); };
+      line[x] = qRgb(byte(0), byte(1), byte(2));
+    }
+  }
+  return img;
+}
+
+HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
+  auto* layout = new QVBoxLayout(this);
+  auto* form = new QFormLayout;
+  kind_ = new QComboBox(this);
+  kind_->setObjectName("heatmapKind");
+  kind_->addItem(tr("relative squared error"), static_cast<int>(metrics::MapKind::RelativeSquaredError));
+  kind_->addItem(tr("absolute error"), static_cast<int>(metrics::MapKind::AbsoluteError));
+  kind_->addItem(tr("squared error"), static_cast<int>(metrics::MapKind::SquaredError));
+  kind_->addItem(tr("SSIM"), static_cast<int>(metrics::MapKind::Ssim));
+  form->addRow(tr("Map"), kind_);
+  of_ = new QComboBox(this);
+  of_->setObjectName("heatmapOf");
+  of_->addItems({tr("denoised"), tr("noisy")});
+  form->addRow(tr("Of"), of_);
+  display_ = new QComboBox(this);
+  display_->setObjectName("heatmapDisplay");
+  display_->addItems({tr("own pane"), tr("overlay"), tr("off")});
+  form->addRow(tr("Show as"), display_);
+  colormap_ = new QComboBox(this);
+  colormap_->setObjectName("heatmapColormap");
+  for (auto m : {Colormap::Viridis, Colormap::Inferno, Colormap::Magma, Colormap::Turbo})
+    colormap_->addItem(QString::fromLatin1(to_string(m)), static_cast<int>(m));
+  form->addRow(tr("Colormap"), colormap_);
+  log_ = new QCheckBox(tr("log scale"), this);
+  log_->setObjectName("heatmapLog");
+  log_->setChecked(true);
+  form->addRow(QString(), log_);
+  lo_ = new QLineEdit(this);
+  lo_->setObjectName("heatmapLo");
+  lo_->setPlaceholderText(tr("auto"));
+  hi_ = new QLineEdit(this);
+  hi_->setObjectName("heatmapHi");
+  hi_->setPlaceholderText(tr("auto"));
+  form->addRow(tr("Range low"), lo_);
+  form->addRow(tr("Range high"), hi_);
+  layout->addLayout(form);
+  bar_ = new ColorBar(this);
+  layout->addWidget(bar_);
+  layout->addStretch(1);
+
+  connect(kind_, &QComboBox::currentIndexChanged, this, [this] {
+    // SSIM lives in [-1, 1] and reads best on a linear scale; errors span decades.
+    log_->setChecked(kind() != metrics::MapKind::Ssim);
+    emit settingsChanged();
+  });
+  connect(of_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::settingsChanged);
+  connect(display_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::displayChanged);
+  connect(colormap_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::recolor);
+  connect(log_, &QCheckBox::toggled, this, &HeatmapPanel::recolor);
+  connect(lo_, &QLineEdit::editingFinished, this, &HeatmapPanel::recolor);
+  connect(hi_, &QLineEdit::editingFinished, this, &HeatmapPanel::recolor);
+
+  watcher_ = new QFutureWatcher<std::shared_ptr<Result>>(this);
+  connect(watcher_, &QFutureWatcherBase::finished, this, [this] {
+    auto r = watcher_->result();
+    if (!r) return;
+    if (!r->error.isEmpty()) {
+      bar_->setScale(colormap(), 0, 1, false, r->error);
+      return;
+    }
+    map_ = r->map;
+    image_ = r->image;
+    range_ = r->range;
+    bar_->setScale(colormap(), range_.first, range_.second, scale().log, title());
+    emit ready();
+  });
+}
+
+HeatmapPanel::~HeatmapPanel() { watcher_->waitForFinished(); }
+
+HeatmapPanel::Display HeatmapPanel::display() const {
+  switch (display_->currentIndex()) {
+    case 0: return Display::Pane;
+    case 1: return Display::Overlay;
+    default: return Display::Off;
+  }
+}
+HeatmapPanel::Of HeatmapPanel::of() const { return of_->currentIndex() == 1 ? Of::Noisy : Of::Denoised; }
+metrics::MapKind HeatmapPanel::kind() const { return static_cast<metrics::MapKind>(kind_->currentData().toInt()); }
+Colormap HeatmapPanel::colormap() const { return static_cast<Colormap>(colormap_->currentData().toInt()); }
+
+ColorScale HeatmapPanel::scale() const {
+  ColorScale s;
+  s.log = log_->isChecked();
+  bool ok = false;
+  const double lo = lo_->text().toDouble(&ok);
+  if (ok) s.lo = lo;
+  const double hi = hi_->text().toDouble(&ok);
+  if (ok) s.hi = hi;
+  return s;
+}
+
+QString HeatmapPanel::title() const {
+  return QStringLiteral("%1 of %2%3")
+      .arg(QString::fromLatin1(metrics::to_string(kind())), of() == Of::Noisy ? tr("noisy") : tr("denoised"),
+           scale().log ? tr(" (log)") : QString());
+}
+
+bool HeatmapPanel::busy() const { return watcher_->isRunning(); }
+
+void HeatmapPanel::setKind(metrics::MapKind k) { kind_->setCurrentIndex(kind_->findData(static_cast<int>(k))); }
+void HeatmapPanel::setOf(Of o) { of_->setCurrentIndex(o == Of::Noisy ? 1 : 0); }
+void HeatmapPanel::setDisplay(Display d) { display_->setCurrentIndex(d == Display::Pane ? 0 : d == Display::Overlay ? 1 : 2); }
+void HeatmapPanel::setColormap(Colormap m) { colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(m))); }
+void HeatmapPanel::setLog(bool log) { log_->setChecked(log); }
+void HeatmapPanel::setRange(std::optional<double> lo, std::optional<double> hi) {
+  lo_->setText(lo ? QString::number(*lo, 'g', 17) : QString());
+  hi_->setText(hi ? QString::number(*hi, 'g', 17) : QString());
+  recolor();
+}
+
+void HeatmapPanel::compute(std::shared_ptr<const Image> noisy, std::shared_ptr<const Image> denoised,
+                           std::shared_ptr<const Image> reference, const metrics::Options& options) {
+  const int generation = ++generation_;
+  auto test = of() == Of::Noisy ? noisy : denoised;
+  if (!test || !reference) {
+    map_.reset();
+    image_ = QImage();
+    bar_->setScale(colormap(), 0, 1, false, reference ? tr("no denoised image yet") : tr("no reference"));
+    emit ready();
+    return;
+  }
+  metrics::Options o = options;
+  o.roi.reset();  // the map covers the whole image; the ROI only scopes the scores
+  const auto k = kind();
+  const auto cm = colormap();
+  const auto sc = scale();
+  watcher_->setFuture(QtConcurrent::run([=, this]() -> std::shared_ptr<Result> {
+    auto r = std::make_shared<Result>();
+    try {
+      auto map = std::make_shared<Image>(metrics::error_map(*test, *reference, k, o));
+      if (generation != generation_) return nullptr;
+      r->range = resolve_range(*map, sc);
+      r->image = colorize(*map, cm, sc);
+      r->map = std::move(map);
+    } catch (const std::exception& e) {
+      r->error = QString::fromStdString(e.what());
+    }
+    return generation == generation_ ? r : nullptr;
+  }));
+}
+
+void HeatmapPanel::recolor() {
+  if (!map_) {
+    emit settingsChanged();
+    return;
+  }
+  const auto sc = scale();
+  try {
+    resolve_range(*map_, sc);  // checks the typed range at once, so a bad one is flagged where it was typed
+    lo_->setStyleSheet(QString());
+    hi_->setStyleSheet(QString());
+  } catch (const std::exception& e) {
+    lo_->setStyleSheet("background: #702020");
+    hi_->setStyleSheet("background: #702020");
+    bar_->setScale(colormap(), 0, 1, false, QString::fromStdString(e.what()));
+    return;
+  }
+  // Colouring a large map takes a moment: off the UI thread too.
+  const int generation = ++generation_;
+  const auto map = map_;
+  const auto cm = colormap();
+  watcher_->setFuture(QtConcurrent::run([=, this]() -> std::shared_ptr<Result> {
+    auto r = std::make_shared<Result>();
+    r->range = resolve_range(*map, sc);
+    r->image = colorize(*map, cm, sc);
+    r->map = map;
+    return generation == generation_ ? r : nullptr;
+  }));
+}
+
+}  // namespace residue::ui

@@ -1,0 +1,25 @@
+// HelpOverlay: the keyboard shortcuts, drawn over the canvas (? toggles it, Esc or a click hides it).
+#pragma once
+
+#include <QWidget>
+#include <utility>
+#include <vector>
+
+namespace residue::ui {
+
+class HelpOverlay : public QWidget {
+  Q_OBJECT
+ public:
+  // `shortcuts`: (keys, what they do), in display order.
+  HelpOverlay(std::vector<std::pair<QString, QString>> shortcuts, QWidget* parent);
+  void toggle();
+
+ protected:
+  void paintEvent(QPaintEvent*) override;
+  void mousePressEvent(QMouseEvent*) override;
+
+ private:
+  std::vector<std::pair<QString, QString>> shortcuts_;
+};
+
+}  // namespace residue::ui

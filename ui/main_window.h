@@ -1,0 +1,132 @@
+// MainWindow: the viewer. It wires the data flow of the product together:
+//   Session (load AOVs, denoised) -> DisplayTransform (exposure, OCIO) -> ImageCanvas (panes, zoom, ROI)
+//                                 -> MetricsPanel / HeatmapPanel (core metrics on worker threads)
+//                                 -> DenoisePanel (core DenoiseJob, tiles into the session)
+//                                 -> export (core writers, atomic, never overwriting without asking)
+// Every slow step runs on a worker thread; the UI thread only draws and routes.
+#pragma once
+
+#include <QFuture>
+#include <QFutureWatcher>
+#include <QMainWindow>
+#include <memory>
+#include <optional>
+
+#include "core/metrics/metrics.h"
+#include "ui/canvas.h"
+#include "ui/display_transform.h"
+#include "ui/heatmap_panel.h"
+#include "ui/session.h"
+
+class QComboBox;
+class QDoubleSpinBox;
+class QLabel;
+class QMenu;
+
+namespace residue::ui {
+
+class DenoisePanel;
+class MetricsPanel;
+class PixelInspector;
+class HelpOverlay;
+
+class MainWindow : public QMainWindow {
+  Q_OBJECT
+ public:
+  explicit MainWindow(QWidget* parent = nullptr);
+  ~MainWindow() override;
+
+  Session* session() const { return session_; }
+  ImageCanvas* canvas() const { return canvas_; }
+  MetricsPanel* metricsPanel() const { return metrics_; }
+  HeatmapPanel* heatmapPanel() const { return heatmap_; }
+  DenoisePanel* denoisePanel() const { return denoise_; }
+  PixelInspector* inspector() const { return inspector_; }
+
+  // Opening. Errors go to a message box, or to the mapping dialog when the channels could not be mapped.
+  void openFiles(const QStringList& files, const LoadOptions& options = {});
+  void openReferenceFile(const QString& file);
+  // When false, load errors are not shown in dialogs (tests, screenshots); lastError() has them.
+  void setInteractive(bool on) { interactive_ = on; }
+  QString lastError() const { return last_error_; }
+
+  // View state.
+  void setExposure(double stops);
+  double exposure() const;
+  void setAov(AovView aov);
+  AovView aov() const { return aov_; }
+  void setRoi(std::optional<Rect> roi);  // as if dragged
+  void showPane(Source s);               // single-pane layout on that image
+  int paneIndex(Source s) const;         // index in canvas()->panes(), -1 when not shown
+  bool rendering() const;                // panes being re-rendered
+  bool busy() const;                     // anything running on a worker (load, render, metrics, heatmap, denoise)
+
+  // Exports; each writes atomically and never replaces a file unless `overwrite`. Return an error message or
+  // an empty string. They run on a worker thread; the returned future ends when the file is written.
+  QFuture<QString> exportDenoisedExr(const QString& path, bool overwrite, bool half = true,
+                                     const QString& compression = "zip");
+  QFuture<QString> exportHeatmap(const QString& path, bool overwrite);  // .png (colour-mapped) or .exr (values)
+  QFuture<QString> exportComparison(const QString& path, bool overwrite);  // the canvas as displayed, PNG
+  QFuture<QString> exportMetrics(const QString& path, bool overwrite);     // .json or .csv
+
+ signals:
+  void panesRendered();  // the canvas shows the current images
+
+ protected:
+  void closeEvent(QCloseEvent*) override;
+  void keyPressEvent(QKeyEvent*) override;
+
+ private:
+  void buildActions();
+  void buildDocks();
+  void buildToolBar();
+  void onLoaded();
+  void onLoadFailed(const QString& message, int kind, const QStringList& inputs);
+  void refreshPanes();
+  void refreshAnalysis();
+  void applyHeatmap();
+  void patchDenoisedTile(const Rect& rect);
+  void updateStatus();
+  void updateTitle();
+  void addRecent(const QStringList& files);
+  void rebuildRecentMenu();
+  void cycleAov(int step);
+  void runExport(const QString& what, QFuture<QString> future);
+  QString askSavePath(const QString& title, const QString& filter, const QString& suffix);
+  DisplaySettings displaySettings() const;
+  std::shared_ptr<const Image> shared(Source s) const;
+
+  Session* session_ = nullptr;
+  std::shared_ptr<const DisplayTransform> display_;
+  ImageCanvas* canvas_ = nullptr;
+  MetricsPanel* metrics_ = nullptr;
+  HeatmapPanel* heatmap_ = nullptr;
+  DenoisePanel* denoise_ = nullptr;
+  PixelInspector* inspector_ = nullptr;
+  HelpOverlay* help_ = nullptr;
+
+  QComboBox* layout_box_ = nullptr;
+  QComboBox* aov_box_ = nullptr;
+  QDoubleSpinBox* exposure_box_ = nullptr;
+  QDoubleSpinBox* offset_box_ = nullptr;
+  QComboBox* display_box_ = nullptr;
+  QComboBox* view_box_ = nullptr;
+  QLabel* size_label_ = nullptr;
+  QLabel* zoom_label_ = nullptr;
+  QLabel* cursor_label_ = nullptr;
+  QMenu* recent_menu_ = nullptr;
+
+  AovView aov_ = AovView::Color;
+  std::vector<Source> pane_sources_;
+  std::optional<QPoint> hover_;
+  bool interactive_ = true;
+  QString last_error_;
+  bool mapping_retry_ = false;
+
+  struct Rendered;
+  QFutureWatcher<std::shared_ptr<Rendered>>* render_watcher_ = nullptr;
+  int render_generation_ = 0;
+  int exports_running_ = 0;
+};
+
+}  // namespace residue::ui

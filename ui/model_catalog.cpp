@@ -1,0 +1,99 @@
+#include "ui/model_catalog.h"
+
+#include <QDir>
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "core/nn/network.h"
+#include "core/nn/safetensors.h"
+#include "core/util/resources.h"
+
+namespace residue::ui {
+
+namespace {
+std::optional<double> number(const nlohmann::json& j, const char* key) {
+  if (j.is_object() && j.contains(key) && j[key].is_number()) return j[key].get<double>();
+  return std::nullopt;
+}
+
+nlohmann::json parse(const std::map<std::string, std::string>& meta, const char* key) {
+  const auto it = meta.find(key);
+  if (it == meta.end()) return {};
+  return nlohmann::json::parse(it->second, nullptr, /*allow_exceptions=*/false);
+}
+
+const char* kVariantSuffixes[] = {"-albedo-normal", "-color"};
+}  // namespace
+
+std::vector<ModelEntry> scan_models(QStringList* problems) {
+  std::vector<std::filesystem::path> dirs;
+  if (const char* env = std::getenv("RESIDUE_MODEL_PATH"); env && *env) dirs.emplace_back(env);
+  for (const auto& d : resource_dirs()) dirs.push_back(d / "models");
+
+  std::map<QString, ModelEntry> families;
+  std::map<QString, QStringList> variants;
+  for (const auto& dir : dirs) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(dir, ec)) continue;
+    for (const auto& file : std::filesystem::directory_iterator(dir, ec)) {
+      if (file.path().extension() != ".safetensors") continue;
+      QString stem = QString::fromStdString(file.path().stem().string());
+      QString family = stem;
+      QString variant = "full";
+      for (const char* suffix : kVariantSuffixes) {
+        if (stem.endsWith(QLatin1String(suffix))) {
+          family = stem.chopped(static_cast<int>(std::strlen(suffix)));
+          variant = QString::fromLatin1(suffix + 1);
+        }
+      }
+      if (!variants[family].contains(variant)) variants[family] << variant;
+      if (variant != "full" || families.count(family)) continue;  // the first folder wins, as in find_model
+      try {
+        const auto st = nn::read_safetensors(file.path());
+        ModelEntry e;
+        e.name = family;
+        e.path = QString::fromStdString(file.path().string());
+        const auto get = [&](const char* k) {
+          const auto it = st.metadata.find(k);
+          return it == st.metadata.end() ? std::string() : it->second;
+        };
+        e.blocks = std::atoi(get("residue.blocks").c_str());
+        e.width = std::atoi(get("residue.width").c_str());
+        nn::Architecture arch;
+        arch.blocks = e.blocks;
+        arch.width = e.width;
+        e.gflop_per_mp = arch.flops_per_pixel() * 1e6 / 1e9;
+        const auto val = parse(st.metadata, "validation");
+        e.val_relmse = number(val, "relmse");
+        e.val_ssim = number(val, "ssim");
+        e.noisy_relmse = number(val, "noisy_relmse");
+        const auto bench = parse(st.metadata, "benchmark");
+        e.s_per_mp_fp32 = number(bench, "fp32_s_per_mp");
+        e.s_per_mp_bf16 = number(bench, "bf16_s_per_mp");
+        if (bench.is_object() && bench.contains("machine") && bench["machine"].is_string())
+          e.benchmark_machine = QString::fromStdString(bench["machine"].get<std::string>());
+        families[family] = e;
+      } catch (const std::exception& ex) {
+        if (problems) *problems << QString::fromStdString(ex.what());
+      }
+    }
+  }
+  std::vector<ModelEntry> out;
+  ModelEntry bilateral;
+  bilateral.name = "bilateral";
+  bilateral.variants = "cross-bilateral filter guided by albedo, normal and depth";
+  out.push_back(bilateral);
+  std::vector<ModelEntry> nets;
+  for (auto& [name, e] : families) {
+    e.variants = variants[name].join(", ");
+    nets.push_back(e);
+  }
+  std::sort(nets.begin(), nets.end(), [](const ModelEntry& a, const ModelEntry& b) { return a.gflop_per_mp < b.gflop_per_mp; });
+  out.insert(out.end(), nets.begin(), nets.end());
+  return out;
+}
+
+}  // namespace residue::ui

@@ -1,0 +1,180 @@
+#include "ui/session.h"
+
+#include <QtConcurrent/QtConcurrentRun>
+
+#include "core/util/error.h"
+
+namespace residue::ui {
+
+const char* to_string(Source s) {
+  switch (s) {
+    case Source::Noisy: return "Noisy";
+    case Source::Denoised: return "Denoised";
+    case Source::Reference: return "Reference";
+    case Source::Heatmap: return "Heatmap";
+  }
+  return "?";
+}
+
+const char* to_string(AovView v) {
+  switch (v) {
+    case AovView::Color: return "Colour";
+    case AovView::Albedo: return "Albedo";
+    case AovView::Normal: return "Normal";
+    case AovView::Depth: return "Depth";
+    case AovView::Variance: return "Variance";
+  }
+  return "?";
+}
+
+struct Session::LoadResult {
+  int generation = 0;
+  bool reference_only = false;
+  std::vector<std::filesystem::path> inputs;
+  LoadOptions options;
+  std::shared_ptr<AovStack> stack;
+  QString error;
+  int error_kind = -1;
+};
+
+Session::Session(QObject* parent) : QObject(parent) {
+  qRegisterMetaType<residue::Rect>("residue::Rect");
+  watcher_ = new QFutureWatcher<std::shared_ptr<LoadResult>>(this);
+  connect(watcher_, &QFutureWatcherBase::finished, this, &Session::finishLoad);
+}
+
+Session::~Session() { watcher_->waitForFinished(); }
+
+void Session::open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options) {
+  startLoad(inputs, options, false);
+}
+
+void Session::openReference(const std::filesystem::path& file) {
+  if (!stack_) return;
+  LoadOptions o = options_;
+  o.reference = file;
+  startLoad(inputs_, o, true);
+}
+
+void Session::reload() {
+  if (!inputs_.empty()) startLoad(inputs_, options_, false);
+}
+
+void Session::startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only) {
+  const int generation = ++generation_;
+  loading_ = true;
+  QStringList names;
+  for (const auto& p : inputs) names << QString::fromStdString(p.filename().string());
+  emit loadStarted(reference_only && options.reference
+                       ? QString::fromStdString(options.reference->filename().string())
+                       : names.join(", "));
+  // A superseded load still runs to its end (OpenImageIO reads cannot be interrupted); its result is dropped.
+  watcher_->setFuture(QtConcurrent::run([=]() {
+    auto r = std::make_shared<LoadResult>();
+    r->generation = generation;
+    r->reference_only = reference_only;
+    r->inputs = inputs;
+    r->options = options;
+    try {
+      r->stack = std::make_shared<AovStack>(load_aov_stack(inputs, options));
+    } catch (const Error& e) {
+      r->error = QString::fromStdString(e.what());
+      r->error_kind = static_cast<int>(e.kind());
+    } catch (const std::exception& e) {
+      r->error = QString::fromStdString(e.what());
+    }
+    return r;
+  }));
+}
+
+void Session::finishLoad() {
+  const auto r = watcher_->result();
+  if (!r || r->generation != generation_) return;
+  loading_ = false;
+  if (!r->stack) {
+    QStringList names;
+    for (const auto& p : r->inputs) names << QString::fromStdString(p.string());
+    emit loadFailed(r->error, r->error_kind, names);
+    return;
+  }
+  const bool same_grid = stack_ && stack_->width() == r->stack->width() && stack_->height() == r->stack->height();
+  inputs_ = r->inputs;
+  options_ = r->options;
+  stack_ = r->stack;
+  if (r->reference_only && same_grid) {
+    emit referenceChanged();
+    return;
+  }
+  denoised_.reset();
+  denoised_description_.clear();
+  emit loaded();
+}
+
+QString Session::title() const {
+  QStringList names;
+  for (const auto& p : inputs_) names << QString::fromStdString(p.filename().string());
+  return names.join(", ");
+}
+
+const Image* Session::reference() const {
+  return stack_ && stack_->reference ? &stack_->reference->image : nullptr;
+}
+
+bool Session::hasAov(AovView v) const { return image(Source::Noisy, v) != nullptr; }
+
+const Image* Session::image(Source s, AovView aov) const {
+  if (!stack_) return nullptr;
+  switch (s) {
+    case Source::Noisy:
+      switch (aov) {
+        case AovView::Color: return &stack_->color.image;
+        case AovView::Albedo: return stack_->albedo ? &stack_->albedo->image : nullptr;
+        case AovView::Normal: return stack_->normal ? &stack_->normal->image : nullptr;
+        case AovView::Depth: return stack_->depth ? &stack_->depth->image : nullptr;
+        case AovView::Variance: return stack_->variance ? &stack_->variance->image : nullptr;
+      }
+      return nullptr;
+    case Source::Denoised: return denoised();
+    case Source::Reference: return reference();
+    case Source::Heatmap: return nullptr;
+  }
+  return nullptr;
+}
+
+void Session::beginDenoised(bool keep_existing) {
+  if (!stack_) return;
+  const Image& noisy = stack_->color.image;
+  if (keep_existing && denoised_ && denoised_->width() == noisy.width() && denoised_->height() == noisy.height())
+    return;
+  // The noisy colour's first three channels, so tiles that have not run yet show the input.
+  auto img = std::make_shared<Image>(noisy.width(), noisy.height(), 3);
+  for (int64_t y = 0; y < noisy.height(); ++y)
+    for (int64_t x = 0; x < noisy.width(); ++x)
+      for (int c = 0; c < 3; ++c) img->at(x, y, c) = noisy.at(x, y, c);
+  denoised_ = std::move(img);
+  emit denoisedChanged();
+}
+
+void Session::setDenoisedTile(const Rect& rect, const Image& pixels) {
+  if (!denoised_ || !denoised_->bounds().contains(rect)) return;
+  // Copy on write: a worker (metrics, heatmap, export) may hold the previous image; it keeps its snapshot.
+  if (denoised_.use_count() > 1) denoised_ = std::make_shared<Image>(*denoised_);
+  for (int64_t y = 0; y < rect.height; ++y)
+    for (int64_t x = 0; x < rect.width; ++x)
+      for (int c = 0; c < 3; ++c) denoised_->at(rect.x + x, rect.y + y, c) = pixels.at(x, y, c);
+  emit denoisedTileChanged(rect);
+}
+
+void Session::setDenoised(Image image, QString description) {
+  denoised_ = std::make_shared<Image>(std::move(image));
+  denoised_description_ = std::move(description);
+  emit denoisedChanged();
+}
+
+void Session::clearDenoised() {
+  denoised_.reset();
+  denoised_description_.clear();
+  emit denoisedChanged();
+}
+
+}  // namespace residue::ui

@@ -1,0 +1,91 @@
+// Session: the one document the viewer shows. It owns the loaded AOV stack (noisy colour, AOVs, reference) and
+// the denoised colour, loads on a worker thread, and tells the widgets what changed. Widgets never touch files.
+#pragma once
+
+#include <QFutureWatcher>
+#include <QObject>
+#include <QStringList>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/aov/aov_loader.h"
+
+namespace residue::ui {
+
+// What a pane can show. Noisy stands for the input render: its colour, or another AOV of the stack.
+enum class Source { Noisy, Denoised, Reference, Heatmap };
+const char* to_string(Source s);
+
+// The AOVs a user can page through with [ and ].
+enum class AovView { Color, Albedo, Normal, Depth, Variance };
+const char* to_string(AovView v);
+inline constexpr AovView kAllAovViews[] = {AovView::Color, AovView::Albedo, AovView::Normal, AovView::Depth,
+                                           AovView::Variance};
+
+class Session : public QObject {
+  Q_OBJECT
+ public:
+  explicit Session(QObject* parent = nullptr);
+  ~Session() override;
+
+  // Starts loading `inputs` (one file, a folder, or a set of single-AOV files) with `options` on a worker
+  // thread; loaded() or loadFailed() follows. A load in flight is superseded.
+  void open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {});
+  // Loads a reference colour from another file for the current stack (worker thread).
+  void openReference(const std::filesystem::path& file);
+  // Loads the same inputs again (F5), keeping the reference file and mapping; the denoised image is dropped.
+  void reload();
+  bool loading() const { return loading_; }
+
+  bool hasStack() const { return stack_ != nullptr; }
+  // The current stack (never null after loaded()).
+  std::shared_ptr<const AovStack> stack() const { return stack_; }
+  const std::vector<std::filesystem::path>& inputs() const { return inputs_; }
+  const LoadOptions& loadOptions() const { return options_; }
+  QString title() const;  // file name(s) for the window title
+
+  // The reference colour, when known (from the stack or from another file).
+  const Image* reference() const;
+  // The denoised colour; empty until a denoise ran. Tiles of a running denoise are written into it.
+  const Image* denoised() const { return denoised_ ? denoised_.get() : nullptr; }
+  // A snapshot for a worker thread: tiles that arrive later go to a copy, never into this one.
+  std::shared_ptr<const Image> denoisedShared() const { return denoised_; }
+  const Image* image(Source s, AovView aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
+  bool hasAov(AovView v) const;
+
+  // Starts a fresh denoised image (a copy of the noisy colour, so unfinished tiles show the input) unless one
+  // of the same size exists; `rect` of it is then overwritten by tile().
+  void beginDenoised(bool keep_existing);
+  void setDenoisedTile(const Rect& rect, const Image& pixels);  // GUI thread
+  void setDenoised(Image image, QString description);
+  QString denoisedDescription() const { return denoised_description_; }
+  void clearDenoised();
+
+ signals:
+  void loadStarted(QString what);
+  void loaded();            // a new stack replaced the old one (denoised cleared)
+  void loadFailed(QString message, int error_kind, QStringList inputs);
+  void referenceChanged();
+  void denoisedChanged();   // a whole new denoised image (or none)
+  void denoisedTileChanged(residue::Rect rect);
+
+ private:
+  struct LoadResult;
+  void startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only);
+  void finishLoad();
+
+  std::shared_ptr<const AovStack> stack_;
+  std::vector<std::filesystem::path> inputs_;
+  LoadOptions options_;
+  std::shared_ptr<Image> denoised_;
+  QString denoised_description_;
+  bool loading_ = false;
+  int generation_ = 0;
+  QFutureWatcher<std::shared_ptr<LoadResult>>* watcher_ = nullptr;
+};
+
+}  // namespace residue::ui
+
+Q_DECLARE_METATYPE(residue::Rect)
