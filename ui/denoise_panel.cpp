@@ -69,6 +69,13 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   backend_->addItem(tr("fastest backend"), QString());
   for (const auto& b : nn::available_backends()) backend_->addItem(QString::fromStdString(b), QString::fromStdString(b));
   row->addWidget(backend_);
+  tile_ = new QComboBox(this);
+  tile_->setObjectName("tile");
+  tile_->addItem(tr("auto tile"), 0);
+  for (int t : {64, 128, 256, 512, 1024}) tile_->addItem(tr("tile %1").arg(t), t);
+  tile_->setToolTip(tr("Tile edge: smaller tiles show progress sooner and use less memory; each tile also "
+                       "computes a halo of the receptive field, so small tiles cost more in total"));
+  row->addWidget(tile_);
   roi_only_ = new QCheckBox(tr("ROI only"), this);
   roi_only_->setObjectName("roiOnly");
   roi_only_->setToolTip(tr("Denoise only the region of interest (Shift+drag or right-drag on the image)"));
@@ -176,6 +183,7 @@ QString DenoisePanel::selectedModel() const {
 void DenoisePanel::setPrecision(nn::Precision p) { precision_->setCurrentIndex(precision_->findData(static_cast<int>(p))); }
 nn::Precision DenoisePanel::precision() const { return static_cast<nn::Precision>(precision_->currentData().toInt()); }
 void DenoisePanel::setRoiOnly(bool on) { roi_only_->setChecked(on); }
+void DenoisePanel::setTile(int64_t tile) { tile_->setCurrentIndex(std::max(0, tile_->findData(static_cast<int>(tile)))); }
 
 QString DenoisePanel::cacheKey() const {
   const QString model = selectedModel();
@@ -249,6 +257,7 @@ void DenoisePanel::start() {
   options.precision = precision();
   options.backend = backend_->currentData().toString().toStdString();
   options.roi = rect;
+  options.tile = tile_->currentData().toInt();
   running_description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->network.arch.to_string()),
                                                     precision_->currentText());
   if (variant != model) running_description_ += tr(" — picked for the AOVs this render has");

@@ -39,6 +39,7 @@ class DenoisePanel : public QWidget {
   void setPrecision(nn::Precision p);
   nn::Precision precision() const;
   void setRoiOnly(bool on);
+  void setTile(int64_t tile);  // 0: automatic (the largest tile that fits the memory budget)
   void setRoi(std::optional<Rect> roi) { roi_ = roi; }
 
   bool running() const { return job_ != nullptr || bilateral_running_; }
@@ -79,6 +80,7 @@ class DenoisePanel : public QWidget {
   QTableWidget* table_ = nullptr;
   QComboBox* precision_ = nullptr;
   QComboBox* backend_ = nullptr;
+  QComboBox* tile_ = nullptr;
   QCheckBox* roi_only_ = nullptr;
   QPushButton* denoise_ = nullptr;
   QPushButton* cancel_ = nullptr;

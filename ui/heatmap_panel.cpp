@@ -137,6 +137,7 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   connect(watcher_, &QFutureWatcherBase::finished, this, [this] {
     auto r = watcher_->result();
     if (!r) return;
+    delivered_ = true;
     if (!r->error.isEmpty()) {
       bar_->setScale(colormap(), 0, 1, false, r->error);
       return;
@@ -179,7 +180,7 @@ QString HeatmapPanel::title() const {
            scale().log ? tr(" (log)") : QString());
 }
 
-bool HeatmapPanel::busy() const { return watcher_->isRunning(); }
+bool HeatmapPanel::busy() const { return watcher_->isRunning() || !delivered_; }
 
 void HeatmapPanel::setKind(metrics::MapKind k) { kind_->setCurrentIndex(kind_->findData(static_cast<int>(k))); }
 void HeatmapPanel::setOf(Of o) { of_->setCurrentIndex(o == Of::Noisy ? 1 : 0); }
@@ -208,6 +209,7 @@ void HeatmapPanel::compute(std::shared_ptr<const Image> noisy, std::shared_ptr<c
   const auto k = kind();
   const auto cm = colormap();
   const auto sc = scale();
+  delivered_ = false;
   watcher_->setFuture(QtConcurrent::run([=, this]() -> std::shared_ptr<Result> {
     auto r = std::make_shared<Result>();
     try {
@@ -243,6 +245,7 @@ void HeatmapPanel::recolor() {
   const int generation = ++generation_;
   const auto map = map_;
   const auto cm = colormap();
+  delivered_ = false;
   watcher_->setFuture(QtConcurrent::run([=, this]() -> std::shared_ptr<Result> {
     auto r = std::make_shared<Result>();
     r->range = resolve_range(*map, sc);

@@ -95,6 +95,7 @@ class HeatmapPanel : public QWidget {
   };
   QFutureWatcher<std::shared_ptr<Result>>* watcher_ = nullptr;
   std::atomic<int> generation_{0};
+  bool delivered_ = true;  // the newest request's result has been taken
   std::shared_ptr<const Image> map_;
   QImage image_;
   std::pair<double, double> range_{0, 1};

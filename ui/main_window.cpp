@@ -119,6 +119,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(render_watcher_, &QFutureWatcherBase::finished, this, [this] {
     auto r = render_watcher_->result();
     if (!r || r->generation != render_generation_) return;
+    render_delivered_ = true;
     canvas_->setPanes(std::move(r->panes), r->size);
     // Tiles that landed while these panes were being drawn are in the session: show them too.
     if (const int d = paneIndex(Source::Denoised); d >= 0 && session_->denoised()) {
@@ -540,7 +541,7 @@ std::shared_ptr<const Image> MainWindow::shared(Source s) const {
   return img ? std::shared_ptr<const Image>(stack, img) : nullptr;
 }
 
-bool MainWindow::rendering() const { return render_watcher_->isRunning(); }
+bool MainWindow::rendering() const { return render_watcher_->isRunning() || !render_delivered_; }
 
 bool MainWindow::busy() const {
   return session_->loading() || rendering() || metrics_->busy() || heatmap_->busy() || denoise_->running() ||
@@ -556,6 +557,7 @@ void MainWindow::refreshPanes() {
     return;
   }
   const auto stack = session_->stack();
+  render_delivered_ = false;
   pane_sources_ = {Source::Noisy, Source::Denoised};
   if (session_->reference()) {
     pane_sources_.push_back(Source::Reference);

@@ -126,6 +126,7 @@ class MainWindow : public QMainWindow {
   struct Rendered;
   QFutureWatcher<std::shared_ptr<Rendered>>* render_watcher_ = nullptr;
   int render_generation_ = 0;
+  bool render_delivered_ = true;
   int exports_running_ = 0;
 };
 

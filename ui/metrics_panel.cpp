@@ -68,6 +68,7 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   connect(watcher_, &QFutureWatcherBase::finished, this, [this] {
     auto r = watcher_->result();
     if (!r) return;  // superseded
+    delivered_ = true;
     report_ = *r;
     showReport();
     emit computed();
@@ -84,7 +85,8 @@ metrics::Options MetricsPanel::options() const {
   return o;
 }
 
-bool MetricsPanel::busy() const { return watcher_->isRunning(); }
+// Until the newest result is shown, not only computed: a caller that waits on busy() then reads report().
+bool MetricsPanel::busy() const { return watcher_->isRunning() || !delivered_; }
 
 void MetricsPanel::compute(Inputs inputs) {
   last_ = inputs;
@@ -101,17 +103,24 @@ void MetricsPanel::compute(Inputs inputs) {
     return;
   }
   scope_->setText(tr("Computing..."));
+  delivered_ = false;
   watcher_->setFuture(QtConcurrent::run([this, inputs, o, generation]() -> std::shared_ptr<io::MetricsReport> {
     auto r = std::make_shared<io::MetricsReport>();
     r->reference_file = inputs.reference_file.toStdString();
     r->width = inputs.reference->width();
     r->height = inputs.reference->height();
     r->options = o;
-    if (inputs.noisy)
-      r->rows.push_back({"noisy", inputs.noisy_file.toStdString(), metrics::compare(*inputs.noisy, *inputs.reference, o)});
-    if (inputs.denoised)
-      r->rows.push_back(
-          {"denoised", inputs.denoised_file.toStdString(), metrics::compare(*inputs.denoised, *inputs.reference, o)});
+    try {
+      if (inputs.noisy)
+        r->rows.push_back({"noisy", inputs.noisy_file.toStdString(), metrics::compare(*inputs.noisy, *inputs.reference, o)});
+      if (inputs.denoised)
+        r->rows.push_back(
+            {"denoised", inputs.denoised_file.toStdString(), metrics::compare(*inputs.denoised, *inputs.reference, o)});
+    } catch (const std::exception& e) {
+      // e.g. a reference of another size: shown instead of scores
+      r->rows.clear();
+      r->reference_file = std::string("error: ") + e.what();
+    }
     // Only the newest request is shown; generation_ is read racily but only ever grows.
     if (generation != generation_) return nullptr;
     return r;
@@ -120,6 +129,11 @@ void MetricsPanel::compute(Inputs inputs) {
 
 void MetricsPanel::showReport() {
   const auto& o = report_.options;
+  if (report_.rows.empty() && report_.reference_file.rfind("error: ", 0) == 0) {
+    scope_->setText(QString::fromStdString(report_.reference_file));
+    table_->setRowCount(0);
+    return;
+  }
   scope_->setText(o.roi ? tr("ROI x %1, y %2, %3 x %4")
                               .arg(o.roi->x).arg(o.roi->y).arg(o.roi->width).arg(o.roi->height)
                         : tr("Whole image, %1 x %2").arg(report_.width).arg(report_.height));

@@ -50,6 +50,7 @@ class MetricsPanel : public QWidget {
   QComboBox* space_ = nullptr;
   QFutureWatcher<std::shared_ptr<io::MetricsReport>>* watcher_ = nullptr;
   std::atomic<int> generation_{0};  // read by workers to drop superseded results
+  bool delivered_ = true;  // the newest request's result has been shown
   Inputs last_;
   io::MetricsReport report_;
 };

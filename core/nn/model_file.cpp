@@ -159,7 +159,7 @@ std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet
   }
   std::string looked;
   for (const auto& d : model_dirs()) looked += " " + d.string();
-  throw Error(ErrorKind::Input, "no model "" + name_or_path + "" for the AOVs this render has (tried " + tried +
+  throw Error(ErrorKind::Input, "no model \"" + name_or_path + "\" for the AOVs this render has (tried " + tried +
                                     ") in:" + looked);
 }
 

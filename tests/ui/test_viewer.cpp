@@ -1,0 +1,363 @@
+// The viewer, driven headless (QT_QPA_PLATFORM=offscreen) the way a user drives it: open a real multilayer EXR,
+// check what was mapped, set a ROI and compare the metrics shown with core's, denoise through the UI action,
+// cancel one, export and read the files back.
+#include <QAction>
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QMenu>
+#include <QPushButton>
+#include <QSignalSpy>
+#include <QStandardPaths>
+#include <QTableWidget>
+#include <QTemporaryDir>
+#include <QtTest>
+#include <OpenImageIO/imageio.h>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "core/aov/aov_loader.h"
+#include "core/denoise/denoiser.h"
+#include "core/features/features.h"
+#include "core/image/colormap.h"
+#include "core/metrics/metrics.h"
+#include "support/exr_fixture.h"
+#include "ui/canvas.h"
+#include "ui/denoise_panel.h"
+#include "ui/heatmap_panel.h"
+#include "ui/main_window.h"
+#include "ui/mapping_dialog.h"
+#include "ui/metrics_panel.h"
+#include "ui/pixel_inspector.h"
+
+using namespace residue;
+using namespace residue::ui;
+
+namespace {
+const std::filesystem::path kExample = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+
+// Waits until `done` holds and nothing runs on a worker any more.
+bool settle(MainWindow& w, const std::function<bool()>& done, int ms = 60000) {
+  return QTest::qWaitFor([&] { return done() && !w.busy(); }, ms);
+}
+
+void openExample(MainWindow& w) {
+  LoadOptions o;
+  o.reference = kExample / "reference.exr";
+  w.openFiles({QString::fromStdString((kExample / "noisy.exr").string())}, o);
+  QVERIFY2(settle(w, [&] { return w.session()->hasStack(); }), qPrintable(w.lastError()));
+}
+
+QAction* findAction(QWidget& w, const QKeySequence& shortcut) {
+  for (QAction* a : w.findChildren<QAction*>())
+    if (a->shortcut() == shortcut) return a;
+  return nullptr;
+}
+
+Image readExr(const QString& path) {
+  auto in = OIIO::ImageInput::open(path.toStdString());
+  if (!in) return {};
+  const auto& spec = in->spec();
+  Image img(spec.width, spec.height, spec.nchannels);
+  in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.data());
+  return img;
+}
+
+double maxAbsDiff(const Image& a, const Image& b, int channels) {
+  double m = 0;
+  for (int64_t y = 0; y < a.height(); ++y)
+    for (int64_t x = 0; x < a.width(); ++x)
+      for (int c = 0; c < channels; ++c) m = std::max(m, std::abs(double(a.at(x, y, c)) - double(b.at(x, y, c))));
+  return m;
+}
+}  // namespace
+
+class TestViewer : public QObject {
+  Q_OBJECT
+ private slots:
+  void initTestCase() {
+    QStandardPaths::setTestModeEnabled(true);  // QSettings (recent files, mappings) in a test location
+    QSettings().clear();
+  }
+
+  void opensMultilayerExrAndMapsAovs() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    const auto stack = w.session()->stack();
+    QCOMPARE(stack->convention, std::string("Blender Cycles"));
+    QVERIFY(stack->albedo && stack->normal && stack->depth && stack->reference);
+    QCOMPARE(stack->color.source.layer, std::string("ViewLayer.Combined"));
+    QCOMPARE(stack->albedo->source.layer, std::string("ViewLayer.Denoising Albedo"));
+    QCOMPARE(stack->normal->source.layer, std::string("ViewLayer.Denoising Normal"));
+    QCOMPARE(stack->width(), int64_t(192));
+    // Noisy, denoised (empty until a denoise), reference and the heatmap pane.
+    QVERIFY(settle(w, [&] { return w.canvas()->panes().size() == 4; }));
+    const auto& panes = w.canvas()->panes();
+    QVERIFY(!panes[0].display.isNull());
+    QVERIFY(panes[1].display.isNull());
+    QVERIFY(!panes[2].display.isNull());
+    QCOMPARE(panes[0].display.size(), QSize(192, 192));
+    // The inspector reads the stack's linear values.
+    const QStringList lines = PixelInspector::lines(*w.session(), QPoint(10, 20), nullptr, {});
+    QVERIFY(lines.join('\n').contains(QString::number(double(stack->color.image.at(10, 20, 0)), 'g', 6)));
+    QVERIFY(lines.join('\n').contains("depth: "));
+  }
+
+  void roiMetricsEqualCore() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    const Rect roi{40, 30, 64, 50};
+    w.setRoi(roi);
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.roi.has_value(); }));
+    const auto& report = w.metricsPanel()->report();
+    QCOMPARE(report.rows.size(), size_t(1));  // noisy only: nothing denoised yet
+    metrics::Options o;
+    o.roi = roi;
+    const auto stack = w.session()->stack();
+    const auto expected = metrics::compare(stack->color.image, stack->reference->image, o);
+    QCOMPARE(report.rows[0].scores.relmse, expected.relmse);
+    QCOMPARE(report.rows[0].scores.ssim, expected.ssim);
+    QCOMPARE(report.rows[0].scores.pixels, roi.area());
+    // What the table shows is that number.
+    auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
+    QVERIFY(table);
+    QCOMPARE(table->item(0, 0)->text(), QString::number(expected.relmse, 'g', 5));
+    // The ROI differs from the whole image, and clearing it brings the whole image back.
+    const auto whole = metrics::compare(stack->color.image, stack->reference->image);
+    QVERIFY(std::abs(whole.relmse - expected.relmse) > 1e-6);
+    w.setRoi(std::nullopt);
+    QVERIFY(settle(w, [&] { return !w.metricsPanel()->report().options.roi; }));
+    QCOMPARE(w.metricsPanel()->report().rows[0].scores.relmse, whole.relmse);
+    // The eps setting is used.
+    auto* eps = w.metricsPanel()->findChild<QDoubleSpinBox*>("metricsEps");
+    eps->setValue(0.1);
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.eps == 0.1; }));
+    metrics::Options o2;
+    o2.eps = 0.1;
+    QCOMPARE(w.metricsPanel()->report().rows[0].scores.relmse,
+             metrics::compare(stack->color.image, stack->reference->image, o2).relmse);
+  }
+
+  void denoiseThroughTheUiEqualsCore() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    QVERIFY(w.denoisePanel()->selectModel("tiny"));
+    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+    QAction* action = findAction(w, QKeySequence(Qt::CTRL | Qt::Key_D));
+    QVERIFY(action);
+    QCOMPARE(action->text().remove('&'), QString("Denoise"));
+    action->trigger();
+    QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+    QCOMPARE(finished.at(0).at(0).toBool(), true);
+    const Image* denoised = w.session()->denoised();
+    QVERIFY(denoised);
+    // The same denoise through core directly.
+    const auto stack = w.session()->stack();
+    const auto model = nn::load_model(nn::find_model_for("tiny", feature_set_for(*stack)));
+    const Image expected = denoise(*stack, model, {});
+    QVERIFY2(maxAbsDiff(*denoised, expected, 3) < 1e-4, "UI denoise differs from core's");
+    // Metrics now have a denoised row, better than the noisy one, equal to core's.
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->report().rows.size() == 2; }));
+    const auto& rows = w.metricsPanel()->report().rows;
+    QCOMPARE(rows[1].scores.relmse, metrics::compare(*denoised, stack->reference->image).relmse);
+    QVERIFY(rows[1].scores.relmse < rows[0].scores.relmse / 4);
+    // The canvas shows it, and the heatmap is the rse map of the denoised image.
+    QVERIFY(!w.canvas()->panes()[1].display.isNull());
+    QVERIFY(settle(w, [&] { return w.heatmapPanel()->map() != nullptr; }));
+    const Image rse = metrics::error_map(*denoised, stack->reference->image, metrics::MapKind::RelativeSquaredError);
+    QCOMPARE(maxAbsDiff(*w.heatmapPanel()->map(), rse, 1), 0.0);
+
+    // Asking again for the same model is served from the cache, without a job.
+    QSignalSpy again(w.denoisePanel(), &DenoisePanel::finished);
+    w.denoisePanel()->start();
+    QCOMPARE(again.count(), 1);
+    QVERIFY(!w.denoisePanel()->running());
+  }
+
+  void roiDenoiseRunsOnlyTheRoi() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    QVERIFY(w.denoisePanel()->selectModel("tiny"));
+    const Rect roi{64, 64, 48, 40};
+    w.setRoi(roi);
+    w.denoisePanel()->setRoiOnly(true);
+    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+    w.denoisePanel()->start();
+    QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+    const auto stack = w.session()->stack();
+    const Image* d = w.session()->denoised();
+    QVERIFY(d);
+    // Outside the ROI: the noisy input; inside: core's ROI denoise.
+    QCOMPARE(d->at(5, 5, 0), stack->color.image.at(5, 5, 0));
+    DenoiseOptions o;
+    o.roi = roi;
+    const Image expected = denoise(*stack, nn::load_model(nn::find_model("tiny")), o);
+    QVERIFY(maxAbsDiff(*d, expected, 3) < 1e-4);
+  }
+
+  void cancelStopsEarlyAndKeepsInput() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    QVERIFY(w.denoisePanel()->selectModel("small"));
+    w.denoisePanel()->setTile(64);  // 9 tiles
+    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+    w.denoisePanel()->start();
+    QVERIFY(w.denoisePanel()->running());
+    w.denoisePanel()->cancel();
+    QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+    QCOMPARE(finished.at(0).at(0).toBool(), false);
+    QVERIFY(finished.at(0).at(1).toString().contains("cancelled"));
+    // The last tile row was never reached: it still shows the noisy input.
+    const auto stack = w.session()->stack();
+    const Image* d = w.session()->denoised();
+    QVERIFY(d);
+    QCOMPARE(d->at(150, 180, 1), stack->color.image.at(150, 180, 1));
+    // A cancelled run is not cached: the next run denoises (and finishes).
+    QSignalSpy again(w.denoisePanel(), &DenoisePanel::finished);
+    w.denoisePanel()->start();
+    QVERIFY(settle(w, [&] { return again.count() == 1; }));
+    QCOMPARE(again.at(0).at(0).toBool(), true);
+    QVERIFY(w.session()->denoised()->at(150, 180, 1) != stack->color.image.at(150, 180, 1));
+  }
+
+  void exportsReadBackAndNeverOverwrite() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    QVERIFY(w.denoisePanel()->selectModel("tiny"));
+    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+    w.denoisePanel()->start();
+    QVERIFY(settle(w, [&] { return finished.count() == 1 && w.heatmapPanel()->map(); }));
+    QTemporaryDir dir;
+    const auto path = [&](const char* name) { return dir.filePath(name); };
+
+    // Denoised EXR, float: bit-exact round trip, with the source's metadata and ours.
+    auto f = w.exportDenoisedExr(path("den.exr"), false, /*half=*/false, "zip");
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    const Image back = readExr(path("den.exr"));
+    QCOMPARE(back.width(), int64_t(192));
+    QCOMPARE(maxAbsDiff(back, *w.session()->denoised(), 3), 0.0);
+    auto in = OIIO::ImageInput::open(path("den.exr").toStdString());
+    QVERIFY(in);
+    QVERIFY(in->spec().get_string_attribute("residue:model").find("tiny") != std::string::npos);
+    in.reset();
+    // Never replaced without asking: the file is unchanged and the error says why.
+    std::ofstream(path("keep.exr").toStdString()) << "mine";
+    f = w.exportDenoisedExr(path("keep.exr"), false);
+    f.waitForFinished();
+    QVERIFY(f.result().contains("keep.exr"));
+    std::ifstream keep(path("keep.exr").toStdString());
+    std::string content;
+    keep >> content;
+    QCOMPARE(content, std::string("mine"));
+
+    // Heatmap PNG: the colormap bytes core gives for the map; heatmap EXR: the values.
+    f = w.exportHeatmap(path("heat.png"), false);
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    QImage png(path("heat.png"));
+    QCOMPARE(png.size(), QSize(192, 192));
+    const QImage expected = colorize(*w.heatmapPanel()->map(), w.heatmapPanel()->colormap(), w.heatmapPanel()->scale());
+    QCOMPARE(png.convertToFormat(QImage::Format_RGB32), expected);
+    f = w.exportHeatmap(path("heat.exr"), false);
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    QCOMPARE(maxAbsDiff(readExr(path("heat.exr")), *w.heatmapPanel()->map(), 1), 0.0);
+
+    // Metrics JSON: the numbers shown.
+    f = w.exportMetrics(path("m.json"), false);
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    std::ifstream js(path("m.json").toStdString());
+    const auto j = nlohmann::json::parse(js);
+    QCOMPARE(j["rows"].size(), size_t(2));
+    QCOMPARE(j["rows"][1]["name"].get<std::string>(), std::string("denoised"));
+    QCOMPARE(j["rows"][1]["relmse"].get<double>(), w.metricsPanel()->report().rows[1].scores.relmse);
+    f = w.exportMetrics(path("m.csv"), false);
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    QVERIFY(QFile(path("m.csv")).size() > 50);
+
+    // The comparison as displayed.
+    f = w.exportComparison(path("cmp.png"), false);
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    QCOMPARE(QImage(path("cmp.png")).size(), w.canvas()->size());
+  }
+
+  void unmappedChannelsGoThroughTheMappingDialogAndAreRemembered() {
+    QTemporaryDir dir;
+    const std::string file = dir.filePath("odd.exr").toStdString();
+    testing::FixturePart part;
+    part.width = part.height = 16;
+    for (const char* c : {"beauty_r", "beauty_g", "beauty_b"}) part.channels.push_back(testing::constant_channel(c, 0.5f));
+    for (const char* c : {"mystery.R", "mystery.G", "mystery.B"}) part.channels.push_back(testing::constant_channel(c, 0.25f));
+    testing::write_fixture_exr(file, {part});
+
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    w.openFiles({QString::fromStdString(file)});
+    QVERIFY(settle(w, [&] { return !w.lastError().isEmpty(); }));
+    QVERIFY(!w.session()->hasStack());
+    QVERIFY2(w.lastError().contains("odd.exr"), qPrintable(w.lastError()));
+
+    MappingDialog dlg(file, w.lastError());
+    QCOMPARE(dlg.channels().size(), 6);
+    dlg.choose(AovRole::Color, {"mystery.R", "mystery.G", "mystery.B"});
+    QCOMPARE(dlg.flags(), QStringList{"color=mystery.R,mystery.G,mystery.B"});
+    remember_mapping(dlg.channels(), dlg.flags());
+
+    // Opened again: the remembered mapping is applied without asking.
+    w.openFiles({QString::fromStdString(file)});
+    QVERIFY2(settle(w, [&] { return w.session()->hasStack(); }), qPrintable(w.lastError()));
+    QCOMPARE(w.session()->stack()->color.image.at(3, 3, 0), 0.25f);
+  }
+
+  void keyboardDrivesTheView() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    openExample(w);
+    QVERIFY(settle(w, [&] { return w.canvas()->panes().size() == 4; }));
+    const QRgb before = w.canvas()->panes()[0].display.pixel(100, 100);
+    QTest::keyClick(&w, Qt::Key_E);
+    QCOMPARE(w.exposure(), 0.5);
+    QVERIFY(settle(w, [&] { return w.canvas()->panes()[0].display.pixel(100, 100) != before; }));
+    QVERIFY(qGray(w.canvas()->panes()[0].display.pixel(100, 100)) > qGray(before));
+    QTest::keyClick(&w, Qt::Key_E, Qt::ShiftModifier);
+    QCOMPARE(w.exposure(), 0.0);
+    QTest::keyClick(&w, Qt::Key_3);
+    QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Single);
+    QCOMPARE(w.canvas()->current(), w.paneIndex(Source::Reference));
+    QTest::keyClick(&w, Qt::Key_W);
+    QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Wipe);
+    QTest::keyClick(&w, Qt::Key_S);
+    QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::SideBySide);
+    QTest::keyClick(&w, Qt::Key_BracketRight);
+    QCOMPARE(w.aov(), AovView::Albedo);
+    QTest::keyClick(&w, Qt::Key_BracketLeft);
+    QCOMPARE(w.aov(), AovView::Color);
+    const double fit = w.canvas()->zoom();
+    QTest::keyClick(&w, Qt::Key_0, Qt::ControlModifier);
+    QCOMPARE(w.canvas()->zoom(), 1.0);
+    QTest::keyClick(&w, Qt::Key_F);
+    QCOMPARE(w.canvas()->zoom(), fit);
+  }
+};
+
+QTEST_MAIN(TestViewer)
+#include "test_viewer.moc"
