@@ -40,7 +40,7 @@ void ImageCanvas::setPanes(std::vector<Pane> panes, QSize image_size) {
 void ImageCanvas::patchPane(int index, QPoint at, const QImage& pixels) {
   if (index < 0 || index >= static_cast<int>(panes_.size())) return;
   QImage& d = panes_[static_cast<size_t>(index)].display;
-  if (d.isNull()) return;
+  if (d.isNull() || panes_[static_cast<size_t>(index)].display_scale != 1) return;  // a preview: the full image follows
   QPainter p(&d);
   p.setCompositionMode(QPainter::CompositionMode_Source);
   p.drawImage(at, pixels);
@@ -252,13 +252,15 @@ void ImageCanvas::drawPane(QPainter& p, const Slot& s) const {
     // Draw only the visible source pixels: a zoomed-in view of a large image then costs what the screen costs.
     const QPointF tl = toImage(s.rect, QPointF(s.clip.topLeft()));
     const QPointF br = toImage(s.rect, QPointF(s.clip.bottomRight()) + QPointF(1, 1));
-    const int x0 = std::max(0, static_cast<int>(std::floor(tl.x())));
-    const int y0 = std::max(0, static_cast<int>(std::floor(tl.y())));
-    const int x1 = std::min(pane.display.width(), static_cast<int>(std::ceil(br.x())));
-    const int y1 = std::min(pane.display.height(), static_cast<int>(std::ceil(br.y())));
+    // In display pixels, which are display_scale image pixels wide for a preview.
+    const double k = pane.display_scale;
+    const int x0 = std::max(0, static_cast<int>(std::floor(tl.x() / k)));
+    const int y0 = std::max(0, static_cast<int>(std::floor(tl.y() / k)));
+    const int x1 = std::min(pane.display.width(), static_cast<int>(std::ceil(br.x() / k)));
+    const int y1 = std::min(pane.display.height(), static_cast<int>(std::ceil(br.y() / k)));
     if (x1 > x0 && y1 > y0) {
       const QRect src(x0, y0, x1 - x0, y1 - y0);
-      const QRectF dst(toWidget(s.rect, QPointF(x0, y0)), toWidget(s.rect, QPointF(x1, y1)));
+      const QRectF dst(toWidget(s.rect, QPointF(x0 * k, y0 * k)), toWidget(s.rect, QPointF(x1 * k, y1 * k)));
       // Below 1:1, smooth sampling avoids aliasing; above, nearest neighbour shows the pixels.
       p.setRenderHint(QPainter::SmoothPixmapTransform, zoom_ < 1.0);
       p.drawImage(dst, pane.display, src);
@@ -304,7 +306,8 @@ void ImageCanvas::drawValues(QPainter& p, const Slot& s, const Pane& pane) const
     for (int64_t x = x0; x <= x1; ++x) {
       const QRectF cell(toWidget(s.rect, QPointF(static_cast<double>(x), static_cast<double>(y))),
                         QSizeF(zoom_, zoom_));
-      const QRgb bg = pane.display.pixel(static_cast<int>(x), static_cast<int>(y));
+      const QRgb bg = pane.display.pixel(std::min(pane.display.width() - 1, static_cast<int>(x) / pane.display_scale),
+                                         std::min(pane.display.height() - 1, static_cast<int>(y) / pane.display_scale));
       const bool dark = qGray(bg) < 128;
       for (int c = 0; c < count; ++c) {
         const float value = v.at(x, y, pane.first_channel + c);

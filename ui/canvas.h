@@ -16,7 +16,8 @@ namespace residue::ui {
 
 struct Pane {
   QString label;                        // drawn in the pane's corner
-  QImage display;                       // display-encoded pixels, image-sized (may be null while rendering)
+  QImage display;                       // display-encoded pixels (may be null while rendering)
+  int display_scale = 1;                // image pixels per display pixel (> 1 for a quick preview)
   std::shared_ptr<const Image> values;  // linear values, for the per-pixel text when zoomed in (may be null)
   int first_channel = 0;
   int channel_count = 3;

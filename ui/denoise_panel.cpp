@@ -183,7 +183,11 @@ QString DenoisePanel::selectedModel() const {
 void DenoisePanel::setPrecision(nn::Precision p) { precision_->setCurrentIndex(precision_->findData(static_cast<int>(p))); }
 nn::Precision DenoisePanel::precision() const { return static_cast<nn::Precision>(precision_->currentData().toInt()); }
 void DenoisePanel::setRoiOnly(bool on) { roi_only_->setChecked(on); }
-void DenoisePanel::setTile(int64_t tile) { tile_->setCurrentIndex(std::max(0, tile_->findData(static_cast<int>(tile)))); }
+void DenoisePanel::setTile(int64_t tile) {
+  const int t = static_cast<int>(std::clamp<int64_t>(tile, 0, 16384));
+  if (tile_->findData(t) < 0) tile_->addItem(tr("tile %1").arg(t), t);
+  tile_->setCurrentIndex(tile_->findData(t));
+}
 
 QString DenoisePanel::cacheKey() const {
   const QString model = selectedModel();
@@ -212,6 +216,7 @@ void DenoisePanel::start() {
     return;
   }
   // Start from what this model denoised before (a new ROI adds to it), else from the noisy colour.
+  preparing_ = true;
   if (hit != cache_.end()) {
     session_->setDenoised(Image(*hit->second.image), hit->second.description);
   } else {
@@ -229,6 +234,7 @@ void DenoisePanel::start() {
   if (model == "bilateral") {
     running_description_ = tr("cross-bilateral filter");
     bilateral_running_ = true;
+    preparing_ = false;
     status_->setText(tr("Running the cross-bilateral filter..."));
     emit started(running_description_);
     bilateral_->setFuture(QtConcurrent::run([stack, rect]() {
@@ -270,6 +276,7 @@ void DenoisePanel::start() {
     QMetaObject::invokeMethod(
         self, [self, r, pixels] { if (self->job_) self->session_->setDenoisedTile(r, pixels); }, Qt::QueuedConnection);
   });
+  preparing_ = false;
   poll_->start();
 }
 
@@ -318,6 +325,7 @@ void DenoisePanel::poll() {
 }
 
 void DenoisePanel::finish(bool ok, const QString& message) {
+  preparing_ = false;
   poll_->stop();
   const double elapsed = static_cast<double>(clock_.elapsed()) / 1000.0;
   if (job_) job_->wait();

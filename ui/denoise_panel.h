@@ -42,7 +42,7 @@ class DenoisePanel : public QWidget {
   void setTile(int64_t tile);  // 0: automatic (the largest tile that fits the memory budget)
   void setRoi(std::optional<Rect> roi) { roi_ = roi; }
 
-  bool running() const { return job_ != nullptr || bilateral_running_; }
+  bool running() const { return job_ != nullptr || bilateral_running_ || preparing_; }
   double progressFraction() const;  // of the running denoise's tiles, 0 when none
   const std::vector<ModelEntry>& models() const { return models_; }
 
@@ -91,6 +91,7 @@ class DenoisePanel : public QWidget {
 
   std::unique_ptr<DenoiseJob> job_;
   bool bilateral_running_ = false;
+  bool preparing_ = false;  // between Denoise and the job's start: the session's image is not a result yet
   QFutureWatcher<std::shared_ptr<Image>>* bilateral_ = nullptr;
 };
 

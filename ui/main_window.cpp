@@ -31,6 +31,7 @@
 #include "ui/help_overlay.h"
 #include "ui/mapping_dialog.h"
 #include "ui/metrics_panel.h"
+#include "ui/pane_renderer.h"
 #include "ui/pixel_inspector.h"
 
 namespace residue::ui {
@@ -521,6 +522,10 @@ void MainWindow::showPane(Source s) {
   layout_box_->setCurrentIndex(1);
 }
 
+void MainWindow::setLayout(ImageCanvas::Layout layout) {
+  layout_box_->setCurrentIndex(layout == ImageCanvas::Layout::SideBySide ? 0 : layout == ImageCanvas::Layout::Single ? 1 : 2);
+}
+
 int MainWindow::paneIndex(Source s) const {
   for (size_t i = 0; i < pane_sources_.size(); ++i)
     if (pane_sources_[i] == s) return static_cast<int>(i);
@@ -563,80 +568,31 @@ void MainWindow::refreshPanes() {
     pane_sources_.push_back(Source::Reference);
     if (heatmap_->display() == HeatmapPanel::Display::Pane) pane_sources_.push_back(Source::Heatmap);
   }
-  const auto settings = displaySettings();
-  const auto display = display_;
-  const AovView aov = aov_;
-  const auto sources = pane_sources_;
-  const auto noisy_aov = session_->image(Source::Noisy, aov);
-  const auto denoised = session_->denoisedShared();
-  const auto reference = shared(Source::Reference);
-  const QImage heat_image = heatmap_->image();
-  const auto heat_map = heatmap_->map();
-  const QString heat_title = heatmap_->title();
-  const QString model = session_->denoisedDescription();
-  render_watcher_->setFuture(QtConcurrent::run([=]() {
-    auto r = std::make_shared<Rendered>();
-    r->generation = generation;
-    r->size = QSize(static_cast<int>(stack->width()), static_cast<int>(stack->height()));
-    for (Source s : sources) {
-      Pane pane;
-      try {
-        switch (s) {
-          case Source::Noisy: {
-            pane.label = aov == AovView::Color ? QStringLiteral("Noisy") : QStringLiteral("Noisy: %1").arg(to_string(aov));
-            if (!noisy_aov) break;
-            pane.values = std::shared_ptr<const Image>(stack, noisy_aov);
-            pane.channel_count = std::min(3, noisy_aov->channels());
-            if (aov == AovView::Normal || aov == AovView::Depth) {
-              // Data AOVs are shown as data: normals as 0.5 n + 0.5, depth divided by its largest hit.
-              Image remapped(noisy_aov->width(), noisy_aov->height(), pane.channel_count);
-              float scale = 1.0f;
-              if (aov == AovView::Depth) {
-                float hi = 0.0f;
-                for (size_t i = 0; i < noisy_aov->size(); ++i)
-                  if (std::isfinite(noisy_aov->data()[i])) hi = std::max(hi, noisy_aov->data()[i]);
-                scale = hi > 0 ? 1.0f / hi : 1.0f;
-              }
-              for (int64_t y = 0; y < remapped.height(); ++y)
-                for (int64_t x = 0; x < remapped.width(); ++x)
-                  for (int c = 0; c < pane.channel_count; ++c) {
-                    const float v = noisy_aov->at(x, y, c);
-                    remapped.at(x, y, c) = aov == AovView::Normal ? 0.5f * v + 0.5f : v * scale;
-                  }
-              pane.display = display->render(remapped, 0, pane.channel_count, remapped.bounds(), settings, Encoding::Data);
-            } else {
-              pane.display = display->render(*noisy_aov, 0, pane.channel_count, noisy_aov->bounds(), settings,
-                                             Encoding::SceneLinear);
-            }
-            break;
-          }
-          case Source::Denoised:
-            pane.label = model.isEmpty() ? QStringLiteral("Denoised") : QStringLiteral("Denoised: %1").arg(model);
-            pane.placeholder = QStringLiteral("Not denoised yet:\npick a model and press Denoise (Ctrl+D)");
-            if (!denoised) break;
-            pane.display = display->render(*denoised, 0, 3, denoised->bounds(), settings, Encoding::SceneLinear);
-            break;
-          case Source::Reference:
-            pane.label = QStringLiteral("Reference");
-            pane.values = reference;
-            if (reference)
-              pane.display = display->render(*reference, 0, 3, reference->bounds(), settings, Encoding::SceneLinear);
-            break;
-          case Source::Heatmap:
-            pane.label = heat_title;
-            pane.placeholder = QStringLiteral("%1\n(needs a denoised image)").arg(heat_title);
-            pane.display = heat_image;
-            pane.values = heat_map;
-            pane.channel_count = 1;
-            break;
-        }
-      } catch (const std::exception& e) {
-        pane.label += QStringLiteral(" (%1)").arg(QString::fromStdString(e.what()));
-        pane.display = QImage();
-      }
-      r->panes.push_back(std::move(pane));
+  PaneInputs in;
+  in.sources = pane_sources_;
+  in.stack = stack;
+  in.aov = aov_;
+  in.noisy = session_->image(Source::Noisy, aov_);
+  in.denoised = session_->denoisedShared();
+  in.reference = shared(Source::Reference);
+  in.heat_image = heatmap_->image();
+  in.heat_map = heatmap_->map();
+  in.heat_title = heatmap_->title();
+  in.model = session_->denoisedDescription();
+  in.display = display_;
+  in.settings = displaySettings();
+  const QSize size(static_cast<int>(stack->width()), static_cast<int>(stack->height()));
+  render_watcher_->setFuture(QtConcurrent::run([this, in, size, generation]() {
+    // A large render is first shown from every step-th pixel (what a fitted view needs), then in full.
+    if (const int step = preview_step(size.width(), size.height()); step > 1) {
+      auto preview = std::make_shared<Rendered>(Rendered{generation, render_panes(in, step), size});
+      QMetaObject::invokeMethod(this, [this, preview] {
+        if (preview->generation == render_generation_ && !render_delivered_) canvas_->setPanes(std::move(preview->panes), preview->size);
+        applyHeatmap();
+        emit panesRendered();
+      }, Qt::QueuedConnection);
     }
-    return r;
+    return std::make_shared<Rendered>(Rendered{generation, render_panes(in, 1), size});
   }));
 }
 

@@ -57,6 +57,7 @@ class MainWindow : public QMainWindow {
   AovView aov() const { return aov_; }
   void setRoi(std::optional<Rect> roi);  // as if dragged
   void showPane(Source s);               // single-pane layout on that image
+  void setLayout(ImageCanvas::Layout layout);
   int paneIndex(Source s) const;         // index in canvas()->panes(), -1 when not shown
   bool rendering() const;                // panes being re-rendered
   bool busy() const;                     // anything running on a worker (load, render, metrics, heatmap, denoise)

@@ -2,11 +2,15 @@
 // (tools/screenshots.sh) put the window in a given state and save a screenshot of it.
 #include <QApplication>
 #include <QCommandLineParser>
+#include <QElapsedTimer>
+#include <QIcon>
 #include <QScreen>
 #include <QTimer>
 #include <cstdio>
+#include <memory>
 
 #include "core/util/openmp_env.h"
+#include "core/util/resources.h"
 #include "ui/canvas.h"
 #include "ui/denoise_panel.h"
 #include "ui/heatmap_panel.h"
@@ -20,6 +24,7 @@ int main(int argc, char** argv) {
   QApplication::setApplicationName("residue");
   QApplication::setOrganizationName("Residue");
   QApplication::setApplicationVersion(RESIDUE_VERSION);
+  QApplication::setDesktopFileName("residue");  // the installed .desktop entry, for the taskbar icon
 
   QCommandLineParser cli;
   cli.setApplicationDescription("Residue viewer: noisy, denoised and reference renders side by side.");
@@ -33,19 +38,23 @@ int main(int argc, char** argv) {
   const QCommandLineOption heatmap("heatmap", "Heatmap display: pane, overlay or off.", "display");
   const QCommandLineOption model("model", "Model to select in the denoise panel.", "name");
   const QCommandLineOption denoise("denoise", "Denoise once loaded.");
+  const QCommandLineOption tile("tile", "Denoise tile edge (64-1024; default automatic).", "pixels");
   const QCommandLineOption exposure("exposure", "Exposure in stops.", "stops");
   const QCommandLineOption roi("roi", "Region of interest x,y,w,h.", "rect");
   const QCommandLineOption zoom("zoom", "Zoom (screen pixels per image pixel) instead of fit.", "factor");
   const QCommandLineOption size("size", "Window size WxH.", "size");
+  const QCommandLineOption timing("timing", "Print when the render is loaded, first shown and fully analysed.");
   const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window to FILE and quit.", "file");
   const QCommandLineOption when("screenshot-when",
                                 "loaded (default), denoised, or progress:F (a denoise F of the way through).", "when");
-  for (const auto* o : {&reference, &map, &layout, &pane, &heatmap, &model, &denoise, &exposure, &roi, &zoom, &size,
+  for (const auto* o : {&reference, &map, &layout, &pane, &heatmap, &model, &denoise, &tile, &exposure, &roi, &zoom, &size, &timing,
                         &screenshot, &when})
     cli.addOption(*o);
   cli.process(app);
 
   MainWindow window;
+  if (const auto icon = residue::find_resource("icons/hicolor/256x256/apps/residue.png"))
+    QApplication::setWindowIcon(QIcon::fromTheme("residue", QIcon(QString::fromStdString(icon->string()))));
   if (cli.isSet(size)) {
     const QStringList wh = cli.value(size).split('x');
     if (wh.size() == 2) window.resize(wh[0].toInt(), wh[1].toInt());
@@ -65,6 +74,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "residue: no model named %s\n", qPrintable(cli.value(model)));
     return 2;
   }
+  if (cli.isSet(tile)) window.denoisePanel()->setTile(cli.value(tile).toLongLong());
   if (cli.isSet(heatmap)) {
     const QString h = cli.value(heatmap);
     window.heatmapPanel()->setDisplay(h == "overlay" ? residue::ui::HeatmapPanel::Display::Overlay
@@ -92,12 +102,34 @@ int main(int argc, char** argv) {
                       : p == "heatmap"   ? residue::ui::Source::Heatmap
                                          : residue::ui::Source::Noisy);
     } else if (l == "wipe") {
-      window.canvas()->setLayout(residue::ui::ImageCanvas::Layout::Wipe);
+      window.setLayout(residue::ui::ImageCanvas::Layout::Wipe);
     }
     if (cli.isSet(zoom)) window.canvas()->setView(cli.value(zoom).toDouble(), window.canvas()->center());
     if (cli.isSet(denoise)) window.denoisePanel()->start();
   };
   QObject::connect(&window, &MainWindow::panesRendered, &app, configure);
+
+  QElapsedTimer clock;
+  clock.start();
+  if (cli.isSet(timing)) {
+    const auto say = [&clock](const char* what) {
+      std::fprintf(stderr, "residue: %-34s %7.3f s\n", what, static_cast<double>(clock.nsecsElapsed()) * 1e-9);
+    };
+    QObject::connect(window.session(), &residue::ui::Session::loaded, &app, [say] { say("loaded"); });
+    auto shown = std::make_shared<bool>(false);
+    QObject::connect(&window, &MainWindow::panesRendered, &app, [say, shown] {
+      if (!*shown) say("first shown (panes drawn)");
+      *shown = true;
+    });
+    auto* idle = new QTimer(&app);
+    QObject::connect(idle, &QTimer::timeout, &app, [&window, say, idle, shown] {
+      if (*shown && !window.busy()) {
+        say("analysed (metrics, heatmap)");
+        idle->stop();
+      }
+    });
+    idle->start(10);
+  }
 
   if (cli.isSet(screenshot)) {
     // Polls the window's state and saves the picture when it matches --screenshot-when and nothing is pending.

@@ -1,0 +1,38 @@
+// Turning the session's images into display-ready panes (worker thread): which image each pane shows, how data
+// AOVs are made visible (normals as 0.5 n + 0.5, depth over its largest hit), and a cheap preview: every
+// step-th pixel, so that a large render is on screen long before its full-resolution panes are drawn.
+#pragma once
+
+#include <QImage>
+#include <memory>
+#include <vector>
+
+#include "core/aov/aov_stack.h"
+#include "ui/canvas.h"
+#include "ui/display_transform.h"
+#include "ui/session.h"
+
+namespace residue::ui {
+
+struct PaneInputs {
+  std::vector<Source> sources;
+  std::shared_ptr<const AovStack> stack;
+  AovView aov = AovView::Color;
+  const Image* noisy = nullptr;                 // the AOV shown for Noisy (owned by stack)
+  std::shared_ptr<const Image> denoised;
+  std::shared_ptr<const Image> reference;
+  QImage heat_image;
+  std::shared_ptr<const Image> heat_map;
+  QString heat_title, model;
+  std::shared_ptr<const DisplayTransform> display;
+  DisplaySettings settings;
+};
+
+// One pane per source. step > 1 renders every step-th pixel (Pane::display_scale = step); the heatmap pane is
+// always full size (it is already colour-mapped).
+std::vector<Pane> render_panes(const PaneInputs& in, int step);
+
+// The preview step for an image: every step-th pixel leaves about `target` pixels on the long side.
+int preview_step(int64_t width, int64_t height, int64_t target = 1024);
+
+}  // namespace residue::ui
