@@ -16,6 +16,8 @@ packages=(
   libtorch-dev
   # viewer: Qt6 Widgets, OpenColorIO, and Xvfb for the screenshot script
   qt6-base-dev libopencolorio-dev xvfb
+  # packaging test: cpack DEB needs fakeroot (dpkg-dev comes with build-essential)
+  fakeroot
   # tests: GoogleTest, and scikit-image + OpenImageIO's Python bindings for the independent metric checks
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
   # data generation: Blender (Cycles) for tools/datagen

@@ -210,15 +210,16 @@ void DenoisePanel::start() {
   // Nothing to run when this model already denoised what is asked for.
   const auto hit = cache_.find(key);
   if (hit != cache_.end() && (hit->second.full || (rect && covered(hit->second.rects, *rect)))) {
-    session_->setDenoised(Image(*hit->second.image), hit->second.description);
+    session_->adoptDenoised(hit->second.image, hit->second.description);
     status_->setText(tr("%1: from the cache (already denoised)").arg(hit->second.description));
     emit finished(true, {});
     return;
   }
   // Start from what this model denoised before (a new ROI adds to it), else from the noisy colour.
   preparing_ = true;
+  from_noisy_ = hit == cache_.end();
   if (hit != cache_.end()) {
-    session_->setDenoised(Image(*hit->second.image), hit->second.description);
+    session_->adoptDenoised(hit->second.image, hit->second.description);
   } else {
     session_->clearDenoised();
     session_->beginDenoised(false);
@@ -336,11 +337,11 @@ void DenoisePanel::finish(bool ok, const QString& message) {
   progress_->setValue(ok ? 1 : 0);
   if (ok && session_->denoised()) {
     auto& entry = cache_[running_key_];
-    entry.image = std::make_shared<const Image>(*session_->denoised());
+    entry.image = session_->denoisedForCache();  // shared, not copied
     entry.description = running_description_;
     if (running_rect_) entry.rects.push_back(*running_rect_);
     else entry.full = true;
-    session_->setDenoised(Image(*entry.image), running_description_);
+    session_->adoptDenoised(entry.image, running_description_);
     status_->setText(tr("%1: done in %2%3")
                          .arg(running_description_, duration(elapsed),
                               running_rect_ ? tr(" (ROI %1)").arg(QString::fromStdString(running_rect_->to_string()))

@@ -44,6 +44,8 @@ class DenoisePanel : public QWidget {
 
   bool running() const { return job_ != nullptr || bilateral_running_ || preparing_; }
   double progressFraction() const;  // of the running denoise's tiles, 0 when none
+  // True while a run that started from the noisy colour is in flight: its unfinished tiles are the noisy colour.
+  bool runningFromNoisy() const { return running() && from_noisy_; }
   const std::vector<ModelEntry>& models() const { return models_; }
 
  public slots:
@@ -58,7 +60,7 @@ class DenoisePanel : public QWidget {
 
  private:
   struct CacheEntry {
-    std::shared_ptr<const Image> image;
+    std::shared_ptr<Image> image;  // shared with the session while shown (copy on write there)
     bool full = false;
     std::vector<Rect> rects;  // regions denoised when not full
     QString description;
@@ -91,7 +93,8 @@ class DenoisePanel : public QWidget {
 
   std::unique_ptr<DenoiseJob> job_;
   bool bilateral_running_ = false;
-  bool preparing_ = false;  // between Denoise and the job's start: the session's image is not a result yet
+  bool preparing_ = false;
+  bool from_noisy_ = false;  // between Denoise and the job's start: the session's image is not a result yet
   QFutureWatcher<std::shared_ptr<Image>>* bilateral_ = nullptr;
 };
 

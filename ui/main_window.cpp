@@ -125,7 +125,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     // Tiles that landed while these panes were being drawn are in the session: show them too.
     if (const int d = paneIndex(Source::Denoised); d >= 0 && session_->denoised()) {
       canvas_->setPaneValues(d, std::shared_ptr<const Image>(std::shared_ptr<const Image>(), session_->denoised()));
-      if (denoise_->running()) patchDenoisedTile(session_->denoised()->bounds());
+      if (denoise_->running())
+        for (const Rect& t : run_tiles_) drawDenoisedTile(t);
     }
     applyHeatmap();
     updateStatus();
@@ -149,6 +150,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   });
   connect(heatmap_, &HeatmapPanel::ready, this, &MainWindow::applyHeatmap);
   connect(denoise_, &DenoisePanel::started, this, [this](const QString& what) {
+    run_tiles_.clear();
     statusBar()->showMessage(tr("Denoising with %1").arg(what));
   });
   connect(denoise_, &DenoisePanel::finished, this, [this](bool ok, const QString& message) {
@@ -573,7 +575,9 @@ void MainWindow::refreshPanes() {
   in.stack = stack;
   in.aov = aov_;
   in.noisy = session_->image(Source::Noisy, aov_);
-  in.denoised = session_->denoisedShared();
+  // During a run from the noisy colour the unfinished tiles *are* the noisy colour: draw from the stack (which
+  // never changes) rather than holding the image the tiles are written into (that would copy it per tile).
+  in.denoised = denoise_->runningFromNoisy() ? shared(Source::Noisy) : session_->denoisedShared();
   in.reference = shared(Source::Reference);
   in.heat_image = heatmap_->image();
   in.heat_map = heatmap_->map();
@@ -597,6 +601,11 @@ void MainWindow::refreshPanes() {
 }
 
 void MainWindow::patchDenoisedTile(const Rect& rect) {
+  if (denoise_->running()) run_tiles_.push_back(rect);
+  drawDenoisedTile(rect);
+}
+
+void MainWindow::drawDenoisedTile(const Rect& rect) {
   const int i = paneIndex(Source::Denoised);
   const Image* d = session_->denoised();
   if (i < 0 || !d) return;

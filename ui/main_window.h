@@ -86,7 +86,8 @@ class MainWindow : public QMainWindow {
   void refreshPanes();
   void refreshAnalysis();
   void applyHeatmap();
-  void patchDenoisedTile(const Rect& rect);
+  void patchDenoisedTile(const Rect& rect);  // a tile arrived: remember it and draw it
+  void drawDenoisedTile(const Rect& rect);
   void updateStatus();
   void updateTitle();
   void addRecent(const QStringList& files);
@@ -128,6 +129,7 @@ class MainWindow : public QMainWindow {
   QFutureWatcher<std::shared_ptr<Rendered>>* render_watcher_ = nullptr;
   int render_generation_ = 0;
   bool render_delivered_ = true;
+  std::vector<Rect> run_tiles_;  // tiles of the running denoise, re-drawn over panes rendered meanwhile
   int exports_running_ = 0;
 };
 

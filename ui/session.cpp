@@ -1,6 +1,7 @@
 #include "ui/session.h"
 
 #include <QtConcurrent/QtConcurrentRun>
+#include <algorithm>
 
 #include "core/util/error.h"
 
@@ -148,9 +149,13 @@ void Session::beginDenoised(bool keep_existing) {
     return;
   // The noisy colour's first three channels, so tiles that have not run yet show the input.
   auto img = std::make_shared<Image>(noisy.width(), noisy.height(), 3);
-  for (int64_t y = 0; y < noisy.height(); ++y)
-    for (int64_t x = 0; x < noisy.width(); ++x)
-      for (int c = 0; c < 3; ++c) img->at(x, y, c) = noisy.at(x, y, c);
+  if (noisy.channels() == 3) {
+    std::copy(noisy.data(), noisy.data() + noisy.size(), img->data());
+  } else {
+    for (int64_t y = 0; y < noisy.height(); ++y)
+      for (int64_t x = 0; x < noisy.width(); ++x)
+        for (int c = 0; c < 3; ++c) img->at(x, y, c) = noisy.at(x, y, c);
+  }
   denoised_ = std::move(img);
   emit denoisedChanged();
 }
@@ -167,6 +172,12 @@ void Session::setDenoisedTile(const Rect& rect, const Image& pixels) {
 
 void Session::setDenoised(Image image, QString description) {
   denoised_ = std::make_shared<Image>(std::move(image));
+  denoised_description_ = std::move(description);
+  emit denoisedChanged();
+}
+
+void Session::adoptDenoised(std::shared_ptr<Image> image, QString description) {
+  denoised_ = std::move(image);
   denoised_description_ = std::move(description);
   emit denoisedChanged();
 }

@@ -60,6 +60,10 @@ class Session : public QObject {
   void beginDenoised(bool keep_existing);
   void setDenoisedTile(const Rect& rect, const Image& pixels);  // GUI thread
   void setDenoised(Image image, QString description);
+  // Shows `image` as the denoised colour without copying it; it is copied on the first tile written into it
+  // while someone else (a cache) holds it too.
+  void adoptDenoised(std::shared_ptr<Image> image, QString description);
+  std::shared_ptr<Image> denoisedForCache() const { return denoised_; }
   QString denoisedDescription() const { return denoised_description_; }
   void clearDenoised();
 

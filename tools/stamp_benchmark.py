@@ -1,0 +1,71 @@
+#!/usr/bin/python3
+"""Measures each shipped model's speed with `residue-cli bench` and writes it into the model file's metadata
+("benchmark": seconds per megapixel for fp32 and bf16, the machine, the command), where the viewer's
+speed-versus-accuracy table reads it.
+
+  /usr/bin/python3 tools/stamp_benchmark.py [--cli build/release/app/residue-cli/residue-cli] [MODEL.safetensors ...]
+
+Only the JSON header changes (the tensors are copied byte for byte); the file is replaced atomically.
+Run it on an idle machine: the numbers are what users compare models by.
+"""
+import argparse, glob, json, os, platform, struct, subprocess, sys, tempfile
+
+def read_header(path):
+    with open(path, "rb") as f:
+        n = struct.unpack("<Q", f.read(8))[0]
+        header = json.loads(f.read(n))
+        data = f.read()
+    return header, data
+
+def write_header(path, header, data):
+    text = json.dumps(header, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 8)  # safetensors pads the header to 8 bytes
+    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix=".stamp-")
+    with os.fdopen(fd, "wb") as f:
+        f.write(struct.pack("<Q", len(text)) + text + data)
+    os.replace(tmp, path)
+
+def cpu_name():
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+def main():
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--cli", default=os.path.join(root, "build/release/app/residue-cli/residue-cli"))
+    p.add_argument("--size", type=int, default=1024)
+    p.add_argument("models", nargs="*")
+    a = p.parse_args()
+    models = a.models or sorted(glob.glob(os.path.join(root, "resources/models/*.safetensors")))
+    for path in models:
+        header, data = read_header(path)
+        meta = header.setdefault("__metadata__", {})
+        arch = f"{meta['residue.blocks']}/{meta['residue.width']}"
+        cmd = [a.cli, "bench", "--models", arch, "--precisions", "fp32,bf16", "--size", str(a.size),
+               "--repeat", "2", "--json"]
+        rows = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)["rows"]
+        best = {}
+        for r in rows:
+            s = r["seconds_per_megapixel"]
+            if r["precision"] not in best or s < best[r["precision"]]["seconds_per_megapixel"]:
+                best[r["precision"]] = r
+        meta["benchmark"] = json.dumps({
+            "fp32_s_per_mp": round(best["fp32"]["seconds_per_megapixel"], 4),
+            "bf16_s_per_mp": round(best["bf16"]["seconds_per_megapixel"], 4) if "bf16" in best else None,
+            "fp32_implementation": best["fp32"]["implementation"],
+            "bf16_implementation": best["bf16"]["implementation"] if "bf16" in best else None,
+            "machine": f"{cpu_name()}, {os.cpu_count()} cores",
+            "image": a.size,
+            "command": " ".join(["residue-cli"] + cmd[1:]),
+        }, separators=(",", ":"))
+        write_header(path, header, data)
+        print(f"{os.path.basename(path)}: {arch} fp32 {best['fp32']['seconds_per_megapixel']:.3f} s/MP"
+              + (f", bf16 {best['bf16']['seconds_per_megapixel']:.3f} s/MP" if "bf16" in best else ""))
+
+if __name__ == "__main__":
+    sys.exit(main())
