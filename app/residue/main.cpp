@@ -126,6 +126,19 @@ int main(int argc, char** argv) {
       if (*shown && !window.busy()) {
         say("analysed (metrics, heatmap)");
         idle->stop();
+        // Drawing cost per frame (synchronous repaints) at fit, 1:1 and 8x, in the current layout.
+        auto* canvas = window.canvas();
+        for (double z : {0.0, 1.0, 8.0}) {
+          if (z == 0.0) canvas->fit();
+          else canvas->setView(z, canvas->center());
+          QElapsedTimer t;
+          t.start();
+          for (int i = 0; i < 10; ++i) canvas->repaint();
+          std::fprintf(stderr, "residue: frame at %-6s %5.1f ms (%d x %d canvas, %zu panes)\n",
+                       z == 0.0 ? "fit" : z == 1.0 ? "1:1" : "8x", static_cast<double>(t.nsecsElapsed()) * 1e-7,
+                       canvas->width(), canvas->height(), canvas->panes().size());
+        }
+        canvas->fit();
       }
     });
     idle->start(10);
