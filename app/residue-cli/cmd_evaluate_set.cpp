@@ -28,6 +28,7 @@ struct EvalSetOptions {
   std::vector<std::string> precisions = {"fp32"};
   std::string backend;
   int last = 0;  // 0: every scene
+  std::string split = "all";  // or the data set's "train" / "validation" cut (index.json)
   std::string out_md, out_json;
   int threads = 0;
   bool force = false;
@@ -45,6 +46,12 @@ std::string fmt(const char* f, double v) {
 
 int run(const EvalSetOptions& o) {
   std::vector<std::filesystem::path> scenes = list_dataset_scenes(o.dataset);
+  if (o.split != "all") {
+    const DatasetSplit split = split_dataset(o.dataset, 0);
+    if (!split.from_index)
+      throw Error(ErrorKind::Usage, "--split " + o.split + ": '" + o.dataset + "' has no index.json; use --last N");
+    scenes = o.split == "validation" ? split.validation : split.train;
+  }
   if (o.last > 0 && static_cast<size_t>(o.last) < scenes.size())
     scenes.erase(scenes.begin(), scenes.end() - o.last);
   if (scenes.empty()) throw Error(ErrorKind::Input, "no scenes in '" + o.dataset + "'");
@@ -163,7 +170,9 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("--models", o->models, "Model names or files; \"bilateral\" is the cross-bilateral baseline")->required()->delimiter(',');
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
   cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest)");
-  cmd->add_option("--last", o->last, "Only the last N scenes by name (the validation split)");
+  cmd->add_option("--last", o->last, "Only the last N scenes by name (the starter set's validation scenes)");
+  cmd->add_option("--split", o->split, "all, or the data set's train / validation cut (its index.json)")
+      ->capture_default_str()->check(CLI::IsMember({"all", "train", "validation"}));
   cmd->add_option("--md", o->out_md, "Write the table as Markdown");
   cmd->add_option("--json", o->out_json, "Write every number as JSON");
   cmd->add_option("--threads", o->threads, "Threads (default: every core)");

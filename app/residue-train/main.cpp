@@ -111,13 +111,14 @@ int run(const Options& o) {
   arch.features = *feature_set_from_string(o.features);
   if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out + "' exists; pass --force");
 
-  // Scenes: the last `val` of each data folder (sorted by name) are held out for validation.
+  // Scenes: each data folder's own cut (index.json) or, without one, its last `val` scenes by name.
   std::vector<fs::path> train_scenes, val_scenes;
   for (const auto& d : o.data) {
-    const auto s = list_dataset_scenes(d);
-    const size_t nval = std::min<size_t>(static_cast<size_t>(o.val), s.size() / 2);
-    train_scenes.insert(train_scenes.end(), s.begin(), s.end() - static_cast<std::ptrdiff_t>(nval));
-    val_scenes.insert(val_scenes.end(), s.end() - static_cast<std::ptrdiff_t>(nval), s.end());
+    const DatasetSplit split = split_dataset(d, static_cast<size_t>(o.val));
+    train_scenes.insert(train_scenes.end(), split.train.begin(), split.train.end());
+    val_scenes.insert(val_scenes.end(), split.validation.begin(), split.validation.end());
+    std::printf("residue-train: %s: %zu training, %zu validation scenes (%s)\n", d.c_str(), split.train.size(),
+                split.validation.size(), split.from_index ? "index.json" : "the last by name");
   }
   if (train_scenes.empty()) throw Error(ErrorKind::Input, "no scenes found in --data");
   std::printf("residue-train: %s, %zu training scenes, %zu validation scenes\n", arch.to_string().c_str(),
@@ -221,7 +222,7 @@ int main(int argc, char** argv) {
   CLI::App app{"residue-train: train the residual denoising network and export a model file", "residue-train"};
   Options o;
   app.add_option("--data", o.data, "Data set folders (s<seed>/noisy_a.exr, noisy_b.exr, reference.exr)")->required();
-  app.add_option("--val", o.val, "Scenes held out per data folder (the last by name)")->capture_default_str();
+  app.add_option("--val", o.val, "Scenes held out per data folder without an index.json (the last by name)")->capture_default_str();
   app.add_option("--arch", o.arch, "BLOCKS/WIDTH")->capture_default_str();
   app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color"}));
   app.add_option("--steps", o.steps, "Training steps")->capture_default_str();

@@ -12,4 +12,14 @@ namespace residue {
 // Throws Error(Input) when `root` is not a folder.
 std::vector<std::filesystem::path> list_dataset_scenes(const std::filesystem::path& root);
 
+// A data set cut into training and validation scenes. The project's data sets (tools/datagen) carry the cut in
+// root/index.json ("scenes": [{"folder": "s1010", "split": "validation"}, ...]); it is used when present, for
+// the scenes that exist. Otherwise the last `fallback_validation` scenes by name (at most half) are validation.
+struct DatasetSplit {
+  std::vector<std::filesystem::path> train, validation;
+  bool from_index = false;
+};
+// Throws Error(Input) when `root` is not a folder or its index.json does not parse.
+DatasetSplit split_dataset(const std::filesystem::path& root, size_t fallback_validation);
+
 }  // namespace residue
