@@ -132,6 +132,35 @@ TEST(Features, WorldNormalsRotatedByTheCamera) {
   EXPECT_NEAR(f.at(0, 0, 5), 1.0f, 1e-7);
 }
 
+TEST(Features, NoiseLevelPlaneIsTheLogStandardDeviation) {
+  AovStack s = make_stack(3, 2, 4);
+  EXPECT_EQ(feature_set_for(s), FeatureSet::Full);
+  EXPECT_THROW(check_features_available(s, FeatureSet::FullVariance), Error);
+  s.variance = Aov{random_image(3, 2, 3, 9, 0.0f, 2.0f), {}, {}, 0};
+  s.variance->image.at(2, 1, 0) = std::numeric_limits<float>::quiet_NaN();  // counts as 0
+  EXPECT_EQ(feature_set_for(s), FeatureSet::FullVariance);
+  Image f;
+  make_features(s, FeatureSet::FullVariance, compute_feature_stats(s), {0, 0, 3, 2}, f);
+  ASSERT_EQ(f.channels(), 10);
+  for (int64_t y = 0; y < 2; ++y)
+    for (int64_t x = 0; x < 3; ++x) {
+      double sum = 0;
+      for (int c = 0; c < 3; ++c) {
+        const double v = s.variance->image.at(x, y, c);
+        sum += std::isfinite(v) ? v : 0.0;
+      }
+      EXPECT_NEAR(f.at(x, y, 9), std::log1p(std::sqrt(sum / 3)), 1e-6);
+    }
+  // The first nine planes are the full set's.
+  Image full;
+  make_features(s, FeatureSet::Full, compute_feature_stats(s), {0, 0, 3, 2}, full);
+  for (int c = 0; c < 9; ++c) EXPECT_EQ(f.at(1, 1, c), full.at(1, 1, c));
+  // A one-channel variance AOV is used as is.
+  s.variance = Aov{Image(3, 2, 1, 4.0f), {}, {}, 0};
+  make_features(s, FeatureSet::FullVariance, compute_feature_stats(s), {0, 0, 3, 2}, f);
+  EXPECT_FLOAT_EQ(f.at(0, 0, 9), std::log1p(2.0f));
+}
+
 TEST(Features, MissingAovNamesWhatIsMissing) {
   AovStack s = make_stack(2, 2, 1);
   s.depth.reset();
@@ -601,6 +630,12 @@ TEST(CliDenoise, ModelNamePicksTheVariantForTheAovsPresent) {
   EXPECT_EQ(nn::find_model_for("fam", FeatureSet::ColorAlbedoNormal), tmp / "fam-color.safetensors")
       << "no albedo-normal variant: the colour-only one, never zeros for depth";
   EXPECT_THROW(nn::find_model_for("other", FeatureSet::Full), Error);
+  // With a variance AOV, the noise-level variant when there is one, else the full model.
+  EXPECT_EQ(nn::find_model_for("fam", FeatureSet::FullVariance), tmp / "fam.safetensors");
+  nn::write_safetensors(tmp / "fam-variance.safetensors",
+                        nn::to_safetensors(nn::random_network({1, 4, FeatureSet::FullVariance}, 3)), false);
+  EXPECT_EQ(nn::find_model_for("fam", FeatureSet::FullVariance), tmp / "fam-variance.safetensors");
+  EXPECT_EQ(nn::find_model_for("fam", FeatureSet::Full), tmp / "fam.safetensors");
   const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
   std::string text;
   // The reference file has only colour: the colour-only variant runs.

@@ -25,7 +25,7 @@ nlohmann::json parse(const std::map<std::string, std::string>& meta, const char*
   return nlohmann::json::parse(it->second, nullptr, /*allow_exceptions=*/false);
 }
 
-const char* kVariantSuffixes[] = {"-albedo-normal", "-color"};
+const char* kVariantSuffixes[] = {"-albedo-normal", "-color", "-variance"};
 }  // namespace
 
 std::vector<ModelEntry> scan_models(QStringList* problems) {

@@ -75,9 +75,7 @@ int run(const EvalSetOptions& o) {
   nlohmann::json json_scenes = nlohmann::json::array();
   double megapixels_total = 0;
   for (size_t si = 0; si < scenes.size(); ++si) {
-    LoadOptions lo;
-    lo.reference = scenes[si] / "reference.exr";
-    const AovStack stack = load_aov_stack({scenes[si] / "noisy_a.exr"}, lo);
+    const AovStack stack = load_dataset_scene(scenes[si]);
     const double mp = static_cast<double>(stack.width() * stack.height()) / 1e6;
     megapixels_total += mp;
     nlohmann::json js = {{"scene", scenes[si].filename().string()}, {"megapixels", mp}};

@@ -60,9 +60,7 @@ Validation validate(train::ResidueNet& net, const std::vector<fs::path>& scenes,
   const nn::Model model = nn::load_model(tmp_model);
   Validation v;
   for (const auto& dir : scenes) {
-    LoadOptions lo;
-    lo.reference = dir / "reference.exr";
-    const AovStack s = load_aov_stack({dir / "noisy_a.exr"}, lo);
+    const AovStack s = load_dataset_scene(dir);
     DenoiseOptions d;
     d.skip_empty_tiles = false;
     const Image out = denoise(s, model, d);
@@ -224,7 +222,7 @@ int main(int argc, char** argv) {
   app.add_option("--data", o.data, "Data set folders (s<seed>/noisy_a.exr, noisy_b.exr, reference.exr)")->required();
   app.add_option("--val", o.val, "Scenes held out per data folder without an index.json (the last by name)")->capture_default_str();
   app.add_option("--arch", o.arch, "BLOCKS/WIDTH")->capture_default_str();
-  app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color"}));
+  app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color", "full+variance"}));
   app.add_option("--steps", o.steps, "Training steps")->capture_default_str();
   app.add_option("--batch", o.batch, "Patches per step")->capture_default_str();
   app.add_option("--patch", o.patch, "Patch edge")->capture_default_str();

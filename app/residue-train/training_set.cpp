@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "core/aov/aov_loader.h"
+#include "core/aov/dataset.h"
 #include "core/features/features.h"
 #include "core/util/error.h"
 
@@ -11,7 +12,8 @@ namespace fs = std::filesystem;
 
 int normal_plane(FeatureSet set) {
   switch (set) {
-    case FeatureSet::Full: return 4;
+    case FeatureSet::Full:
+    case FeatureSet::FullVariance: return 4;
     case FeatureSet::ColorAlbedoNormal: return 3;
     case FeatureSet::ColorOnly: return -1;
   }
@@ -42,9 +44,7 @@ Image noise_map(const AovStack& a, const AovStack* b, const Image& reference) {
 TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet features, int patch)
     : features_(features), channels_(feature_channels(features)), patch_(patch) {
   for (const auto& dir : scenes) {
-    LoadOptions lo;
-    lo.reference = dir / "reference.exr";
-    const AovStack a = load_aov_stack({dir / "noisy_a.exr"}, lo);
+    const AovStack a = load_dataset_scene(dir);  // with the variance from the two halves when there are two
     if (a.width() < patch || a.height() < patch)
       throw Error(ErrorKind::Input, "scene '" + dir.string() + "' is smaller than one " + std::to_string(patch) + " px patch");
     TrainingScene s;
@@ -58,6 +58,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet feature
       LoadOptions lb;
       lb.load_reference = false;
       b = load_aov_stack({dir / "noisy_b.exr"}, lb);
+      b->variance = a.variance;  // (a - b)^2 / 2 is the estimate for either half
       Image fb;
       make_features(*b, features, compute_feature_stats(*b), all, fb);
       s.inputs.push_back(std::move(fb));

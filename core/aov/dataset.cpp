@@ -5,6 +5,9 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include <tbb/parallel_for.h>
+
+#include "core/aov/aov_loader.h"
 #include "core/util/error.h"
 
 namespace residue {
@@ -47,6 +50,42 @@ DatasetSplit split_dataset(const std::filesystem::path& root, size_t fallback_va
   out.train.assign(scenes.begin(), scenes.end() - static_cast<std::ptrdiff_t>(nval));
   out.validation.assign(scenes.end() - static_cast<std::ptrdiff_t>(nval), scenes.end());
   return out;
+}
+
+Image variance_from_halves(const Image& a, const Image& b) {
+  if (a.width() != b.width() || a.height() != b.height() || a.channels() < 3 || b.channels() < 3)
+    throw Error(ErrorKind::Usage, "variance_from_halves: the halves must have the same size and >= 3 channels");
+  Image var(a.width(), a.height(), 3);
+  tbb::parallel_for(int64_t{0}, a.height(), [&](int64_t y) {
+    for (int64_t x = 0; x < a.width(); ++x)
+      for (int c = 0; c < 3; ++c) {
+        const float d = a.at(x, y, c) - b.at(x, y, c);
+        var.at(x, y, c) = std::isfinite(d) ? 0.5f * d * d : 0.0f;
+      }
+  });
+  return var;
+}
+
+AovStack load_dataset_scene(const std::filesystem::path& scene, bool with_reference) {
+  LoadOptions o;
+  if (with_reference) o.reference = scene / "reference.exr";
+  AovStack a = load_aov_stack({scene / "noisy_a.exr"}, o);
+  const auto b_path = scene / "noisy_b.exr";
+  if (!a.variance && std::filesystem::exists(b_path)) {
+    LoadOptions ob;
+    ob.load_reference = false;
+    const AovStack b = load_aov_stack({b_path}, ob);
+    if (b.width() != a.width() || b.height() != a.height())
+      throw Error(ErrorKind::Input, "'" + b_path.string() + "' is " + std::to_string(b.width()) + "x" +
+                                        std::to_string(b.height()) + ", its other half " + std::to_string(a.width()) +
+                                        "x" + std::to_string(a.height()));
+    Aov var;
+    var.image = variance_from_halves(a.color.image, b.color.image);
+    var.source.file = b_path.string();
+    var.source.layer = "variance from the two halves, (a - b)^2 / 2";
+    a.variance = std::move(var);
+  }
+  return a;
 }
 
 }  // namespace residue

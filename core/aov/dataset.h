@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <vector>
 
+#include "core/aov/aov_stack.h"
+
 namespace residue {
 
 // Scene folders under `root` that hold noisy_a.exr and reference.exr, sorted by name.
@@ -21,5 +23,14 @@ struct DatasetSplit {
 };
 // Throws Error(Input) when `root` is not a folder or its index.json does not parse.
 DatasetSplit split_dataset(const std::filesystem::path& root, size_t fallback_validation);
+
+// Per-pixel variance of each of two independent renders of the same pixels (a and b, same spp): the
+// difference of two independent estimates has twice their variance, so var = (a - b)^2 / 2, per RGB channel.
+// Non-finite differences give 0. Throws Error(Usage) unless both have the same size and >= 3 channels.
+Image variance_from_halves(const Image& a, const Image& b);
+
+// One scene of a data set as the network sees it: noisy_a.exr with its AOVs and reference.exr; when
+// noisy_b.exr exists (and noisy_a has no variance AOV of its own), the colour's variance from the two halves.
+AovStack load_dataset_scene(const std::filesystem::path& scene, bool with_reference = true);
 
 }  // namespace residue

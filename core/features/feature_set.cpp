@@ -7,6 +7,7 @@ int feature_channels(FeatureSet set) {
     case FeatureSet::Full: return 9;
     case FeatureSet::ColorAlbedoNormal: return 8;
     case FeatureSet::ColorOnly: return 3;
+    case FeatureSet::FullVariance: return 10;
   }
   return 0;
 }
@@ -16,12 +17,13 @@ const char* to_string(FeatureSet set) {
     case FeatureSet::Full: return "full";
     case FeatureSet::ColorAlbedoNormal: return "color+albedo+normal";
     case FeatureSet::ColorOnly: return "color";
+    case FeatureSet::FullVariance: return "full+variance";
   }
   return "?";
 }
 
 std::optional<FeatureSet> feature_set_from_string(const std::string& name) {
-  for (FeatureSet s : {FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly})
+  for (FeatureSet s : {FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly, FeatureSet::FullVariance})
     if (name == to_string(s)) return s;
   return std::nullopt;
 }

@@ -10,6 +10,8 @@ enum class FeatureSet {
   Full,               // 9: colour (3), depth (1), view-space normal x,y (2), albedo (3) — the paper's input
   ColorAlbedoNormal,  // 8: colour (3), normal x,y (2), albedo (3) — for renders without depth
   ColorOnly,          // 3: colour — for beauty-only renders
+  FullVariance,       // 10: full + the colour's noise level (per-pixel variance of the estimate) — a variant
+                      //     for renderers that write variance (Tungsten) or two independent halves (Cycles data)
 };
 
 int feature_channels(FeatureSet set);

@@ -55,6 +55,7 @@ FeatureStats compute_feature_stats(const AovStack& stack) {
 }
 
 FeatureSet feature_set_for(const AovStack& stack) {
+  if (stack.albedo && stack.normal && stack.depth && stack.variance) return FeatureSet::FullVariance;
   if (stack.albedo && stack.normal && stack.depth) return FeatureSet::Full;
   if (stack.albedo && stack.normal) return FeatureSet::ColorAlbedoNormal;
   return FeatureSet::ColorOnly;
@@ -69,7 +70,8 @@ void check_features_available(const AovStack& stack, FeatureSet set) {
     need(stack.albedo.has_value(), "albedo");
     need(stack.normal.has_value(), "normal");
   }
-  if (set == FeatureSet::Full) need(stack.depth.has_value(), "depth");
+  if (set == FeatureSet::Full || set == FeatureSet::FullVariance) need(stack.depth.has_value(), "depth");
+  if (set == FeatureSet::FullVariance) need(stack.variance.has_value(), "variance");
   if (!missing.empty())
     throw Error(ErrorKind::Input, "the model reads the \"" + std::string(to_string(set)) + "\" feature set but '" +
                                       stack.color.source.file + "' has no " + missing +
@@ -90,7 +92,8 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
       float* f = &out.at(x, y, 0);
       for (int c = 0; c < 3; ++c) *f++ = compress_color(stack.color.image.at(sx, sy, c));
       if (set == FeatureSet::ColorOnly) continue;
-      if (set == FeatureSet::Full) *f++ = std::log1p(sanitize_nonnegative(stack.depth->image.at(sx, sy)) * inv_depth_mean);
+      const bool depth = set == FeatureSet::Full || set == FeatureSet::FullVariance;
+      if (depth) *f++ = std::log1p(sanitize_nonnegative(stack.depth->image.at(sx, sy)) * inv_depth_mean);
       double n[3];
       for (int c = 0; c < 3; ++c) {
         const float v = stack.normal->image.at(sx, sy, c);
@@ -105,8 +108,16 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
       *f++ = static_cast<float>(std::clamp(n[0], -1.0, 1.0));
       *f++ = static_cast<float>(std::clamp(n[1], -1.0, 1.0));
       for (int c = 0; c < 3; ++c) *f++ = compress_color(stack.albedo->image.at(sx, sy, c));
+      if (set == FeatureSet::FullVariance) {
+        const Image& var = stack.variance->image;
+        const int nv = std::min(3, var.channels());
+        double sum = 0;
+        for (int c = 0; c < nv; ++c) sum += sanitize_nonnegative(var.at(sx, sy, c));
+        *f++ = static_cast<float>(std::log1p(std::sqrt(sum / nv)));
+      }
     }
   });
 }
+
 
 }  // namespace residue

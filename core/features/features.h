@@ -8,6 +8,10 @@
 //   normal  view-space x, y                  world-space normals rotated by the camera when it is known;
 //                                            non-finite -> 0, clamped to [-1, 1]
 //   albedo  log(1 + a)                       a sanitised like colour; log keeps emissive albedo (> 1) bounded
+//   noise   log(1 + sqrt(mean_RGB var))      (full+variance only) var: the per-pixel variance of the colour
+//                                            estimate, from the variance AOV (for a data set's scenes: from the two
+//                                            halves, load_dataset_scene);
+//                                            the standard deviation in the colour's units, log-compressed alike
 // Output: c = exp(y) - 1, clamped to [0, FLT_MAX], NaN -> 0: always finite and non-negative.
 #pragma once
 
@@ -35,8 +39,10 @@ FeatureStats compute_feature_stats(const AovStack& stack);
 int64_t depth_sample_stride(int64_t pixel_count);
 double depth_scale_from_samples(std::vector<float>& samples);  // drops non-hits; 1 when none
 
-// The richest feature set the stack can feed without inventing data.
+// The richest feature set the stack can feed without inventing data. The sets nest: full+variance needs
+// everything full needs plus variance; full > color+albedo+normal > color.
 FeatureSet feature_set_for(const AovStack& stack);
+
 
 // Throws Error(Input) naming what is missing when `stack` cannot feed `set`.
 void check_features_available(const AovStack& stack, FeatureSet set);

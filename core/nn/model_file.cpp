@@ -141,6 +141,7 @@ std::string model_variant_name(const std::string& family, FeatureSet set) {
     case FeatureSet::Full: return family;
     case FeatureSet::ColorAlbedoNormal: return family + "-albedo-normal";
     case FeatureSet::ColorOnly: return family + "-color";
+    case FeatureSet::FullVariance: return family + "-variance";
   }
   return family;
 }
@@ -148,8 +149,8 @@ std::string model_variant_name(const std::string& family, FeatureSet set) {
 std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available) {
   if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
   std::vector<FeatureSet> usable;
-  for (FeatureSet s : {FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly})
-    if (feature_channels(s) <= feature_channels(available)) usable.push_back(s);  // the sets nest: 9 > 8 > 3
+  for (FeatureSet s : {FeatureSet::FullVariance, FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly})
+    if (feature_channels(s) <= feature_channels(available)) usable.push_back(s);  // the sets nest: 10 > 9 > 8 > 3
   std::string tried;
   for (FeatureSet s : usable) {
     const std::string name = model_variant_name(name_or_path, s);
