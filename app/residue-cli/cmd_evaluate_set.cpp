@@ -1,6 +1,8 @@
 // residue-cli evaluate-set: runs models over a data set's scenes and writes one table (scene x model: relMSE,
 // SSIM, time) as Markdown and JSON: the measured speed/accuracy trade users pick from.
 #include <chrono>
+#include <cmath>
+#include <random>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -29,6 +31,7 @@ struct EvalSetOptions {
   std::string backend;
   int last = 0;  // 0: every scene
   std::string split = "all";  // or the data set's "train" / "validation" cut (index.json)
+  std::string perturb = "none";  // input-convention studies: see perturb_inputs
   std::string out_md, out_json;
   int threads = 0;
   bool force = false;
@@ -36,7 +39,59 @@ struct EvalSetOptions {
 
 struct Cell {
   double relmse = 0, ssim = 0, seconds = 0;
+  double mean_ratio = 1;  // mean of the output over the mean of the reference (brightness bias)
 };
+
+// Changes a scene's AOVs the way another renderer's conventions would, to measure what the models make of
+// it: "normals-world" turns the normals by a random rotation (world-space normals with no camera, taken as
+// view space), "normals-zero" removes their information, "depth-x100" changes depth units (cm for m),
+// "no-variance" drops the variance AOV.
+void perturb_inputs(AovStack& s, const std::string& mode, unsigned seed) {
+  if (mode == "none") return;
+  if (mode == "no-variance") {
+    s.variance.reset();
+  } else if (mode == "depth-x100") {
+    if (s.depth) for (size_t i = 0; i < s.depth->image.size(); ++i) s.depth->image.data()[i] *= 100.0f;
+  } else if (mode == "normals-zero" || mode == "normals-world") {
+    if (!s.normal) return;
+    double r[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    if (mode == "normals-world") {
+      // A uniformly random rotation from a random unit quaternion.
+      std::mt19937 rng(seed);
+      std::normal_distribution<double> g;
+      double q[4], n = 0;
+      for (double& v : q) {
+        v = g(rng);
+        n += v * v;
+      }
+      n = std::sqrt(n);
+      const double w = q[0] / n, x = q[1] / n, y = q[2] / n, z = q[3] / n;
+      const double m[9] = {1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+                           2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                           2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)};
+      std::copy(m, m + 9, r);
+    }
+    Image& im = s.normal->image;
+    for (int64_t i = 0; i < im.pixel_count(); ++i) {
+      float* v = im.data() + i * im.channels();
+      const double a = v[0], b = v[1], c = v[2];
+      for (int k = 0; k < 3; ++k) v[k] = static_cast<float>(r[3 * k] * a + r[3 * k + 1] * b + r[3 * k + 2] * c);
+    }
+  } else {
+    throw Error(ErrorKind::Usage, "--perturb: unknown mode '" + mode + "'");
+  }
+}
+
+double mean_ratio(const Image& out, const Image& ref) {
+  double so = 0, sr = 0;
+  for (int64_t y = 0; y < out.height(); ++y)
+    for (int64_t x = 0; x < out.width(); ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double o = out.at(x, y, c), r = ref.at(x, y, c);
+        if (std::isfinite(o) && std::isfinite(r)) so += o, sr += r;
+      }
+  return sr > 0 ? so / sr : 1.0;
+}
 
 std::string fmt(const char* f, double v) {
   char buf[64];
@@ -75,7 +130,8 @@ int run(const EvalSetOptions& o) {
   nlohmann::json json_scenes = nlohmann::json::array();
   double megapixels_total = 0;
   for (size_t si = 0; si < scenes.size(); ++si) {
-    const AovStack stack = load_dataset_scene(scenes[si]);
+    AovStack stack = load_dataset_scene(scenes[si]);
+    perturb_inputs(stack, o.perturb, static_cast<unsigned>(si) + 1);
     const double mp = static_cast<double>(stack.width() * stack.height()) / 1e6;
     megapixels_total += mp;
     nlohmann::json js = {{"scene", scenes[si].filename().string()}, {"megapixels", mp}};
@@ -104,8 +160,9 @@ int run(const EvalSetOptions& o) {
       const auto s = metrics::compare(out, stack.reference->image);
       cell.relmse = s.relmse;
       cell.ssim = s.ssim;
+      cell.mean_ratio = mean_ratio(out, stack.reference->image);
       js["results"][columns[ci].label] = {{"relmse", s.relmse}, {"ssim", s.ssim}, {"seconds", cell.seconds},
-                                         {"model_file", model_file}};
+                                         {"mean_ratio", cell.mean_ratio}, {"model_file", model_file}};
     }
     json_scenes.push_back(js);
     std::fprintf(stderr, "evaluate-set: %zu/%zu %s\n", si + 1, scenes.size(), scenes[si].filename().string().c_str());
@@ -119,6 +176,7 @@ int run(const EvalSetOptions& o) {
   for (const auto& c : columns) md << "---|---|" << (c.model.empty() ? "" : "---|");
   md << "\n";
   std::vector<Cell> mean(columns.size());
+  for (auto& m : mean) m.mean_ratio = 0;
   for (size_t si = 0; si < scenes.size(); ++si) {
     md << "| " << scenes[si].filename().string() << " |";
     for (size_t ci = 0; ci < columns.size(); ++ci) {
@@ -128,6 +186,7 @@ int run(const EvalSetOptions& o) {
       mean[ci].relmse += c.relmse / static_cast<double>(scenes.size());
       mean[ci].ssim += c.ssim / static_cast<double>(scenes.size());
       mean[ci].seconds += c.seconds;
+      mean[ci].mean_ratio += c.mean_ratio / static_cast<double>(scenes.size());
     }
     md << "\n";
   }
@@ -135,15 +194,20 @@ int run(const EvalSetOptions& o) {
   for (size_t ci = 0; ci < columns.size(); ++ci)
     md << " **" << fmt("%.4g", mean[ci].relmse) << "** | **" << fmt("%.4f", mean[ci].ssim) << "** |"
        << (columns[ci].model.empty() ? "" : " " + fmt("%.2f", mean[ci].seconds / megapixels_total) + " s/MP |");
+  md << "\n\nMean brightness ratio (output / reference, 1 = unbiased):";
+  for (size_t ci = 0; ci < columns.size(); ++ci) md << " " << columns[ci].label << " " << fmt("%.4f", mean[ci].mean_ratio);
+  if (o.perturb != "none") md << "\n\nInputs perturbed: " << o.perturb;
   md << "\n";
 
   nlohmann::json summary = nlohmann::json::array();
   for (size_t ci = 0; ci < columns.size(); ++ci)
     summary.push_back({{"label", columns[ci].label}, {"model", columns[ci].model}, {"precision", columns[ci].precision},
                        {"mean_relmse", mean[ci].relmse}, {"mean_ssim", mean[ci].ssim},
+                       {"mean_ratio", mean[ci].mean_ratio},
                        {"relmse_reduction", mean[0].relmse / mean[ci].relmse},
                        {"seconds_per_megapixel", mean[ci].seconds / megapixels_total}});
-  const nlohmann::json j = {{"dataset", o.dataset}, {"scenes", json_scenes}, {"summary", summary},
+  const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb},
+                            {"scenes", json_scenes}, {"summary", summary},
                             {"metrics", metrics::formula_text({})}};
 
   auto write_text = [&](const std::string& path, const std::string& text) {
@@ -169,6 +233,9 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
   cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest)");
   cmd->add_option("--last", o->last, "Only the last N scenes by name (the starter set's validation scenes)");
+  cmd->add_option("--perturb", o->perturb,
+                  "Study other renderers' conventions: normals-world, normals-zero, depth-x100, no-variance")
+      ->capture_default_str();
   cmd->add_option("--split", o->split, "all, or the data set's train / validation cut (its index.json)")
       ->capture_default_str()->check(CLI::IsMember({"all", "train", "validation"}));
   cmd->add_option("--md", o->out_md, "Write the table as Markdown");
