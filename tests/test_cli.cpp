@@ -163,3 +163,73 @@ TEST(Cli, ExitCodesForBadInput) {
 
 }  // namespace
 }  // namespace residue
+
+namespace residue {
+namespace {
+
+// evaluate-set on two real starter scenes (linked into a temporary data set with its own index.json).
+TEST(CliEvaluateSet, TableJsonSplitAndPerturbations) {
+  const auto starter = testing::shared_dataset("cycles-starter");
+  RESIDUE_REQUIRE_SHARED(starter);
+  TempDir tmp;
+  const auto data = tmp / "data";
+  std::filesystem::create_directories(data);
+  for (const char* s : {"s160", "s161"}) std::filesystem::create_directory_symlink(starter / s, data / s);
+  std::ofstream(data / "index.json") << R"({"scenes": [{"folder": "s160", "split": "train"},
+                                                      {"folder": "s161", "split": "validation"}]})";
+  std::string text;
+  ASSERT_EQ(run_cli({"evaluate-set", data.string(), "--models", "bilateral,tiny", "--json", (tmp / "a.json").string(),
+                     "--md", (tmp / "a.md").string()},
+                    &text),
+            0)
+      << text;
+  std::ifstream in(tmp / "a.json");
+  const auto j = nlohmann::json::parse(in);
+  ASSERT_EQ(j["scenes"].size(), 2u);
+  // The noisy column is the data set's own number (scene.json, computed by the generator in float64).
+  std::ifstream sj(starter / "s160" / "scene.json");
+  const auto scene = nlohmann::json::parse(sj);
+  const double noisy = j["scenes"][0]["results"]["noisy"]["relmse"].get<double>();
+  EXPECT_NEAR(noisy, scene["metrics"]["relmse_noisy_a"].get<double>(), 1e-9 * noisy);
+  for (const auto& s : j["scenes"]) {
+    EXPECT_LT(s["results"]["tiny"]["relmse"].get<double>(), s["results"]["noisy"]["relmse"].get<double>());
+    EXPECT_NEAR(s["results"]["tiny"]["mean_ratio"].get<double>(), 1.0, 0.05);
+  }
+  EXPECT_NE(text.find("Mean brightness ratio"), std::string::npos);
+
+  // --split validation: the index's cut.
+  ASSERT_EQ(run_cli({"evaluate-set", data.string(), "--models", "tiny", "--split", "validation", "--json",
+                     (tmp / "v.json").string()},
+                    &text),
+            0)
+      << text;
+  std::ifstream vin(tmp / "v.json");
+  const auto v = nlohmann::json::parse(vin);
+  ASSERT_EQ(v["scenes"].size(), 1u);
+  EXPECT_EQ(v["scenes"][0]["scene"], "s161");
+  const double tiny_s161 = v["scenes"][0]["results"]["tiny"]["relmse"].get<double>();
+
+  // Depth units do not matter (depth is divided by its median), rotated normals do change the input.
+  ASSERT_EQ(run_cli({"evaluate-set", data.string(), "--models", "tiny", "--split", "validation", "--perturb",
+                     "depth-x100", "--json", (tmp / "d.json").string()},
+                    &text),
+            0)
+      << text;
+  std::ifstream din(tmp / "d.json");
+  EXPECT_NEAR(nlohmann::json::parse(din)["scenes"][0]["results"]["tiny"]["relmse"].get<double>(), tiny_s161,
+              0.02 * tiny_s161);
+  ASSERT_EQ(run_cli({"evaluate-set", data.string(), "--models", "tiny", "--split", "validation", "--perturb",
+                     "normals-world", "--json", (tmp / "n.json").string()},
+                    &text),
+            0)
+      << text;
+  std::ifstream nin(tmp / "n.json");
+  EXPECT_NE(nlohmann::json::parse(nin)["scenes"][0]["results"]["tiny"]["relmse"].get<double>(), tiny_s161);
+
+  EXPECT_EQ(run_cli({"evaluate-set", data.string(), "--models", "tiny", "--perturb", "sideways"}, &text), 2) << text;
+  std::filesystem::remove(data / "index.json");
+  EXPECT_EQ(run_cli({"evaluate-set", data.string(), "--models", "tiny", "--split", "validation"}, &text), 2) << text;
+}
+
+}  // namespace
+}  // namespace residue
