@@ -12,6 +12,7 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <ATen/autocast_mode.h>
 #include <torch/torch.h>
 
 #include "core/aov/aov_loader.h"
@@ -46,12 +47,29 @@ struct Options {
   int threads = 2;
   uint32_t seed = 1;
   bool force = false;
+  bool bf16 = false;  // CPU autocast: convolutions in bfloat16, weights, loss and optimiser in float
+  std::string loss = "l1-log";  // or "l1-log+mean": see training_loss
 };
 
 struct Validation {
   double relmse = 0, ssim = 0, noisy_relmse = 0, noisy_ssim = 0, mean_ratio = 0;
   nlohmann::json per_scene = nlohmann::json::array();
 };
+
+// The loss on log colour (prediction and target are log(1 + c)). "l1-log" is the paper's L1. L1 on log values
+// estimates the median of the noisy target's log, which for very noisy dark pixels lies below the mean: the output
+// comes out darker. "l1-log+mean" adds the relative error of each patch's linear mean per channel,
+// |mean(exp(p) - 1) - mean(exp(t) - 1)| / (mean(exp(t) - 1) + 0.01), which is unbiased by construction and
+// leaves the per-pixel term free to suppress noise.
+torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target) {
+  torch::Tensor loss = torch::l1_loss(prediction, target);
+  if (kind == "l1-log+mean") {
+    const auto mp = torch::expm1(prediction).mean({2, 3});
+    const auto mt = torch::expm1(target).mean({2, 3});
+    loss = loss + ((mp - mt).abs() / (mt + 0.01)).mean();
+  }
+  return loss;
+}
 
 // Denoises every validation scene with core (the shipped inference path) and scores it.
 Validation validate(train::ResidueNet& net, const std::vector<fs::path>& scenes, const fs::path& tmp_model) {
@@ -162,7 +180,17 @@ int run(const Options& o) {
     torch::Tensor x, y;
     set.sample(rng, o.batch, x, y);
     opt.zero_grad();
-    const torch::Tensor loss = torch::l1_loss(net->forward(x), y);
+    torch::Tensor prediction;
+    if (o.bf16) {
+      at::autocast::set_cpu_enabled(true);
+      at::autocast::set_autocast_cpu_dtype(at::kBFloat16);
+      prediction = net->forward(x).to(torch::kFloat32);
+      at::autocast::set_cpu_enabled(false);
+      at::autocast::clear_cache();
+    } else {
+      prediction = net->forward(x);
+    }
+    const torch::Tensor loss = training_loss(o.loss, prediction, y);
     loss.backward();
     torch::nn::utils::clip_grad_norm_(net->parameters(), 1.0);
     opt.step();
@@ -201,8 +229,9 @@ int run(const Options& o) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
-                             {"loss", "L1 on log(1+c)"}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
-                             {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall}};
+                             {"loss", o.loss == "l1-log" ? "L1 on log(1+c)" : "L1 on log(1+c) + relative L1 of patch means"}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
+                             {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
+                             {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features}};
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -235,6 +264,9 @@ int main(int argc, char** argv) {
   app.add_option("--threads", o.threads, "Threads")->capture_default_str();
   app.add_option("--seed", o.seed, "Random seed")->capture_default_str();
   app.add_flag("-f,--force", o.force, "Replace the output model file");
+  app.add_option("--loss", o.loss, "l1-log (the paper's), or l1-log+mean (adds the patch means' relative error)")
+      ->capture_default_str()->check(CLI::IsMember({"l1-log", "l1-log+mean"}));
+  app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser");
   CLI11_PARSE(app, argc, argv);
   try {
     return run(o);

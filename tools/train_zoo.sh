@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Trains the shipped model zoo, resumably: each model is skipped when its file exists, and a killed run
+# continues from its checkpoint (residue-train resumes from OUT.ckpt). Then evaluates every model on the
+# data set's validation scenes and plots the speed-versus-accuracy curve.
+#
+#   tools/train_zoo.sh OUT_DIR DATA_DIR [DATA_DIR...]
+#   e.g. tools/train_zoo.sh /work/train/zoo /work/datasets/residue-v1 ../shared/datasets/cycles-starter
+#
+# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color paper"), ZOO_THREADS (2),
+# ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=4000), RESIDUE_BUILD (build/release).
+# Copy the finished OUT_DIR/<name>.safetensors into resources/models/ and run tools/stamp_benchmark.py.
+set -euo pipefail
+repo=$(cd "$(dirname "$0")/.." && pwd)
+out=${1:?usage: train_zoo.sh OUT_DIR DATA_DIR...}; shift
+[ $# -ge 1 ] || { echo "train_zoo: give at least one data set folder" >&2; exit 2; }
+build=${RESIDUE_BUILD:-$repo/build/release}
+train=$build/app/residue-train/residue-train
+cli=$build/app/residue-cli/residue-cli
+threads=${ZOO_THREADS:-2}
+mkdir -p "$out"
+export OMP_WAIT_POLICY=passive
+
+# name: architecture, feature set, steps, validation interval
+declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 [base-color]=8/64 [paper]=16/128)
+declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=color+albedo+normal
+                     [base-color]=color [paper]=full)
+declare -A steps=([tiny]=4000 [small]=8000 [base]=20000 [base-albedo-normal]=12000 [base-color]=12000 [paper]=6000)
+
+for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color paper}; do
+  var="ZOO_STEPS_${name//-/_}"
+  n=${!var:-${steps[$name]}}
+  if [ -f "$out/$name.safetensors" ]; then echo "train_zoo: $name exists, skipped"; continue; fi
+  echo "train_zoo: $name (${arch[$name]}, ${features[$name]}, $n steps)"
+  "$train" --data "$@" --arch "${arch[$name]}" --features "${features[$name]}" --steps "$n" \
+    --val-every $(( n / 10 )) --threads "$threads" --name "$name" -o "$out/$name.safetensors" \
+    --log "$out/$name.csv" | tee -a "$out/$name.out"
+  /usr/bin/python3 "$repo/tools/plot_training.py" "$out/$name.csv" "$out/${name}_training.png" || true
+done
+
+# The measured trade, on the first data set's validation scenes (its index.json), every model in OUT_DIR.
+models=bilateral
+for f in "$out"/*.safetensors; do models+=",$f"; done
+"$cli" evaluate-set "$1" --split validation --models "$models" --precisions fp32,bf16 \
+  --md "$out/eval.md" --json "$out/eval.json" --force
+/usr/bin/python3 "$repo/tools/plot_tradeoff.py" "$out/eval.json" "$out/tradeoff.png" || true
