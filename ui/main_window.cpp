@@ -62,7 +62,7 @@ const std::vector<std::pair<QString, QString>>& shortcutTable() {
       {"F5", "reload"},
       {"Ctrl+E", "export the denoised EXR"},
       {"Ctrl+Shift+S", "export the comparison as displayed (PNG)"},
-      {"?", "this help"},
+      {"?  F1", "this help"},
   };
   return table;
 }
@@ -368,7 +368,9 @@ void MainWindow::buildActions() {
   action(den, tr("&Cancel"), QKeySequence(), [this] { denoise_->cancel(); });
 
   auto* help = menuBar()->addMenu(tr("&Help"));
-  action(help, tr("Keyboard shortcuts"), QKeySequence(Qt::Key_Question), [this] { help_->toggle(); });
+  auto* keys = action(help, tr("Keyboard shortcuts"), QKeySequence(Qt::Key_Question), [this] { help_->toggle(); });
+  // "?" arrives as Shift+? on most layouts and platforms; F1 is the usual help key.
+  keys->setShortcuts({QKeySequence(Qt::Key_Question), QKeySequence(Qt::SHIFT | Qt::Key_Question), QKeySequence(Qt::Key_F1)});
   action(help, tr("About Residue"), QKeySequence(), [this] {
     QMessageBox::about(this, tr("About Residue"),
                        tr("<b>Residue %1</b><p>Monte Carlo render denoising with a direct residual network "

@@ -11,6 +11,7 @@
 #include <QTableWidget>
 #include <QTemporaryDir>
 #include <QtTest>
+#include <QWheelEvent>
 #include <OpenImageIO/imageio.h>
 #include <cmath>
 #include <fstream>
@@ -324,6 +325,56 @@ class TestViewer : public QObject {
     w.openFiles({QString::fromStdString(file)});
     QVERIFY2(settle(w, [&] { return w.session()->hasStack(); }), qPrintable(w.lastError()));
     QCOMPARE(w.session()->stack()->color.image.at(3, 3, 0), 0.25f);
+  }
+
+  void mouseZoomPanAndRoi() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.resize(1400, 800);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    openExample(w);
+    QVERIFY(settle(w, [&] { return w.canvas()->panes().size() == 4; }));
+    ImageCanvas* c = w.canvas();
+    const QRect pane = c->paneRects()[1];
+    const QPoint at = pane.center() + QPoint(17, -9);
+    const auto before = c->pixelAt(at);
+    QVERIFY(before);
+    // The wheel zooms about the cursor: the pixel under it stays under it, in every pane.
+    QWheelEvent wheel(at, c->mapToGlobal(at), QPoint(), QPoint(0, 240), Qt::NoButton, Qt::NoModifier,
+                      Qt::NoScrollPhase, false);
+    QApplication::sendEvent(c, &wheel);
+    QVERIFY(c->zoom() > 1.0);
+    QCOMPARE(c->pixelAt(at), before);
+    const QPoint same_in_noisy = c->paneRects()[0].topLeft() + (at - pane.topLeft());
+    QCOMPARE(c->pixelAt(same_in_noisy), before);  // zoom and pan are locked together
+    // A drag pans: the pixel under the cursor follows it.
+    QTest::mousePress(c, Qt::LeftButton, Qt::NoModifier, at);
+    QTest::mouseMove(c, at + QPoint(30, 0));
+    QTest::mouseRelease(c, Qt::LeftButton, Qt::NoModifier, at + QPoint(30, 0));
+    QCOMPARE(c->pixelAt(at + QPoint(30, 0)), before);
+    // Shift+drag sets a region of interest, which scopes the metrics.
+    c->fit();
+    const QPoint a = pane.topLeft() + QPoint(pane.width() / 4, pane.height() / 2 - 20);
+    const QPoint b = a + QPoint(40, 30);
+    const auto pa = c->pixelAt(a), pb = c->pixelAt(b);
+    QVERIFY(pa && pb);
+    QTest::mousePress(c, Qt::LeftButton, Qt::ShiftModifier, a);
+    QTest::mouseMove(c, b);
+    QTest::mouseRelease(c, Qt::LeftButton, Qt::ShiftModifier, b);
+    QVERIFY(c->roi());
+    QVERIFY(std::abs(c->roi()->x - pa->x()) <= 1 && std::abs(c->roi()->y - pa->y()) <= 1);
+    QVERIFY(std::abs(c->roi()->x + c->roi()->width - pb->x()) <= 1);
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.roi == c->roi(); }));
+    QTest::keyClick(&w, Qt::Key_Backspace);
+    QVERIFY(!c->roi());
+    // ? shows the shortcut overlay, Esc hides it.
+    auto* help = w.findChild<QWidget*>("helpOverlay");
+    QVERIFY(help && !help->isVisible());
+    QTest::keyClick(&w, Qt::Key_Question, Qt::ShiftModifier);
+    QVERIFY(help->isVisible());
+    QTest::keyClick(&w, Qt::Key_Escape);
+    QVERIFY(!help->isVisible());
   }
 
   void keyboardDrivesTheView() {
