@@ -58,15 +58,16 @@ struct Validation {
 
 // The loss on log colour (prediction and target are log(1 + c)). "l1-log" is the paper's L1. L1 on log values
 // estimates the median of the noisy target's log, which for very noisy dark pixels lies below the mean: the output
-// comes out darker. "l1-log+mean" adds the relative error of each patch's linear mean per channel,
-// |mean(exp(p) - 1) - mean(exp(t) - 1)| / (mean(exp(t) - 1) + 0.01), which is unbiased by construction and
-// leaves the per-pixel term free to suppress noise.
+// comes out darker. "l1-log+mean" adds, per patch and channel, the L1 distance between the logs of the patch's
+// linear means, |log(1 + mean(exp(p) - 1)) - log(1 + mean(exp(t) - 1))|: a mean-matching term in the same log
+// units as the per-pixel term (a first version used the patches' relative mean error, which dark patches
+// dominated: validation relMSE 0.075 against 0.027 at 2000 steps).
 torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target) {
   torch::Tensor loss = torch::l1_loss(prediction, target);
   if (kind == "l1-log+mean") {
-    const auto mp = torch::expm1(prediction).mean({2, 3});
-    const auto mt = torch::expm1(target).mean({2, 3});
-    loss = loss + ((mp - mt).abs() / (mt + 0.01)).mean();
+    const auto mp = torch::log1p(torch::expm1(prediction.clamp_max(20.0)).mean({2, 3}).clamp_min(0.0));
+    const auto mt = torch::log1p(torch::expm1(target).mean({2, 3}));
+    loss = loss + (mp - mt).abs().mean();
   }
   return loss;
 }
@@ -229,7 +230,7 @@ int run(const Options& o) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
-                             {"loss", o.loss == "l1-log" ? "L1 on log(1+c)" : "L1 on log(1+c) + relative L1 of patch means"}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
+                             {"loss", o.loss == "l1-log" ? "L1 on log(1+c)" : "L1 on log(1+c) + L1 of the log patch means"}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
                              {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features}};
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
@@ -264,7 +265,7 @@ int main(int argc, char** argv) {
   app.add_option("--threads", o.threads, "Threads")->capture_default_str();
   app.add_option("--seed", o.seed, "Random seed")->capture_default_str();
   app.add_flag("-f,--force", o.force, "Replace the output model file");
-  app.add_option("--loss", o.loss, "l1-log (the paper's), or l1-log+mean (adds the patch means' relative error)")
+  app.add_option("--loss", o.loss, "l1-log (the paper's), or l1-log+mean (adds the L1 of the log patch means)")
       ->capture_default_str()->check(CLI::IsMember({"l1-log", "l1-log+mean"}));
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser");
   CLI11_PARSE(app, argc, argv);
