@@ -122,7 +122,6 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
     cancel();
     cache_.clear();
   });
-  connect(session_, &Session::referenceChanged, this, [this] {});
 
   QStringList problems;
   models_ = scan_models(&problems);

@@ -68,12 +68,13 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   connect(eps_, &QDoubleSpinBox::valueChanged, this, &MetricsPanel::optionsChanged);
   connect(space_, &QComboBox::currentIndexChanged, this, &MetricsPanel::optionsChanged);
 
-  watcher_ = new QFutureWatcher<std::shared_ptr<io::MetricsReport>>(this);
+  watcher_ = new QFutureWatcher<std::shared_ptr<Computed>>(this);
   connect(watcher_, &QFutureWatcherBase::finished, this, [this] {
     auto r = watcher_->result();
     if (!r) return;  // superseded
     delivered_ = true;
-    report_ = *r;
+    report_ = r->report;
+    error_ = r->error;
     showReport();
     emit computed();
   });
@@ -100,6 +101,7 @@ void MetricsPanel::compute(Inputs inputs) {
   setToolTip(QString::fromStdString(metrics::formula_text(o)));
   if (!inputs.reference) {
     report_ = {};
+    error_.clear();
     scope_->setText(tr("No reference: open one with File > Open Reference"));
     table_->setRowCount(0);
     counts_->clear();
@@ -108,8 +110,9 @@ void MetricsPanel::compute(Inputs inputs) {
   }
   scope_->setText(tr("Computing..."));
   delivered_ = false;
-  watcher_->setFuture(QtConcurrent::run([this, inputs, o, generation]() -> std::shared_ptr<io::MetricsReport> {
-    auto r = std::make_shared<io::MetricsReport>();
+  watcher_->setFuture(QtConcurrent::run([this, inputs, o, generation]() -> std::shared_ptr<Computed> {
+    auto c = std::make_shared<Computed>();
+    io::MetricsReport* r = &c->report;
     r->reference_file = inputs.reference_file.toStdString();
     r->width = inputs.reference->width();
     r->height = inputs.reference->height();
@@ -121,20 +124,19 @@ void MetricsPanel::compute(Inputs inputs) {
         r->rows.push_back(
             {"denoised", inputs.denoised_file.toStdString(), metrics::compare(*inputs.denoised, *inputs.reference, o)});
     } catch (const std::exception& e) {
-      // e.g. a reference of another size: shown instead of scores
       r->rows.clear();
-      r->reference_file = std::string("error: ") + e.what();
+      c->error = QString::fromStdString(e.what());
     }
-    // Only the newest request is shown; generation_ is read racily but only ever grows.
+    // Only the newest request is shown.
     if (generation != generation_) return nullptr;
-    return r;
+    return c;
   }));
 }
 
 void MetricsPanel::showReport() {
   const auto& o = report_.options;
-  if (report_.rows.empty() && report_.reference_file.rfind("error: ", 0) == 0) {
-    scope_->setText(QString::fromStdString(report_.reference_file));
+  if (!error_.isEmpty()) {
+    scope_->setText(error_);
     table_->setRowCount(0);
     return;
   }

@@ -48,7 +48,12 @@ class MetricsPanel : public QWidget {
   QLabel* counts_ = nullptr;
   QDoubleSpinBox* eps_ = nullptr;
   QComboBox* space_ = nullptr;
-  QFutureWatcher<std::shared_ptr<io::MetricsReport>>* watcher_ = nullptr;
+  struct Computed {
+    io::MetricsReport report;
+    QString error;  // e.g. a reference of another size: shown instead of scores
+  };
+  QFutureWatcher<std::shared_ptr<Computed>>* watcher_ = nullptr;
+  QString error_;
   std::atomic<int> generation_{0};  // read by workers to drop superseded results
   bool delivered_ = true;  // the newest request's result has been shown
   Inputs last_;
