@@ -220,8 +220,7 @@ void DenoisePanel::start() {
   if (hit != cache_.end()) {
     session_->adoptDenoised(hit->second.image, hit->second.description);
   } else {
-    session_->clearDenoised();
-    session_->beginDenoised(false);
+    session_->beginDenoised();
   }
 
   running_key_ = key;

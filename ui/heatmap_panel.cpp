@@ -58,14 +58,6 @@ void ColorBar::paintEvent(QPaintEvent*) {
   paintBar(p, rect(), map_, lo_, hi_, log_, title_, palette().color(QPalette::WindowText));
 }
 
-QImage ColorBar::render(Colormap map, double lo, double hi, bool log, const QString& title, QSize size) {
-  QImage img(size, QImage::Format_RGB32);
-  img.fill(QColor(30, 30, 30));
-  QPainter p(&img);
-  paintBar(p, img.rect(), map, lo, hi, log, title, Qt::white);
-  return img;
-}
-
 // ---------------------------------------------------------------------------------------------------------------
 
 QImage colorize(const Image& map, Colormap colormap, const ColorScale& scale) {

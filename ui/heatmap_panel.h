@@ -26,8 +26,6 @@ class ColorBar : public QWidget {
   explicit ColorBar(QWidget* parent = nullptr);
   void setScale(Colormap map, double lo, double hi, bool log, QString title);
   QSize sizeHint() const override { return {260, 48}; }
-  // The bar as an image, for the heatmap PNG export's legend and screenshots.
-  static QImage render(Colormap map, double lo, double hi, bool log, const QString& title, QSize size);
 
  protected:
   void paintEvent(class QPaintEvent*) override;

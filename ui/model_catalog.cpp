@@ -1,15 +1,14 @@
 #include "ui/model_catalog.h"
 
-#include <QDir>
+#include <QStringList>
+
 #include <algorithm>
-#include <cstdlib>
-#include <cstring>
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "core/nn/model_file.h"
 #include "core/nn/network.h"
 #include "core/nn/safetensors.h"
-#include "core/util/resources.h"
 
 namespace residue::ui {
 
@@ -25,13 +24,10 @@ nlohmann::json parse(const std::map<std::string, std::string>& meta, const char*
   return nlohmann::json::parse(it->second, nullptr, /*allow_exceptions=*/false);
 }
 
-const char* kVariantSuffixes[] = {"-albedo-normal", "-color", "-variance"};
 }  // namespace
 
 std::vector<ModelEntry> scan_models(QStringList* problems) {
-  std::vector<std::filesystem::path> dirs;
-  if (const char* env = std::getenv("RESIDUE_MODEL_PATH"); env && *env) dirs.emplace_back(env);
-  for (const auto& d : resource_dirs()) dirs.push_back(d / "models");
+  const std::vector<std::filesystem::path> dirs = nn::model_dirs();
 
   std::map<QString, ModelEntry> families;
   std::map<QString, QStringList> variants;
@@ -43,10 +39,12 @@ std::vector<ModelEntry> scan_models(QStringList* problems) {
       QString stem = QString::fromStdString(file.path().stem().string());
       QString family = stem;
       QString variant = "full";
-      for (const char* suffix : kVariantSuffixes) {
-        if (stem.endsWith(QLatin1String(suffix))) {
-          family = stem.chopped(static_cast<int>(std::strlen(suffix)));
-          variant = QString::fromLatin1(suffix + 1);
+      // The variant suffixes are core's (model_variant_name): NAME-albedo-normal, NAME-color, NAME-variance.
+      for (FeatureSet set : {FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly, FeatureSet::FullVariance}) {
+        const QString suffix = QString::fromStdString(nn::model_variant_name("", set));
+        if (stem.endsWith(suffix)) {
+          family = stem.chopped(suffix.size());
+          variant = QString::fromLatin1(to_string(set));
         }
       }
       if (!variants[family].contains(variant)) variants[family] << variant;

@@ -142,11 +142,9 @@ const Image* Session::image(Source s, AovView aov) const {
   return nullptr;
 }
 
-void Session::beginDenoised(bool keep_existing) {
+void Session::beginDenoised() {
   if (!stack_) return;
   const Image& noisy = stack_->color.image;
-  if (keep_existing && denoised_ && denoised_->width() == noisy.width() && denoised_->height() == noisy.height())
-    return;
   // The noisy colour's first three channels, so tiles that have not run yet show the input.
   auto img = std::make_shared<Image>(noisy.width(), noisy.height(), 3);
   if (noisy.channels() == 3) {
@@ -157,6 +155,7 @@ void Session::beginDenoised(bool keep_existing) {
         for (int c = 0; c < 3; ++c) img->at(x, y, c) = noisy.at(x, y, c);
   }
   denoised_ = std::move(img);
+  denoised_description_.clear();
   emit denoisedChanged();
 }
 
@@ -168,12 +167,6 @@ void Session::setDenoisedTile(const Rect& rect, const Image& pixels) {
     for (int64_t x = 0; x < rect.width; ++x)
       for (int c = 0; c < 3; ++c) denoised_->at(rect.x + x, rect.y + y, c) = pixels.at(x, y, c);
   emit denoisedTileChanged(rect);
-}
-
-void Session::setDenoised(Image image, QString description) {
-  denoised_ = std::make_shared<Image>(std::move(image));
-  denoised_description_ = std::move(description);
-  emit denoisedChanged();
 }
 
 void Session::adoptDenoised(std::shared_ptr<Image> image, QString description) {

@@ -55,11 +55,10 @@ class Session : public QObject {
   const Image* image(Source s, AovView aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
   bool hasAov(AovView v) const;
 
-  // Starts a fresh denoised image (a copy of the noisy colour, so unfinished tiles show the input) unless one
-  // of the same size exists; `rect` of it is then overwritten by tile().
-  void beginDenoised(bool keep_existing);
+  // Starts a fresh denoised image: a copy of the noisy colour, so tiles that have not run yet show the input;
+  // setDenoisedTile() then overwrites it tile by tile.
+  void beginDenoised();
   void setDenoisedTile(const Rect& rect, const Image& pixels);  // GUI thread
-  void setDenoised(Image image, QString description);
   // Shows `image` as the denoised colour without copying it; it is copied on the first tile written into it
   // while someone else (a cache) holds it too.
   void adoptDenoised(std::shared_ptr<Image> image, QString description);

@@ -116,14 +116,12 @@ Model load_model(const std::filesystem::path& path) {
   return m;
 }
 
-namespace {
 std::vector<std::filesystem::path> model_dirs() {
   std::vector<std::filesystem::path> dirs;
   if (const char* env = std::getenv("RESIDUE_MODEL_PATH")) dirs.emplace_back(env);
   for (const auto& d : resource_dirs()) dirs.push_back(d / "models");
   return dirs;
 }
-}  // namespace
 
 std::filesystem::path find_model(const std::string& name_or_path) {
   if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;

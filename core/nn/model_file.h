@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "core/features/feature_set.h"
 #include "core/nn/network.h"
@@ -35,6 +36,8 @@ Model load_model(const std::filesystem::path& path);
 // `name_or_path`: an existing file, or a model name looked up in $RESIDUE_MODEL_PATH, the source tree's
 // resources/models and <prefix>/share/residue/models. Throws Error(Input) listing where it looked.
 std::filesystem::path find_model(const std::string& name_or_path);
+// Where model names are looked up, in order: $RESIDUE_MODEL_PATH, then each shipped data folder's models/.
+std::vector<std::filesystem::path> model_dirs();
 
 // A model *name* names a family of variants, one per feature set: NAME (full), NAME-albedo-normal, NAME-color.
 // Returns the richest variant that exists and that a stack able to feed `available` can use, so a render
