@@ -80,6 +80,13 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   roi_only_->setObjectName("roiOnly");
   roi_only_->setToolTip(tr("Denoise only the region of interest (Shift+drag or right-drag on the image)"));
   row->addWidget(roi_only_);
+  energy_ = new QCheckBox(tr("Energy"), this);
+  energy_->setObjectName("energyCorrection");
+  energy_->setChecked(true);
+  energy_->setToolTip(tr("Energy correction: rescale the network's output to the noisy input's local mean "
+                         "(Gaussian, 16 px). Networks trained with L1 on log colour darken very noisy dark "
+                         "regions by up to 8 %; this removes that bias (see docs/MODELS.md)"));
+  row->addWidget(energy_);
   layout->addLayout(row);
 
   auto* buttons = new QHBoxLayout;
@@ -191,7 +198,8 @@ void DenoisePanel::setTile(int64_t tile) {
 QString DenoisePanel::cacheKey() const {
   const QString model = selectedModel();
   if (model == "bilateral") return model;
-  return QString("%1 %2 %3").arg(model, precision_->currentText(), backend_->currentData().toString());
+  return QString("%1 %2 %3%4")
+      .arg(model, precision_->currentText(), backend_->currentData().toString(), energy_->isChecked() ? "" : " raw");
 }
 
 void DenoisePanel::start() {
@@ -263,8 +271,10 @@ void DenoisePanel::start() {
   options.backend = backend_->currentData().toString().toStdString();
   options.roi = rect;
   options.tile = tile_->currentData().toInt();
+  options.energy_correction = energy_->isChecked();
   running_description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->network.arch.to_string()),
                                                     precision_->currentText());
+  if (!options.energy_correction) running_description_ += tr(", no energy correction");
   if (variant != model) running_description_ += tr(" — picked for the AOVs this render has");
   status_->setText(tr("Denoising with %1...").arg(running_description_));
   emit started(running_description_);
@@ -313,6 +323,8 @@ void DenoisePanel::poll() {
   if (st == DenoiseJob::Status::Done) {
     const auto& stats = job_->stats();
     const Rect r = running_rect_.value_or(job_->result()->bounds());
+    // The tiles shown so far are the network's output; the result may differ by the energy correction.
+    if (stats.energy_corrected) session_->setDenoisedTile(r, crop(*job_->result(), r));
     const double mp = static_cast<double>(r.area()) / 1e6;
     if (mp > 0 && stats.seconds > 0) measured_s_per_mp_[selectedModel()] = stats.seconds / mp;
     finish(true, {});

@@ -84,6 +84,7 @@ class DenoisePanel : public QWidget {
   QComboBox* backend_ = nullptr;
   QComboBox* tile_ = nullptr;
   QCheckBox* roi_only_ = nullptr;
+  QCheckBox* energy_ = nullptr;
   QPushButton* denoise_ = nullptr;
   QPushButton* cancel_ = nullptr;
   QProgressBar* progress_ = nullptr;

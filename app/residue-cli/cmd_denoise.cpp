@@ -34,6 +34,7 @@ struct DenoiseCliOptions {
   std::string roi;
   size_t max_memory_mib = 4096;
   bool no_skip = false;
+  bool no_energy_correction = false;
   bool float_output = false;
   std::string compression = "zip";
   bool force = false;
@@ -79,6 +80,7 @@ int run(const DenoiseCliOptions& o) {
   d.threads = o.threads;
   d.max_memory = o.max_memory_mib << 20;
   d.skip_empty_tiles = !o.no_skip;
+  d.energy_correction = !o.no_energy_correction;
   if (!o.roi.empty()) d.roi = parse_roi(o.roi);
 
   io::ExrWriteOptions w;
@@ -125,6 +127,7 @@ int run(const DenoiseCliOptions& o) {
       architecture = model.network.arch.to_string();
       w.residue_attributes.attribute("residue:model", model_name);
       w.residue_attributes.attribute("residue:architecture", architecture);
+      w.residue_attributes.attribute("residue:energy_correction", d.energy_correction ? 1 : 0);
       if (streamed) {
         stats = denoise_to_exr(reader, model, d, o.output, w, on_tile);
       } else {
@@ -186,6 +189,9 @@ Command add_denoise_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(size_t{1}, size_t{1} << 24));
   cmd->add_flag("--no-skip", o->no_skip, "Run the network on empty (all-black) tiles too");
+  cmd->add_flag("--no-energy-correction", o->no_energy_correction,
+                "Keep the network's output as it is (by default it is rescaled to the noisy input's local mean, "
+                "which removes the darkening of very noisy dark regions)");
   cmd->add_flag("--float", o->float_output, "Write 32-bit float channels (default: half)");
   cmd->add_option("--compression", o->compression, "EXR compression (zip, piz, dwaa, none, ...)")->capture_default_str();
   cmd->add_flag("-f,--force", o->force, "Replace the output if it exists");

@@ -32,6 +32,7 @@ struct EvalSetOptions {
   int last = 0;  // 0: every scene
   std::string split = "all";  // or the data set's "train" / "validation" cut (index.json)
   std::string perturb = "none";  // input-convention studies: see perturb_inputs
+  std::string energy = "on";     // energy correction: on, off, or both (two columns per model)
   std::string out_md, out_json;
   int threads = 0;
   bool force = false;
@@ -113,6 +114,7 @@ int run(const EvalSetOptions& o) {
 
   struct Column {
     std::string label, model, precision;
+    bool energy_correction = true;
   };
   std::vector<Column> columns = {{"noisy", "", ""}};
   for (const auto& m : o.models) {
@@ -122,7 +124,11 @@ int run(const EvalSetOptions& o) {
       columns.push_back({label, m, "fp32"});
       continue;
     }
-    for (const auto& p : o.precisions) columns.push_back({o.precisions.size() > 1 ? label + " " + p : label, m, p});
+    for (const auto& p : o.precisions) {
+      const std::string name = o.precisions.size() > 1 ? label + " " + p : label;
+      if (o.energy != "off") columns.push_back({name, m, p, true});
+      if (o.energy != "on") columns.push_back({o.energy == "both" ? name + " raw" : name, m, p, false});
+    }
   }
 
   // results[scene][column]
@@ -153,6 +159,7 @@ int run(const EvalSetOptions& o) {
         d.backend = o.backend;
         d.precision = columns[ci].precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
         d.threads = o.threads;
+        d.energy_correction = columns[ci].energy_correction;
         DenoiseStats st;
         out = denoise(stack, model, d, {}, &st);
         cell.seconds = st.seconds;
@@ -162,7 +169,8 @@ int run(const EvalSetOptions& o) {
       cell.ssim = s.ssim;
       cell.mean_ratio = mean_ratio(out, stack.reference->image);
       js["results"][columns[ci].label] = {{"relmse", s.relmse}, {"ssim", s.ssim}, {"seconds", cell.seconds},
-                                         {"mean_ratio", cell.mean_ratio}, {"model_file", model_file}};
+                                         {"mean_ratio", cell.mean_ratio}, {"model_file", model_file},
+                                         {"energy_correction", !columns[ci].model.empty() && columns[ci].model != "bilateral" && columns[ci].energy_correction}};
     }
     json_scenes.push_back(js);
     std::fprintf(stderr, "evaluate-set: %zu/%zu %s\n", si + 1, scenes.size(), scenes[si].filename().string().c_str());
@@ -238,6 +246,9 @@ Command add_evaluate_set_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--split", o->split, "all, or the data set's train / validation cut (its index.json)")
       ->capture_default_str()->check(CLI::IsMember({"all", "train", "validation"}));
+  cmd->add_option("--energy-correction", o->energy,
+                  "on, off, or both (a second column per model, labelled \"raw\", without the correction)")
+      ->capture_default_str()->check(CLI::IsMember({"on", "off", "both"}));
   cmd->add_option("--md", o->out_md, "Write the table as Markdown");
   cmd->add_option("--json", o->out_json, "Write every number as JSON");
   cmd->add_option("--threads", o->threads, "Threads (default: every core)");

@@ -4,9 +4,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <deque>
 
 #include <tbb/task_arena.h>
 
+#include "core/denoise/energy_correction.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
 #include "core/util/error.h"
@@ -136,6 +138,12 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
       if (skip) ++local.skipped;
       if (on_tile && !on_tile({tiles[i], skip, static_cast<int64_t>(i + 1), local.tiles}, output)) throw Cancelled();
     }
+    if (options.energy_correction) {
+      EnergyCorrection correction(region);
+      correction.accumulate(stack.color.image, 0, output, 0, region.y, region.height);
+      correction.apply(output, 0, region.y, region.height);
+      local.energy_corrected = true;
+    }
   });
   local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (stats) *stats = local;
@@ -167,10 +175,20 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
   arena.execute([&] {
     auto backend = nn::make_backend(backend_name, model.network, {options.precision});
     const int64_t h = arch.halo();
-    // Memory of one band of tile rows: its input rows with halos, its output rows, and one tile's work.
+    // The energy correction needs the denoised rows a few blocks below a band before it can finish the band,
+    // so bands are denoised that far ahead of the one written.
+    auto bands_ahead = [&](int64_t tile) {
+      return options.energy_correction ? (EnergyCorrection::kBlock * (EnergyCorrection::kRadiusBlocks + 2) + tile - 1) / tile : 0;
+    };
+    const size_t correction_grid = options.energy_correction
+                                       ? static_cast<size_t>((W / EnergyCorrection::kBlock + 1) * (H / EnergyCorrection::kBlock + 1)) *
+                                             EnergyCorrection::kBytesPerBlock
+                                       : 0;
+    // Memory of one band of tile rows: its input rows with halos, its output rows (and those denoised ahead),
+    // and one tile's work.
     auto band_bytes = [&](int64_t tile) {
-      return static_cast<size_t>(((tile + 2 * h) * stack_channels + tile * 3) * W) * sizeof(float) +
-             tile_bytes(*backend, arch, tile);
+      return static_cast<size_t>(((tile + 2 * h) * stack_channels + (1 + bands_ahead(tile)) * tile * 3) * W) * sizeof(float) +
+             tile_bytes(*backend, arch, tile) + correction_grid;
     };
     int64_t tile = options.tile;
     if (tile <= 0)
@@ -183,6 +201,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     local.tile_size = tile;
     local.backend = backend->description();
     local.features = arch.features;
+    local.energy_corrected = options.energy_correction;
     exr.residue_attributes.attribute("residue:backend", local.backend);
 
     // Pass 1: the whole-image statistics the features need (the same depth sample denoise() draws).
@@ -198,8 +217,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       fstats.depth_scale = depth_scale_from_samples(samples);
     }
 
-    // Pass 2: bands of tile rows, denoised and written as they finish. Tiles sit on the image's grid (so each
-    // lies in one band), cut to the region.
+    // Pass 2: bands of tile rows, denoised (ahead of writing when correcting) and written in order. Tiles sit
+    // on the image's grid (so each lies in one band), cut to the region.
     std::vector<Rect> tiles;
     for (const Rect& t : make_tiles(bounds, tile)) {
       const int64_t x0 = std::max(t.x, region.x), y0 = std::max(t.y, region.y);
@@ -209,8 +228,16 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     }
     local.tiles = static_cast<int64_t>(tiles.size());
     TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, {}, {}};
+    EnergyCorrection correction(region);
     int64_t done = 0;
-    io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
+    struct Band {
+      int64_t y0;
+      Image out;
+    };
+    std::deque<Band> denoised;  // bands denoised but not yet written
+    int64_t denoised_end = 0;   // rows denoised so far
+    auto denoise_band = [&](int64_t y0) {
+      const int64_t rows = std::min(tile, H - y0);
       const int64_t in_y0 = std::max<int64_t>(0, y0 - h), in_y1 = std::min(H, y0 + rows + h);
       const Rect src_rect{0, in_y0, W, in_y1 - in_y0};
       const AovStack src = reader.read(src_rect);
@@ -222,7 +249,17 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
         ++done;
         if (on_tile && !on_tile({t, skip, done, local.tiles}, out)) throw Cancelled();
       }
-      return out;
+      if (options.energy_correction) correction.accumulate(src.color.image, in_y0, out, y0, y0, rows);
+      denoised.push_back({y0, std::move(out)});
+      denoised_end = y0 + rows;
+    };
+    io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
+      const int64_t needed = options.energy_correction ? std::max(y0 + rows, correction.rows_required(y0 + rows)) : y0 + rows;
+      while (denoised_end < needed) denoise_band(denoised_end);
+      Band band = std::move(denoised.front());
+      denoised.pop_front();
+      if (options.energy_correction) correction.apply(band.out, band.y0, y0, rows);
+      return std::move(band.out);
     });
   });
   local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -2,7 +2,8 @@
 //
 // The image (or the ROI) is cut into square tiles; each tile is extended by a halo equal to the network's
 // receptive field (one pixel per 3x3 conv), run through the backend, and only its centre is kept, so tiled
-// output equals untiled output. Tiles run one after another, each using every allowed thread.
+// output equals untiled output. Tiles run one after another, each using every allowed thread. Then, unless
+// turned off, the energy correction rescales the region to the noisy input's local mean.
 #pragma once
 
 #include <cstddef>
@@ -27,6 +28,7 @@ struct DenoiseOptions {
   int threads = 0;                              // 0: every core
   std::optional<Rect> roi;                      // denoise only this rectangle; elsewhere the noisy colour
   bool skip_empty_tiles = true;                 // pass through tiles whose colour (with halo) is all zero
+  bool energy_correction = true;                // rescale to the noisy input's local mean (energy_correction.h)
 };
 
 struct TileEvent {
@@ -43,6 +45,7 @@ struct DenoiseStats {
   double seconds = 0;
   std::string backend;  // the backend's description
   FeatureSet features = FeatureSet::Full;
+  bool energy_corrected = false;
 };
 
 // Thrown when the tile callback asks to stop.
