@@ -195,8 +195,23 @@ TEST(ModelFile, RoundTripKeepsEveryWeight) {
   EXPECT_EQ(m.network.blocks[1].conv1.bias, net.blocks[1].conv1.bias);
   EXPECT_EQ(m.network.tail.bias, net.tail.bias);
   EXPECT_EQ(m.network.out.weight, net.out.weight);
+  EXPECT_TRUE(m.network.arch.dilations.empty());
   // And it refuses to overwrite.
   EXPECT_THROW(nn::write_safetensors(tmp / "m.safetensors", nn::to_safetensors(net), false), Error);
+  // Dilations travel in the metadata; a bad list is refused with the key named.
+  const nn::Network dilated = nn::random_network({4, 8, FeatureSet::Full, {1, 3}}, 2);
+  nn::write_safetensors(tmp / "d.safetensors", nn::to_safetensors(dilated), false);
+  EXPECT_EQ(nn::load_model(tmp / "d.safetensors").network.arch.dilations, (std::vector<int>{1, 3}));
+  EXPECT_EQ(nn::load_model(tmp / "d.safetensors").network.arch.halo(), 3 + 2 * (1 + 3 + 1 + 3));
+  auto f = nn::to_safetensors(dilated);
+  f.metadata["residue.dilations"] = "1,0";
+  nn::write_safetensors(tmp / "bad.safetensors", f, false);
+  try {
+    nn::load_model(tmp / "bad.safetensors");
+    ADD_FAILURE() << "a dilation of 0 loaded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("residue.dilations"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ModelFile, BatchNormIsFoldedOnLoad) {
@@ -291,17 +306,19 @@ TEST(ModelFile, ErrorsNameTheFileAndTheTensor) {
 // --- tiled inference ---------------------------------------------------------------------------------------
 
 TEST(Denoise, TiledEqualsUntiled) {
-  const nn::Model model = small_model();
-  for (auto [w, h] : std::vector<std::pair<int64_t, int64_t>>{{1, 1}, {3, 5}, {40, 33}, {1000, 7}}) {
-    const AovStack s = make_stack(w, h, 3);
-    const Image whole = denoise(s, model, eigen_options(std::max(w, h)));
-    for (int64_t tile : {16, 23}) {
-      DenoiseStats stats;
-      const Image tiled = denoise(s, model, eigen_options(tile), {}, &stats);
-      EXPECT_LT(max_rel_diff(tiled, whole), 1e-5) << w << "x" << h << " tile " << tile;
-      EXPECT_EQ(stats.tiles, ((w + tile - 1) / tile) * ((h + tile - 1) / tile));
+  nn::Model dilated;  // halo 3 + 2 * (1 + 4 + 1) = 15: tiles need the dilated reach as their halo
+  dilated.network = nn::random_network({3, 8, FeatureSet::Full, {1, 4}}, 6);
+  for (const nn::Model& model : {small_model(), dilated})
+    for (auto [w, h] : std::vector<std::pair<int64_t, int64_t>>{{1, 1}, {3, 5}, {40, 33}, {1000, 7}}) {
+      const AovStack s = make_stack(w, h, 3);
+      const Image whole = denoise(s, model, eigen_options(std::max(w, h)));
+      for (int64_t tile : {16, 23}) {
+        DenoiseStats stats;
+        const Image tiled = denoise(s, model, eigen_options(tile), {}, &stats);
+        EXPECT_LT(max_rel_diff(tiled, whole), 1e-5) << model.network.arch.to_string() << " " << w << "x" << h << " tile " << tile;
+        EXPECT_EQ(stats.tiles, ((w + tile - 1) / tile) * ((h + tile - 1) / tile));
+      }
     }
-  }
 }
 
 TEST(Denoise, MatchesTheFloat64ReferenceThroughFeatures) {

@@ -22,6 +22,14 @@ TEST(NnArchitecture, PaperModelCounts) {
   EXPECT_EQ(paper.in_channels(), 9);
   // 9.76 TFLOP per megapixel (the brief's figure).
   EXPECT_NEAR(paper.flops_per_pixel() * 1e6 / 1e12, 9.76, 0.01);
+  EXPECT_EQ(paper.halo(), 35);
+  // Dilated blocks: the same cost, a larger reach (d pixels per conv of dilation d).
+  const Architecture dilated{8, 32, FeatureSet::Full, {1, 2, 4, 8}};
+  EXPECT_EQ(dilated.halo(), 3 + 2 * 2 * (1 + 2 + 4 + 8));
+  EXPECT_EQ(dilated.flops_per_pixel(), (Architecture{8, 32, FeatureSet::Full}.flops_per_pixel()));
+  EXPECT_EQ(dilated.to_string(), "8/32 full dilated 1,2,4,8");
+  EXPECT_EQ(nn::parse_dilations("1,2,4,8"), (std::vector<int>{1, 2, 4, 8}));
+  for (const char* bad : {"", "1,,2", "0", "65", "1,x", "1, 2", "-1"}) EXPECT_FALSE(nn::parse_dilations(bad)) << bad;
 }
 
 TEST(NnBatchNorm, FoldingEqualsExplicitBatchNorm) {
@@ -58,7 +66,9 @@ TEST_P(NnBackend, WholeNetworkMatchesFloat64Reference) {
   for (const auto& [arch, w, h] : std::vector<std::tuple<Architecture, int, int>>{
            {{2, 16, FeatureSet::Full}, 13, 9}, {{3, 32, FeatureSet::ColorOnly}, 1, 1},
            {{1, 8, FeatureSet::ColorAlbedoNormal}, 3, 5}, {{2, 16, FeatureSet::Full}, 40, 2},
-           {{1, 48, FeatureSet::ColorAlbedoNormal}, 17, 3}}) {
+           {{1, 48, FeatureSet::ColorAlbedoNormal}, 17, 3},
+           // Dilated blocks, also with taps reaching past the whole tile.
+           {{4, 16, FeatureSet::Full, {1, 2, 4, 8}}, 30, 21}, {{3, 32, FeatureSet::ColorOnly, {2, 5}}, 7, 4}}) {
     const nn::Network net = nn::random_network(arch, 42);
     const Image x = testing::random_image(w, h, arch.in_channels(), 7, -1.0f, 2.0f);
     auto backend = nn::make_backend(p.backend, net, {p.precision});

@@ -12,9 +12,11 @@
 namespace residue {
 namespace {
 
-TEST(TrainParity, ExportedModelGivesTheSameOutputInCore) {
+class TrainParity : public ::testing::TestWithParam<nn::Architecture> {};
+
+TEST_P(TrainParity, ExportedModelGivesTheSameOutputInCore) {
   torch::manual_seed(3);
-  const nn::Architecture arch{3, 16, FeatureSet::Full};
+  const nn::Architecture arch = GetParam();
   train::ResidueNet net(arch);
   train::initialise(net);
   // Give batch norm real statistics and non-trivial affine parameters, then switch to inference.
@@ -53,11 +55,17 @@ TEST(TrainParity, ExportedModelGivesTheSameOutputInCore) {
           scale = std::max(scale, std::abs(e));
           err = std::max(err, std::abs(e - out.at(xx, y, c)));
         }
-    EXPECT_LT(err / scale, 1e-4) << backend;
+    EXPECT_LT(err / scale, 1e-4) << backend << " " << arch.to_string();
   }
 }
 
-TEST(TrainParity, AugmentationTurnsNormalsWithTheImage) {
+// The paper's network, and one with dilated blocks (taps 3 px apart reach past the 13-px-high input).
+INSTANTIATE_TEST_SUITE_P(Architectures, TrainParity,
+                         ::testing::Values(nn::Architecture{3, 16, FeatureSet::Full},
+                                           nn::Architecture{3, 16, FeatureSet::Full, {1, 3}}),
+                         [](const auto& info) { return info.param.max_dilation() > 1 ? "dilated" : "paper"; });
+
+TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
   // A scene-free check of the dihedral transforms: build a TrainingSet on the starter data when present.
   const auto dir = testing::shared_dataset("cycles-starter");
   RESIDUE_REQUIRE_SHARED(dir);

@@ -35,6 +35,7 @@ struct Options {
   int val = 6;
   std::string arch = "4/32";
   std::string features = "full";
+  std::string dilations;  // per ResBlock, repeated; empty: none (the paper)
   int steps = 3000;
   int batch = 8;
   int patch = 64;
@@ -126,6 +127,14 @@ int run(const Options& o) {
   std::istringstream(o.arch) >> arch.blocks >> slash >> arch.width;
   if (slash != '/' || arch.blocks <= 0 || arch.width <= 0) throw Error(ErrorKind::Usage, "--arch: expected N/W, e.g. 8/64");
   arch.features = *feature_set_from_string(o.features);
+  if (!o.dilations.empty()) {
+    const auto d = nn::parse_dilations(o.dilations);
+    if (!d) throw Error(ErrorKind::Usage, "--dilations: expected integers from 1 to 64, e.g. 1,2,4,8");
+    arch.dilations = *d;
+    if (arch.halo() >= o.patch / 2)
+      std::printf("residue-train: note: the receptive field (%d px each side) exceeds half the %d-px patch; "
+                  "consider --patch %d\n", arch.halo(), o.patch, 4 * arch.halo());
+  }
   if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out + "' exists; pass --force");
 
   // Scenes: each data folder's own cut (index.json) or, without one, its last `val` scenes by name.
@@ -252,6 +261,8 @@ int main(int argc, char** argv) {
   app.add_option("--data", o.data, "Data set folders (s<seed>/noisy_a.exr, noisy_b.exr, reference.exr)")->required();
   app.add_option("--val", o.val, "Scenes held out per data folder without an index.json (the last by name)")->capture_default_str();
   app.add_option("--arch", o.arch, "BLOCKS/WIDTH")->capture_default_str();
+  app.add_option("--dilations", o.dilations,
+                 "Dilation per ResBlock, repeated over the blocks, e.g. 1,2,4,8 (default: none, as in the paper)");
   app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color", "full+variance"}));
   app.add_option("--steps", o.steps, "Training steps")->capture_default_str();
   app.add_option("--batch", o.batch, "Patches per step")->capture_default_str();

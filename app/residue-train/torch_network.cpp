@@ -3,17 +3,17 @@
 namespace residue::train {
 namespace {
 
-torch::nn::Conv2dOptions conv3x3(int in, int out, bool bias) {
-  return torch::nn::Conv2dOptions(in, out, 3).padding(1).bias(bias);
+torch::nn::Conv2dOptions conv3x3(int in, int out, bool bias, int dilation = 1) {
+  return torch::nn::Conv2dOptions(in, out, 3).padding(dilation).dilation(dilation).bias(bias);
 }
 
 }  // namespace
 
-ResBlockImpl::ResBlockImpl(int width) {
-  conv1 = register_module("conv1", torch::nn::Conv2d(conv3x3(width, width, false)));
+ResBlockImpl::ResBlockImpl(int width, int dilation) {
+  conv1 = register_module("conv1", torch::nn::Conv2d(conv3x3(width, width, false, dilation)));
   bn1 = register_module("bn1", torch::nn::BatchNorm2d(width));
   prelu = register_module("prelu", torch::nn::PReLU(torch::nn::PReLUOptions().num_parameters(width)));
-  conv2 = register_module("conv2", torch::nn::Conv2d(conv3x3(width, width, false)));
+  conv2 = register_module("conv2", torch::nn::Conv2d(conv3x3(width, width, false, dilation)));
   bn2 = register_module("bn2", torch::nn::BatchNorm2d(width));
 }
 
@@ -36,7 +36,7 @@ OutImpl::OutImpl(int width) { conv = register_module("conv", torch::nn::Conv2d(c
 ResidueNetImpl::ResidueNetImpl(const nn::Architecture& a) : arch(a) {
   head = register_module("head", Head(a.in_channels(), a.width));
   blocks = register_module("blocks", torch::nn::ModuleList());
-  for (int b = 0; b < a.blocks; ++b) blocks->push_back(ResBlock(a.width));
+  for (int b = 0; b < a.blocks; ++b) blocks->push_back(ResBlock(a.width, a.dilation(b)));
   tail = register_module("tail", Tail(a.width));
   out = register_module("out", Out(a.width));
 }
@@ -67,6 +67,7 @@ nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::str
   f.metadata["residue.blocks"] = std::to_string(net->arch.blocks);
   f.metadata["residue.width"] = std::to_string(net->arch.width);
   f.metadata["residue.features"] = to_string(net->arch.features);
+  if (net->arch.max_dilation() > 1) f.metadata["residue.dilations"] = nn::dilations_to_string(net->arch.dilations);
   f.metadata["residue.bn_eps"] = "1e-05";
   auto put = [&](const std::string& name, const torch::Tensor& t) {
     if (name.find("num_batches_tracked") != std::string::npos) return;

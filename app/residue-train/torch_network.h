@@ -14,7 +14,7 @@
 namespace residue::train {
 
 struct ResBlockImpl : torch::nn::Module {
-  explicit ResBlockImpl(int width);
+  ResBlockImpl(int width, int dilation);
   torch::Tensor forward(const torch::Tensor& x);
   torch::nn::Conv2d conv1{nullptr}, conv2{nullptr};
   torch::nn::BatchNorm2d bn1{nullptr}, bn2{nullptr};

@@ -1,5 +1,5 @@
-// The portable fp32 backend. Activations live in buffers with a one-pixel zero border, so a 3x3 conv reads
-// its neighbours without bounds checks. Each conv runs in parallel on oneTBB, in one of two ways:
+// The portable fp32 backend. Activations live in buffers with a zero border as wide as the largest dilation,
+// so a 3x3 conv reads its neighbours without bounds checks. Each conv runs in parallel on oneTBB, in one of two ways:
 //  - on CPUs with AVX-512 (checked at run time): a direct convolution kernel, compiled for AVX-512 through
 //    function attributes only, so that the rest of the binary (and Eigen, and the standard library) stays
 //    plain x86-64. A tile of 12 pixels x 32 output channels is accumulated in 24 registers over the 9 taps
@@ -76,21 +76,22 @@ PackedConv pack(const Conv3x3& c, const std::vector<float>& prelu, bool blocked)
   return p;
 }
 
-// An H x W x C image with a one-pixel zero border: pixel (y, x) for y in [-1, H], x in [-1, W].
+// An H x W x C image with a zero border of b pixels: pixel (y, x) for y in [-b, H + b), x in [-b, W + b).
 struct Padded {
-  int64_t h = 0, w = 0;
+  int64_t h = 0, w = 0, b = 0;
   int c = 0;
   std::vector<float> v;
-  void reset(int64_t height, int64_t width, int channels) {
-    if (height == h && width == w && channels == c) return;  // the border is still zero
+  void reset(int64_t height, int64_t width, int channels, int64_t border) {
+    if (height == h && width == w && channels == c && border == b) return;  // the border is still zero
     h = height;
     w = width;
     c = channels;
-    v.assign(static_cast<size_t>((h + 2) * (w + 2) * c), 0.0f);
+    b = border;
+    v.assign(static_cast<size_t>((h + 2 * b) * (w + 2 * b) * c), 0.0f);
   }
-  int64_t row() const { return (w + 2) * c; }
-  float* at(int64_t y, int64_t x) { return v.data() + (y + 1) * row() + (x + 1) * c; }
-  const float* at(int64_t y, int64_t x) const { return v.data() + (y + 1) * row() + (x + 1) * c; }
+  int64_t row() const { return (w + 2 * b) * c; }
+  float* at(int64_t y, int64_t x) { return v.data() + (y + b) * row() + (x + b) * c; }
+  const float* at(int64_t y, int64_t x) const { return v.data() + (y + b) * row() + (x + b) * c; }
 };
 
 // Where a conv writes (and where the residual it adds is): pixel (y, x) at data + y * row + x * channels.
@@ -104,11 +105,11 @@ struct View {
 View view(Padded& p) { return {p.at(0, 0), p.row(), p.c}; }
 
 #ifdef RESIDUE_HAVE_AVX512_KERNEL
-// MR pixels x NR registers of output channels. `src`: the input at pixel (y - 1, x - 1); `w`: the block's
-// weights [tap][in][NR * 16]; `dst` and `add` at pixel (y, x), channel o0; `last`: the lanes of the last
-// register that are real channels.
+// MR pixels x NR registers of output channels. `src`: the input at pixel (y - d, x - d) for dilation d; `w`:
+// the block's weights [tap][in][NR * 16]; `dst` and `add` at pixel (y, x), channel o0; `last`: the lanes of
+// the last register that are real channels.
 template <int MR, int NR>
-__attribute__((target("avx512f"))) void tile_avx512(const float* src, int64_t src_row, int cin, const float* w,
+__attribute__((target("avx512f"))) void tile_avx512(const float* src, int64_t src_row, int cin, int d, const float* w,
                                                     const float* bias, const float* prelu, float* dst,
                                                     const float* add, int dst_c, __mmask16 last) {
   __m512 acc[MR][NR];
@@ -116,7 +117,7 @@ __attribute__((target("avx512f"))) void tile_avx512(const float* src, int64_t sr
     for (int j = 0; j < NR; ++j) acc[p][j] = _mm512_setzero_ps();
   for (int ky = 0; ky < 3; ++ky)
     for (int kx = 0; kx < 3; ++kx) {
-      const float* s = src + ky * src_row + kx * cin;
+      const float* s = src + ky * d * src_row + kx * d * cin;
       const float* wt = w + (ky * 3 + kx) * cin * NR * kLanes;
       for (int i = 0; i < cin; ++i, wt += NR * kLanes) {
         __m512 wv[NR];
@@ -143,30 +144,31 @@ __attribute__((target("avx512f"))) void tile_avx512(const float* src, int64_t sr
 
 // The last pixels of a row (fewer than kTilePixels): the tile for exactly `r` of them.
 template <int NR, int MR = 1>
-__attribute__((target("avx512f"))) void tile_tail_avx512(int r, const float* src, int64_t src_row, int cin,
+__attribute__((target("avx512f"))) void tile_tail_avx512(int r, const float* src, int64_t src_row, int cin, int d,
                                                          const float* w, const float* bias, const float* prelu,
                                                          float* dst, const float* add, int dst_c, __mmask16 last) {
   if constexpr (MR < kTilePixels) {
-    if (r == MR) return tile_avx512<MR, NR>(src, src_row, cin, w, bias, prelu, dst, add, dst_c, last);
-    tile_tail_avx512<NR, MR + 1>(r, src, src_row, cin, w, bias, prelu, dst, add, dst_c, last);
+    if (r == MR) return tile_avx512<MR, NR>(src, src_row, cin, d, w, bias, prelu, dst, add, dst_c, last);
+    tile_tail_avx512<NR, MR + 1>(r, src, src_row, cin, d, w, bias, prelu, dst, add, dst_c, last);
   }
 }
 
 template <int NR>
-__attribute__((target("avx512f"))) void block_row_avx512(const float* src, int64_t src_row, int cin, int64_t width,
-                                                         const float* w, const float* bias, const float* prelu,
-                                                         float* dst, const float* add, int dst_c, __mmask16 last) {
+__attribute__((target("avx512f"))) void block_row_avx512(const float* src, int64_t src_row, int cin, int d,
+                                                         int64_t width, const float* w, const float* bias,
+                                                         const float* prelu, float* dst, const float* add, int dst_c,
+                                                         __mmask16 last) {
   int64_t x = 0;
   for (; x + kTilePixels <= width; x += kTilePixels)
-    tile_avx512<kTilePixels, NR>(src + x * cin, src_row, cin, w, bias, prelu, dst + x * dst_c,
+    tile_avx512<kTilePixels, NR>(src + x * cin, src_row, cin, d, w, bias, prelu, dst + x * dst_c,
                                  add ? add + x * dst_c : nullptr, dst_c, last);
   if (x < width)
-    tile_tail_avx512<NR>(static_cast<int>(width - x), src + x * cin, src_row, cin, w, bias, prelu, dst + x * dst_c,
-                         add ? add + x * dst_c : nullptr, dst_c, last);
+    tile_tail_avx512<NR>(static_cast<int>(width - x), src + x * cin, src_row, cin, d, w, bias, prelu,
+                         dst + x * dst_c, add ? add + x * dst_c : nullptr, dst_c, last);
 }
 
-// One output row, all output channels. `src` at input pixel (y - 1, -1); `dst`, `add` at pixel (y, 0).
-__attribute__((target("avx512f"))) void conv_row_avx512(const PackedConv& c, const float* src, int64_t src_row,
+// One output row, all output channels. `src` at input pixel (y - d, -d); `dst`, `add` at pixel (y, 0).
+__attribute__((target("avx512f"))) void conv_row_avx512(const PackedConv& c, const float* src, int64_t src_row, int d,
                                                         int64_t width, float* dst, const float* add, int dst_c) {
   const int padded = padded_channels(c.out);
   const float* prelu = c.prelu.empty() ? nullptr : c.prelu.data();
@@ -179,11 +181,11 @@ __attribute__((target("avx512f"))) void conv_row_avx512(const PackedConv& c, con
     const float* a = add ? add + o0 : nullptr;
     static_assert(kTileBlock == 2, "block_row_avx512 instances below assume 2 registers per block");
     if (regs == 2)
-      block_row_avx512<2>(src, src_row, c.in, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0, a,
-                          dst_c, last);
+      block_row_avx512<2>(src, src_row, c.in, d, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0,
+                          a, dst_c, last);
     else
-      block_row_avx512<1>(src, src_row, c.in, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0, a,
-                          dst_c, last);
+      block_row_avx512<1>(src, src_row, c.in, d, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0,
+                          a, dst_c, last);
   }
 }
 
@@ -219,7 +221,8 @@ class EigenBackend final : public Backend {
   size_t scratch_bytes(int64_t width, int64_t height) const override {
     // Three padded activation buffers (head output, block state, temporary), the padded input, and without
     // AVX-512 one im2col strip and its GEMM result per thread.
-    const auto padded = static_cast<size_t>((width + 2) * (height + 2));
+    const int64_t b = arch_.max_dilation();
+    const auto padded = static_cast<size_t>((width + 2 * b) * (height + 2 * b));
     size_t bytes = padded * static_cast<size_t>(3 * arch_.width + arch_.in_channels()) * sizeof(float);
     if (!avx512_) {
       const auto threads = static_cast<size_t>(tbb::this_task_arena::max_concurrency());
@@ -234,41 +237,43 @@ class EigenBackend final : public Backend {
     const int64_t h = input.height(), w = input.width();
     output = Image(w, h, 3);
     if (h == 0 || w == 0) return;
-    input_.reset(h, w, input.channels());
+    const int64_t border = arch_.max_dilation();
+    input_.reset(h, w, input.channels(), 1);
     for (int64_t y = 0; y < h; ++y)
       std::memcpy(input_.at(y, 0), input.row(y).data(), static_cast<size_t>(w * input.channels()) * sizeof(float));
-    head_out_.reset(h, w, arch_.width);
-    state_.reset(h, w, arch_.width);
-    temp_.reset(h, w, arch_.width);
-    conv(input_, head_, view(head_out_), nullptr);
+    head_out_.reset(h, w, arch_.width, border);
+    state_.reset(h, w, arch_.width, border);
+    temp_.reset(h, w, arch_.width, border);
+    conv(input_, head_, view(head_out_), nullptr, 1);
     std::memcpy(state_.v.data(), head_out_.v.data(), head_out_.v.size() * sizeof(float));
     for (size_t b = 0; b < blocks_.size(); b += 2) {
-      conv(state_, blocks_[b], view(temp_), nullptr);
+      const int d = arch_.dilation(static_cast<int>(b / 2));
+      conv(state_, blocks_[b], view(temp_), nullptr, d);
       const View s = view(state_);
-      conv(temp_, blocks_[b + 1], s, &s);  // in place: + identity
+      conv(temp_, blocks_[b + 1], s, &s, d);  // in place: + identity
     }
     const View head = view(head_out_);
-    conv(state_, tail_, view(temp_), &head);
-    conv(temp_, out_, {output.data(), w * 3, 3}, nullptr);
+    conv(state_, tail_, view(temp_), &head, 1);
+    conv(temp_, out_, {output.data(), w * 3, 3}, nullptr, 1);
   }
 
  private:
-  // out = act(conv(in) + bias) (+ add). `out` may alias `add` (the residual), never `in`.
-  void conv(const Padded& in, const PackedConv& c, const View& out, const View* add) {
+  // out = act(conv(in) + bias) (+ add), taps `d` pixels apart. `out` may alias `add` (the residual), never `in`.
+  void conv(const Padded& in, const PackedConv& c, const View& out, const View* add, int d) {
 #ifdef RESIDUE_HAVE_AVX512_KERNEL
     if (avx512_) {
       tbb::parallel_for(tbb::blocked_range<int64_t>(0, in.h), [&](const tbb::blocked_range<int64_t>& rows) {
         for (int64_t y = rows.begin(); y < rows.end(); ++y)
-          conv_row_avx512(c, in.at(y - 1, -1), in.row(), in.w, out.at(y, 0), add ? add->at(y, 0) : nullptr,
+          conv_row_avx512(c, in.at(y - d, -d), in.row(), d, in.w, out.at(y, 0), add ? add->at(y, 0) : nullptr,
                           out.channels);
       });
       return;
     }
 #endif
-    conv_eigen(in, c, out, add);
+    conv_eigen(in, c, out, add, d);
   }
 
-  void conv_eigen(const Padded& in, const PackedConv& c, const View& out, const View* add) {
+  void conv_eigen(const Padded& in, const PackedConv& c, const View& out, const View* add, int d) {
     const int64_t h = in.h, w = in.w;
     const int64_t rows_per_strip = std::max<int64_t>(1, kStripPixels / std::max<int64_t>(w, 1));
     const int64_t strips = (h + rows_per_strip - 1) / rows_per_strip;
@@ -284,7 +289,8 @@ class EigenBackend final : public Backend {
         for (int64_t x = 0; x < w; ++x) {
           float* dst = scratch.cols.data() + ((y - y0) * w + x) * 9 * c.in;
           for (int ky = 0; ky < 3; ++ky)
-            for (int kx = 0; kx < 3; ++kx, dst += c.in) std::memcpy(dst, in.at(y + ky - 1, x + kx - 1), bytes);
+            for (int kx = 0; kx < 3; ++kx, dst += c.in)
+              std::memcpy(dst, in.at(y + (ky - 1) * d, x + (kx - 1) * d), bytes);
         }
       Eigen::Map<const RowMatrix> patches(scratch.cols.data(), pixels, 9 * c.in);
       Eigen::Map<RowMatrix> result(scratch.result.data(), pixels, c.out);

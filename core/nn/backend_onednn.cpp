@@ -87,6 +87,7 @@ struct Layer {
   bool uniform_prelu = false; // all slopes equal: fused as eltwise_relu(alpha)
   float alpha = 0.0f;
   bool accumulate = false;    // dst += conv(src) + bias (sum post-op)
+  int dilation = 1;           // taps this many pixels apart (oneDNN counts the gaps: dilation - 1)
   std::vector<std::pair<dnnl::memory::desc, dnnl::memory>> packed;  // weights per layout
 };
 
@@ -121,13 +122,14 @@ class OneDnnBackend final : public Backend {
     if (precision_ == Precision::BF16 && !has_native_bf16(isa))
       throw Error(ErrorKind::Usage, std::string("bf16 inference needs a CPU with AVX512_BF16 or AMX; oneDNN finds ") +
                                         isa_name(isa) + " here. Use fp32.");
-    add_layer(n.head, n.head_prelu, false);
-    for (const auto& b : n.blocks) {
-      add_layer(b.conv1, b.prelu, false);
-      add_layer(b.conv2, {}, true);
+    add_layer(n.head, n.head_prelu, false, 1);
+    for (size_t b = 0; b < n.blocks.size(); ++b) {
+      const int d = arch_.dilation(static_cast<int>(b));
+      add_layer(n.blocks[b].conv1, n.blocks[b].prelu, false, d);
+      add_layer(n.blocks[b].conv2, {}, true, d);
     }
-    add_layer(n.tail, {}, true);
-    add_layer(n.out, {}, false);
+    add_layer(n.tail, {}, true, 1);
+    add_layer(n.out, {}, false, 1);
 
     // What runs, from a representative W -> W layer on a 256 x 256 tile.
     const int threads = tbb::this_task_arena::max_concurrency();
@@ -190,8 +192,9 @@ class OneDnnBackend final : public Backend {
 
   dt act_type() const { return precision_ == Precision::BF16 ? dt::bf16 : dt::f32; }
 
-  void add_layer(const Conv3x3& c, const std::vector<float>& prelu, bool accumulate) {
+  void add_layer(const Conv3x3& c, const std::vector<float>& prelu, bool accumulate, int dilation) {
     Layer l;
+    l.dilation = dilation;
     l.in = c.in;
     l.out = c.out;
     l.weight = c.weight;
@@ -227,7 +230,8 @@ class OneDnnBackend final : public Backend {
     const dnnl::memory::desc weights(dims{l.out, l.in, 3, 3}, act_type(), tag::any);
     const dnnl::memory::desc bias(dims{l.out}, dt::f32, tag::a);
     const dnnl::convolution_forward::desc d(dnnl::prop_kind::forward_inference, dnnl::algorithm::convolution_direct,
-                                            src, weights, bias, dst, {1, 1}, {1, 1}, {1, 1});
+                                            src, weights, bias, dst, {1, 1}, {l.dilation - 1, l.dilation - 1},
+                                            {l.dilation, l.dilation}, {l.dilation, l.dilation});
     return {d, conv_attr(l), engine_};
   }
 

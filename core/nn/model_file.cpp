@@ -90,6 +90,13 @@ Model load_model(const std::filesystem::path& path) {
   if (!features)
     throw Error(ErrorKind::Input, where + ": metadata \"residue.features\" must be full, color+albedo+normal or color");
   arch.features = *features;
+  if (md.count("residue.dilations")) {
+    const auto d = parse_dilations(md.at("residue.dilations"));
+    if (!d)
+      throw Error(ErrorKind::Input, where + ": metadata \"residue.dilations\" = \"" + md.at("residue.dilations") +
+                                        "\" is not a list of dilations from 1 to 64 (\"1,2,4,8\")");
+    arch.dilations = *d;
+  }
   const float eps = md.count("residue.bn_eps") ? std::stof(md.at("residue.bn_eps")) : kBnEps;
 
   Model m;
@@ -169,6 +176,7 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   f.metadata["residue.blocks"] = std::to_string(n.arch.blocks);
   f.metadata["residue.width"] = std::to_string(n.arch.width);
   f.metadata["residue.features"] = to_string(n.arch.features);
+  if (n.arch.max_dilation() > 1) f.metadata["residue.dilations"] = dilations_to_string(n.arch.dilations);
   f.metadata["residue.bn_eps"] = "0";
   const int64_t w = n.arch.width;
   auto put = [&](const std::string& name, std::vector<int64_t> shape, const std::vector<float>& v) {

@@ -1,5 +1,6 @@
 #include "core/nn/network.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -10,8 +11,43 @@ double Architecture::flops_per_pixel() const {
   return k * (in_channels() * width + (2.0 * blocks + 1.0) * width * width + width * 3.0);
 }
 
+int Architecture::max_dilation() const {
+  int d = 1;
+  for (int b = 0; b < blocks; ++b) d = std::max(d, dilation(b));
+  return d;
+}
+
+int Architecture::halo() const {
+  int h = 3;  // head, tail, out
+  for (int b = 0; b < blocks; ++b) h += 2 * dilation(b);
+  return h;
+}
+
+std::string dilations_to_string(const std::vector<int>& d) {
+  std::string s;
+  for (size_t i = 0; i < d.size(); ++i) s += (i ? "," : "") + std::to_string(d[i]);
+  return s;
+}
+
+std::optional<std::vector<int>> parse_dilations(const std::string& text) {
+  std::vector<int> d;
+  size_t pos = 0;
+  while (pos <= text.size()) {
+    const size_t comma = std::min(text.find(',', pos), text.size());
+    const std::string item = text.substr(pos, comma - pos);
+    if (item.empty() || item.size() > 2 || item.find_first_not_of("0123456789") != std::string::npos) return std::nullopt;
+    const int v = std::stoi(item);
+    if (v < 1 || v > 64) return std::nullopt;
+    d.push_back(v);
+    pos = comma + 1;
+  }
+  return d;
+}
+
 std::string Architecture::to_string() const {
-  return std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
+  std::string s = std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
+  if (max_dilation() > 1) s += " dilated " + dilations_to_string(dilations);
+  return s;
 }
 
 Conv3x3 fold_batch_norm(const Conv3x3& conv, const BatchNorm& bn) {

@@ -7,11 +7,14 @@
 //   out = conv3x3_out(y) + b                               W -> 3 (log-compressed colour)
 //
 // 2N + 3 convolutions (35 for the paper's N = 16, W = 128), every one 3x3 with zero 'same' padding, so the
-// receptive field reaches 2N + 3 pixels on each side. Batch norm is folded into the convolutions when a
+// receptive field reaches 2N + 3 pixels on each side. A variant (not in the paper) dilates the ResBlocks'
+// convs (taps d pixels apart, padding d) for a larger receptive field at the same cost: dilations 1,2,4,8
+// repeated over 8 blocks reach 63 pixels instead of 19. Batch norm is folded into the convolutions when a
 // model is loaded: every layer below is a conv with bias.
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,13 +26,18 @@ struct Architecture {
   int blocks = 16;   // N
   int width = 128;   // W, filters per conv
   FeatureSet features = FeatureSet::Full;
+  std::vector<int> dilations;  // per ResBlock, repeated over the blocks; empty: all 1 (the paper)
 
   int in_channels() const { return feature_channels(features); }
   int conv_layers() const { return 2 * blocks + 3; }
-  int halo() const { return conv_layers(); }  // one pixel per 3x3 conv
+  int dilation(int block) const {
+    return dilations.empty() ? 1 : dilations[static_cast<size_t>(block) % dilations.size()];
+  }
+  int max_dilation() const;
+  int halo() const;  // the receptive field's reach: d pixels per 3x3 conv of dilation d
   // Multiply-adds x 2 per output pixel.
   double flops_per_pixel() const;
-  std::string to_string() const;  // "16/128 full"
+  std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8"
 };
 
 // A 3x3 convolution with bias. Weights in OIHW order (as PyTorch stores them): weight[((o*in + i)*3 + ky)*3 + kx].
@@ -48,6 +56,11 @@ struct BatchNorm {
   std::vector<float> gamma, beta, mean, var;
   float eps = 1e-5f;
 };
+
+// "1,2,4,8": the metadata and command-line form; parse_dilations returns nullopt unless every entry is an
+// integer in [1, 64].
+std::string dilations_to_string(const std::vector<int>& d);
+std::optional<std::vector<int>> parse_dilations(const std::string& text);
 
 // Folds BN into the preceding conv: w' = w * g / sqrt(v + eps), b' = (b - m) * g / sqrt(v + eps) + beta.
 Conv3x3 fold_batch_norm(const Conv3x3& conv, const BatchNorm& bn);

@@ -11,7 +11,7 @@ Tensor64 to_tensor(const Image& image) {
   return t;
 }
 
-Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv) {
+Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv, int dilation) {
   Tensor64 out{in.h, in.w, conv.out, std::vector<double>(static_cast<size_t>(in.h * in.w * conv.out))};
   for (int64_t y = 0; y < in.h; ++y)
     for (int64_t x = 0; x < in.w; ++x)
@@ -19,7 +19,7 @@ Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv) {
         double sum = conv.bias.empty() ? 0.0 : conv.bias[static_cast<size_t>(o)];
         for (int ky = 0; ky < 3; ++ky)
           for (int kx = 0; kx < 3; ++kx) {
-            const int64_t sy = y + ky - 1, sx = x + kx - 1;
+            const int64_t sy = y + (ky - 1) * dilation, sx = x + (kx - 1) * dilation;
             if (sy < 0 || sy >= in.h || sx < 0 || sx >= in.w) continue;
             for (int i = 0; i < conv.in; ++i) sum += static_cast<double>(conv.w(o, i, ky, kx)) * in.at(sy, sx, i);
           }
@@ -42,10 +42,12 @@ Tensor64 naive_forward(const nn::Network& net, const Image& input) {
   Tensor64 h = naive_conv3x3(to_tensor(input), net.head);
   prelu(h, net.head_prelu);
   Tensor64 y = h;
-  for (const auto& b : net.blocks) {
-    Tensor64 t = naive_conv3x3(y, b.conv1);
+  for (size_t i = 0; i < net.blocks.size(); ++i) {
+    const auto& b = net.blocks[i];
+    const int d = net.arch.dilation(static_cast<int>(i));
+    Tensor64 t = naive_conv3x3(y, b.conv1, d);
     prelu(t, b.prelu);
-    Tensor64 r = naive_conv3x3(t, b.conv2);
+    Tensor64 r = naive_conv3x3(t, b.conv2, d);
     add(r, y);
     y = std::move(r);
   }

@@ -20,8 +20,8 @@ struct Tensor64 {
 
 Tensor64 to_tensor(const Image& image);
 
-// 3x3 conv with zero 'same' padding and bias, in float64.
-Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv);
+// 3x3 conv with zero 'same' padding and bias, taps `dilation` pixels apart, in float64.
+Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv, int dilation = 1);
 
 // The whole (folded) network in float64.
 Tensor64 naive_forward(const nn::Network& net, const Image& input);
