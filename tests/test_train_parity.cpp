@@ -2,9 +2,14 @@
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
 #include "core/features/features.h"
 #include "core/nn/backend.h"
 #include "core/nn/model_file.h"
+#include "core/nn/safetensors.h"
 #include "support/test_support.h"
 #include "torch_network.h"
 #include "training_set.h"
@@ -79,6 +84,51 @@ TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
   // Normals stay unit-bounded and colours stay log-compressed and non-negative.
   EXPECT_LE(x.index({torch::indexing::Slice(), torch::indexing::Slice(4, 6)}).abs().max().item<float>(), 1.0f);
   EXPECT_GE(x.index({torch::indexing::Slice(), torch::indexing::Slice(0, 3)}).min().item<float>(), 0.0f);
+}
+
+// The trainer end to end on three real scenes: a dilated model trains 10 steps, a second run with --steps 20
+// resumes from the checkpoint (not from scratch), the log goes on, the training time adds up, and core loads
+// the exported file.
+TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {
+  const auto starter = testing::shared_dataset("cycles-starter");
+  RESIDUE_REQUIRE_SHARED(starter / "s100");
+  testing::TempDir tmp;
+  std::filesystem::create_directories(tmp / "data");
+  for (const char* s : {"s100", "s101", "s102"}) std::filesystem::create_directory_symlink(starter / s, tmp / "data" / s);
+  const std::string out = (tmp / "m.safetensors").string(), csv = (tmp / "m.csv").string();
+  auto train = [&](int steps, std::string* text) {
+    return testing::run_program(RESIDUE_TRAIN_PATH,
+                                {"--data", (tmp / "data").string(), "--val", "1", "--arch", "2/8", "--dilations", "1,2",
+                                 "--patch", "32", "--batch", "2", "--steps", std::to_string(steps), "--val-every", "10",
+                                 "--checkpoint-every", "5", "--threads", "1", "-o", out, "--log", csv, "--force"},
+                                text);
+  };
+  std::string first, second;
+  ASSERT_EQ(train(10, &first), 0) << first;
+  ASSERT_EQ(train(20, &second), 0) << second;
+  EXPECT_NE(second.find("resumed from"), std::string::npos) << second;
+  EXPECT_NE(second.find("at step 10"), std::string::npos) << second;
+  EXPECT_EQ(second.find("step     10 "), std::string::npos) << "the second run starts after step 10";
+
+  std::ifstream log(csv);
+  std::string line, last;
+  int rows = 0;
+  while (std::getline(log, line)) {
+    ++rows;
+    last = line;
+  }
+  EXPECT_EQ(rows, 1 + 4) << "header, steps 5 and 10 (first run; a line per checkpoint), 15 and 20 (second run)";
+  EXPECT_EQ(last.rfind("20,", 0), 0u) << last;
+
+  const nn::Model model = nn::load_model(out);
+  EXPECT_EQ(model.network.arch.dilations, (std::vector<int>{1, 2}));
+  const auto training = nlohmann::json::parse(model.metadata.at("training"));
+  EXPECT_EQ(training.at("steps"), 20);
+  EXPECT_GT(training.at("wall_s").get<double>(), training.at("wall_s_this_run").get<double>())
+      << "the first run's time is counted";
+  const auto validation = nlohmann::json::parse(model.metadata.at("validation"));
+  EXPECT_EQ(validation.at("scenes"), 1);
+  EXPECT_GT(validation.at("relmse").get<double>(), 0.0);
 }
 
 }  // namespace

@@ -42,6 +42,7 @@ struct Options {
   double lr = 1e-3;
   int val_every = 500;
   std::string checkpoint;
+  int checkpoint_every = 250;  // steps; validation also checkpoints
   std::string out;
   std::string name;
   std::string log;
@@ -109,8 +110,12 @@ Validation validate(train::ResidueNet& net, const std::vector<fs::path>& scenes,
   return v;
 }
 
-void save_checkpoint(const fs::path& dir, train::ResidueNet& net, torch::optim::Adam& opt, int step) {
+// Model, optimiser, step and the training time so far (wall_s: summed over resumed runs), each replaced
+// atomically, the step last so that a kill in between leaves the previous checkpoint whole.
+void save_checkpoint(const fs::path& dir, train::ResidueNet& net, torch::optim::Adam& opt, int step, double wall_s) {
   fs::create_directories(dir);
+  std::ofstream(dir / "wall_s.tmp") << wall_s;
+  fs::rename(dir / "wall_s.tmp", dir / "wall_s");
   torch::save(net, (dir / "model.pt.tmp").string());
   torch::save(opt, (dir / "optim.pt.tmp").string());
   fs::rename(dir / "model.pt.tmp", dir / "model.pt");
@@ -158,11 +163,13 @@ int run(const Options& o) {
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(o.lr).betas({0.9, 0.999}));
   const fs::path ckpt = o.checkpoint.empty() ? fs::path(o.out).replace_extension(".ckpt") : fs::path(o.checkpoint);
   int step = 0;
+  double wall_before = 0;  // training time of earlier runs of this model
   if (fs::exists(ckpt / "step")) {
     torch::load(net, (ckpt / "model.pt").string());
     torch::load(opt, (ckpt / "optim.pt").string());
     std::ifstream(ckpt / "step") >> step;
-    std::printf("resumed from %s at step %d\n", ckpt.string().c_str(), step);
+    if (fs::exists(ckpt / "wall_s")) std::ifstream(ckpt / "wall_s") >> wall_before;
+    std::printf("resumed from %s at step %d (%.0f s of training before)\n", ckpt.string().c_str(), step, wall_before);
   }
   std::ofstream log;
   if (!o.log.empty()) {
@@ -175,6 +182,7 @@ int run(const Options& o) {
   const fs::path tmp_model = fs::path(ckpt) / "validation.safetensors";
   fs::create_directories(ckpt);
   const auto t_start = std::chrono::steady_clock::now();
+  auto wall_total = [&] { return wall_before + std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count(); };
   double loss_sum = 0;
   int loss_n = 0;
   auto t_last = std::chrono::steady_clock::now();
@@ -208,7 +216,7 @@ int run(const Options& o) {
     ++loss_n;
     ++step;
 
-    const bool report = step % 50 == 0 || step == o.steps;
+    const bool report = step % 50 == 0 || step % o.checkpoint_every == 0 || step == o.steps;
     const bool do_val = !val_scenes.empty() && (step % o.val_every == 0 || step == o.steps);
     if (report || do_val) {
       const double sps = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_last).count() / loss_n;
@@ -219,8 +227,8 @@ int run(const Options& o) {
         last_val = validate(net, val_scenes, tmp_model);
         val_cols = std::to_string(last_val.relmse) + "," + std::to_string(last_val.ssim) + "," +
                    std::to_string(last_val.noisy_relmse) + "," + std::to_string(last_val.mean_ratio);
-        save_checkpoint(ckpt, net, opt, step);
       }
+      if (do_val || step % o.checkpoint_every == 0) save_checkpoint(ckpt, net, opt, step, wall_total());
       std::printf("step %6d  loss %.5f  lr %.2e  %.3f s/step%s\n", step, loss_sum / loss_n, lr, sps,
                   do_val ? ("  val relMSE " + std::to_string(last_val.relmse) + " (noisy " +
                             std::to_string(last_val.noisy_relmse) + ") SSIM " + std::to_string(last_val.ssim) +
@@ -241,6 +249,7 @@ int run(const Options& o) {
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
                              {"loss", o.loss == "l1-log" ? "L1 on log(1+c)" : "L1 on log(1+c) + L1 of the log patch means"}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
                              {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
+                             {"wall_s", wall_before + wall},
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features}};
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
@@ -270,6 +279,8 @@ int main(int argc, char** argv) {
   app.add_option("--lr", o.lr, "Peak learning rate")->capture_default_str();
   app.add_option("--val-every", o.val_every, "Validate and checkpoint every K steps")->capture_default_str();
   app.add_option("--checkpoint", o.checkpoint, "Checkpoint folder (default: OUT with .ckpt)");
+  app.add_option("--checkpoint-every", o.checkpoint_every, "Also checkpoint every K steps (a killed run loses less)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("-o,--out", o.out, "Model file to write")->required();
   app.add_option("--name", o.name, "Model name in the metadata");
   app.add_option("--log", o.log, "CSV log of loss and validation");

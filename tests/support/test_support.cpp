@@ -40,8 +40,10 @@ static std::string shell_quote(const std::string& s) {
   return out + "'";
 }
 
-int run_cli(const std::vector<std::string>& args, std::string* output) {
-  std::string cmd = shell_quote(RESIDUE_CLI_PATH);
+int run_cli(const std::vector<std::string>& args, std::string* output) { return run_program(RESIDUE_CLI_PATH, args, output); }
+
+int run_program(const std::string& program, const std::vector<std::string>& args, std::string* output) {
+  std::string cmd = shell_quote(program);
   for (const auto& a : args) cmd += " " + shell_quote(a);
   cmd += " 2>&1 </dev/null";
   FILE* pipe = popen(cmd.c_str(), "r");

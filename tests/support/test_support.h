@@ -32,6 +32,8 @@ Image random_image(int64_t width, int64_t height, int channels, unsigned seed, f
 
 // Runs residue-cli with the given arguments; returns its exit code and captures stdout+stderr.
 int run_cli(const std::vector<std::string>& args, std::string* output = nullptr);
+// The same for any program.
+int run_program(const std::string& program, const std::vector<std::string>& args, std::string* output = nullptr);
 
 }  // namespace residue::testing
 
