@@ -1,0 +1,118 @@
+#!/usr/bin/python3
+"""A model card (Markdown) from what the model file and an `evaluate-set --json` result record: architecture,
+data, steps, training time, schedule, the training curve, per-scene validation relMSE/SSIM against the noisy
+input and the cross-bilateral baseline, the brightness ratio, seconds per megapixel, and the release checks
+(lowers the noisy relMSE; the reduction at 4-16 spp; beats the bilateral filter).
+
+  /usr/bin/python3 tools/model_card.py resources/models/base.safetensors --eval eval.json \\
+      --label base --dataset /work/datasets/residue-v1 --curve models/base_training.png > card.md
+"""
+import argparse, json, os, struct
+
+
+def metadata(path):
+    with open(path, "rb") as f:
+        n = struct.unpack("<Q", f.read(8))[0]
+        return json.loads(f.read(n)).get("__metadata__", {})
+
+
+def spp_of(dataset, scene):
+    try:
+        with open(os.path.join(dataset, scene, "scene.json")) as f:
+            return json.load(f)["spp"]["noisy_a"]
+    except (OSError, KeyError, ValueError):
+        return None
+
+
+def hours(s):
+    return f"{s / 3600:.1f} h" if s >= 3600 else f"{s / 60:.0f} min"
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("model")
+    p.add_argument("--eval", required=True, help="evaluate-set --json output that has a column for this model")
+    p.add_argument("--label", help="the model's column in the evaluation (default: the file's stem)")
+    p.add_argument("--dataset", help="data set folder, for each scene's samples per pixel")
+    p.add_argument("--curve", help="training curve PNG, as linked from the card")
+    a = p.parse_args()
+
+    md = metadata(a.model)
+    label = a.label or os.path.splitext(os.path.basename(a.model))[0]
+    training = json.loads(md.get("training", "{}"))
+    bench = json.loads(md.get("benchmark", "{}"))
+    ev = json.load(open(a.eval))
+    arch = f"{md['residue.blocks']}/{md['residue.width']}"
+    receptive = 3 + 2 * sum(
+        int(d) for d in ((md.get("residue.dilations", "1") + ",") * int(md["residue.blocks"])).split(",")[: int(md["residue.blocks"])])
+    dil = f", dilations {md['residue.dilations']}" if "residue.dilations" in md else ""
+
+    out = [f"## {md.get('name', label)}", ""]
+    out.append(f"- **Network**: {arch} ({md['residue.blocks']} ResBlocks of width {md['residue.width']}{dil}), "
+               f"features `{md['residue.features']}`, receptive field {receptive} px each side.")
+    if training:
+        data = ", ".join(f"`{d}`" for d in training.get("data", []))
+        wall = training.get("wall_s", training.get("wall_s_this_run", 0))
+        out.append(f"- **Training**: {training.get('steps')} steps of {training.get('batch')} patches of "
+                   f"{training.get('patch')}x{training.get('patch')}, {training.get('loss')}, "
+                   f"{training.get('optimizer')}, lr {training.get('lr')} ({training.get('schedule')}), "
+                   f"{training.get('precision', 'fp32')}, {training.get('threads')} threads, seed {training.get('seed')}; "
+                   f"{hours(wall)} of training on a 2-core machine.")
+        out.append(f"- **Data**: {training.get('train_scenes')} training scenes from {data}.")
+    if a.curve:
+        out.append(f"- **Curve**: ![{label} training]({a.curve})")
+    if bench:
+        speeds = ", ".join(f"{k[:-len('_s_per_mp')]} {v:.3g} s/MP" for k, v in bench.items() if k.endswith("_s_per_mp"))
+        out.append(f"- **Speed** (`tools/stamp_benchmark.py`): {speeds}.")
+
+    scenes = ev["scenes"]
+    if not scenes or label not in scenes[0]["results"]:
+        raise SystemExit(f"model_card: no column '{label}' in {a.eval}")
+    have_bilateral = "bilateral" in scenes[0]["results"]
+    out += ["", f"Validation ({len(scenes)} scenes of `{ev.get('dataset', '')}`, split {ev.get('split', 'all')}):", ""]
+    head = "| scene | spp | noisy relMSE | relMSE | reduction | SSIM | brightness |"
+    rule = "|---|---|---|---|---|---|---|"
+    if have_bilateral:
+        head += " bilateral relMSE | bilateral SSIM |"
+        rule += "---|---|"
+    out += [head, rule]
+    rows = []
+    for s in scenes:
+        r, n = s["results"][label], s["results"]["noisy"]
+        b = s["results"].get("bilateral")
+        spp = spp_of(a.dataset, s["scene"]) if a.dataset else None
+        rows.append((s["scene"], spp, n["relmse"], r, b))
+        line = (f"| {s['scene']} | {spp if spp else ''} | {n['relmse']:.4g} | {r['relmse']:.4g} | "
+                f"{n['relmse'] / r['relmse']:.1f}x | {r['ssim']:.4f} | {r['mean_ratio']:.3f} |")
+        if b:
+            line += f" {b['relmse']:.4g} | {b['ssim']:.4f} |"
+        out.append(line)
+    k = len(rows)
+    mean = lambda xs: sum(xs) / max(1, len(xs))
+    m_noisy, m_model = mean([x[2] for x in rows]), mean([x[3]["relmse"] for x in rows])
+    line = (f"| **mean** | | {m_noisy:.4g} | **{m_model:.4g}** | {m_noisy / m_model:.1f}x | "
+            f"**{mean([x[3]['ssim'] for x in rows]):.4f}** | {mean([x[3]['mean_ratio'] for x in rows]):.3f} |")
+    if have_bilateral:
+        line += f" {mean([x[4]['relmse'] for x in rows]):.4g} | {mean([x[4]['ssim'] for x in rows]):.4f} |"
+    out.append(line)
+
+    # The release checks.
+    lowered = sum(1 for x in rows if x[3]["relmse"] < x[2])
+    checks = [f"lowers the noisy relMSE on {lowered} of {k} scenes (mean {m_noisy / m_model:.1f}x)"]
+    mid = [x for x in rows if x[1] is not None and 4 <= x[1] <= 16]
+    if mid:
+        ratio_of_means = mean([x[2] for x in mid]) / mean([x[3]["relmse"] for x in mid])
+        mean_of_ratios = mean([x[2] / x[3]["relmse"] for x in mid])
+        checks.append(f"at 4-16 spp ({len(mid)} scenes): {ratio_of_means:.1f}x lower mean relMSE "
+                      f"(mean of per-scene reductions {mean_of_ratios:.1f}x)")
+    if have_bilateral:
+        beats = sum(1 for x in rows if x[3]["relmse"] < x[4]["relmse"])
+        m_bil = mean([x[4]["relmse"] for x in rows])
+        checks.append(f"{'beats' if m_model < m_bil else 'does not beat'} the bilateral filter on mean relMSE "
+                      f"({m_model:.4g} vs {m_bil:.4g}; better on {beats} of {k} scenes)")
+    out += ["", "Checks: " + "; ".join(checks) + "."]
+    print("\n".join(out))
+
+
+if __name__ == "__main__":
+    main()
