@@ -203,6 +203,9 @@ TEST(ModelFile, RoundTripKeepsEveryWeight) {
   nn::write_safetensors(tmp / "d.safetensors", nn::to_safetensors(dilated), false);
   EXPECT_EQ(nn::load_model(tmp / "d.safetensors").network.arch.dilations, (std::vector<int>{1, 3}));
   EXPECT_EQ(nn::load_model(tmp / "d.safetensors").network.arch.halo(), 3 + 2 * (1 + 3 + 1 + 3));
+  EXPECT_FALSE(nn::load_model(tmp / "d.safetensors").network.arch.input_skip);
+  nn::write_safetensors(tmp / "s.safetensors", nn::to_safetensors(nn::random_network({1, 8, FeatureSet::Full, {}, true}, 2)), false);
+  EXPECT_TRUE(nn::load_model(tmp / "s.safetensors").network.arch.input_skip);
   auto f = nn::to_safetensors(dilated);
   f.metadata["residue.dilations"] = "1,0";
   nn::write_safetensors(tmp / "bad.safetensors", f, false);

@@ -68,7 +68,9 @@ TEST_P(NnBackend, WholeNetworkMatchesFloat64Reference) {
            {{1, 8, FeatureSet::ColorAlbedoNormal}, 3, 5}, {{2, 16, FeatureSet::Full}, 40, 2},
            {{1, 48, FeatureSet::ColorAlbedoNormal}, 17, 3},
            // Dilated blocks, also with taps reaching past the whole tile.
-           {{4, 16, FeatureSet::Full, {1, 2, 4, 8}}, 30, 21}, {{3, 32, FeatureSet::ColorOnly, {2, 5}}, 7, 4}}) {
+           {{4, 16, FeatureSet::Full, {1, 2, 4, 8}}, 30, 21}, {{3, 32, FeatureSet::ColorOnly, {2, 5}}, 7, 4},
+           // The input skip.
+           {{2, 16, FeatureSet::Full, {}, true}, 11, 6}, {{1, 8, FeatureSet::FullVariance, {1, 2}, true}, 5, 9}}) {
     const nn::Network net = nn::random_network(arch, 42);
     const Image x = testing::random_image(w, h, arch.in_channels(), 7, -1.0f, 2.0f);
     auto backend = nn::make_backend(p.backend, net, {p.precision});

@@ -67,8 +67,12 @@ TEST_P(TrainParity, ExportedModelGivesTheSameOutputInCore) {
 // The paper's network, and one with dilated blocks (taps 3 px apart reach past the 13-px-high input).
 INSTANTIATE_TEST_SUITE_P(Architectures, TrainParity,
                          ::testing::Values(nn::Architecture{3, 16, FeatureSet::Full},
-                                           nn::Architecture{3, 16, FeatureSet::Full, {1, 3}}),
-                         [](const auto& info) { return info.param.max_dilation() > 1 ? "dilated" : "paper"; });
+                                           nn::Architecture{3, 16, FeatureSet::Full, {1, 3}},
+                                           nn::Architecture{2, 16, FeatureSet::Full, {}, true}),
+                         [](const auto& info) {
+                           return std::string(info.param.max_dilation() > 1 ? "dilated" : "paper") +
+                                  (info.param.input_skip ? "_input_skip" : "");
+                         });
 
 TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
   // A scene-free check of the dihedral transforms: build a TrainingSet on the starter data when present.

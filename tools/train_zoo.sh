@@ -6,7 +6,8 @@
 #   tools/train_zoo.sh OUT_DIR DATA_DIR [DATA_DIR...]
 #   e.g. tools/train_zoo.sh /work/train/zoo /work/datasets/residue-v1 ../shared/datasets/cycles-starter
 #
-# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color paper"), ZOO_THREADS (2),
+# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color paper"; also known:
+# base-variance (the noise-level input), base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
 # ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=4000), ZOO_BF16=1 to train with CPU autocast
 # to bfloat16 (1.5-1.9x faster here), RESIDUE_BUILD (build/release).
 # Copy the finished OUT_DIR/<name>.safetensors into resources/models/ and run tools/stamp_benchmark.py.
@@ -22,10 +23,13 @@ mkdir -p "$out"
 export OMP_WAIT_POLICY=passive
 
 # name: architecture, feature set, steps, validation interval
-declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 [base-color]=8/64 [paper]=16/128)
+declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 [base-color]=8/64 [paper]=16/128
+                 [base-variance]=8/64 [base-dilated]=8/64)
 declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=color+albedo+normal
-                     [base-color]=color [paper]=full)
-declare -A steps=([tiny]=4000 [small]=8000 [base]=20000 [base-albedo-normal]=12000 [base-color]=12000 [paper]=6000)
+                     [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full)
+declare -A steps=([tiny]=4000 [small]=8000 [base]=20000 [base-albedo-normal]=12000 [base-color]=12000 [paper]=6000
+                  [base-variance]=12000 [base-dilated]=12000)
+declare -A extra=([base-dilated]="--dilations 1,2,4,8")
 
 for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color paper}; do
   var="ZOO_STEPS_${name//-/_}"
@@ -33,7 +37,8 @@ for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color paper}; 
   if [ -f "$out/$name.safetensors" ]; then echo "train_zoo: $name exists, skipped"; continue; fi
   echo "train_zoo: $name (${arch[$name]}, ${features[$name]}, $n steps)"
   "$train" --data "$@" --arch "${arch[$name]}" --features "${features[$name]}" --steps "$n" \
-    --val-every $(( n / 10 )) --threads "$threads" ${ZOO_BF16:+--bf16} --name "$name" -o "$out/$name.safetensors" \
+    --val-every $(( n / 10 )) --checkpoint-every 250 --threads "$threads" ${ZOO_BF16:+--bf16} ${extra[$name]:-} \
+    --name "$name" -o "$out/$name.safetensors" \
     --log "$out/$name.csv" | tee -a "$out/$name.out"
   /usr/bin/python3 "$repo/tools/plot_training.py" "$out/$name.csv" "$out/${name}_training.png" || true
 done

@@ -36,6 +36,7 @@ struct Options {
   std::string arch = "4/32";
   std::string features = "full";
   std::string dilations;  // per ResBlock, repeated; empty: none (the paper)
+  bool input_skip = false;  // variant: the network predicts the correction to the log noisy colour
   int steps = 3000;
   int batch = 8;
   int patch = 64;
@@ -132,6 +133,7 @@ int run(const Options& o) {
   std::istringstream(o.arch) >> arch.blocks >> slash >> arch.width;
   if (slash != '/' || arch.blocks <= 0 || arch.width <= 0) throw Error(ErrorKind::Usage, "--arch: expected N/W, e.g. 8/64");
   arch.features = *feature_set_from_string(o.features);
+  arch.input_skip = o.input_skip;
   if (!o.dilations.empty()) {
     const auto d = nn::parse_dilations(o.dilations);
     if (!d) throw Error(ErrorKind::Usage, "--dilations: expected integers from 1 to 64, e.g. 1,2,4,8");
@@ -272,6 +274,8 @@ int main(int argc, char** argv) {
   app.add_option("--arch", o.arch, "BLOCKS/WIDTH")->capture_default_str();
   app.add_option("--dilations", o.dilations,
                  "Dilation per ResBlock, repeated over the blocks, e.g. 1,2,4,8 (default: none, as in the paper)");
+  app.add_flag("--input-skip", o.input_skip,
+               "Add the input's log colour to the output: the network learns the correction (a variant)");
   app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color", "full+variance"}));
   app.add_option("--steps", o.steps, "Training steps")->capture_default_str();
   app.add_option("--batch", o.batch, "Patches per step")->capture_default_str();

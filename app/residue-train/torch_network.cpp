@@ -46,6 +46,7 @@ torch::Tensor ResidueNetImpl::forward(const torch::Tensor& x) {
   torch::Tensor y = h;
   for (const auto& m : *blocks) y = m->as<ResBlock>()->forward(y);
   y = tail->bn(tail->conv(y)) + h;
+  if (arch.input_skip) return out->conv(y) + x.slice(1, 0, 3);  // the input's log colour planes
   return out->conv(y);
 }
 
@@ -68,6 +69,7 @@ nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::str
   f.metadata["residue.width"] = std::to_string(net->arch.width);
   f.metadata["residue.features"] = to_string(net->arch.features);
   if (net->arch.max_dilation() > 1) f.metadata["residue.dilations"] = nn::dilations_to_string(net->arch.dilations);
+  if (net->arch.input_skip) f.metadata["residue.input_skip"] = "1";
   f.metadata["residue.bn_eps"] = "1e-05";
   auto put = [&](const std::string& name, const torch::Tensor& t) {
     if (name.find("num_batches_tracked") != std::string::npos) return;

@@ -10,6 +10,12 @@ std::unique_ptr<Backend> make_onednn_backend(const Network& network, Precision p
 
 const char* to_string(Precision p) { return p == Precision::BF16 ? "bf16" : "fp32"; }
 
+void add_input_skip(const Image& input, Image& output) {
+  const int c = input.channels();
+  for (int64_t i = 0; i < output.pixel_count(); ++i)
+    for (int k = 0; k < 3; ++k) output.data()[i * 3 + k] += input.data()[i * c + k];
+}
+
 std::vector<std::string> available_backends() {
   std::vector<std::string> names = {"eigen"};
 #ifdef RESIDUE_HAVE_ONEDNN

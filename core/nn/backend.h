@@ -39,4 +39,7 @@ std::vector<std::string> available_backends();
 
 std::unique_ptr<Backend> make_eigen_backend(const Network& network);
 
+// The input-skip variant's last step, shared by the backends: output += the input's first 3 planes.
+void add_input_skip(const Image& input, Image& output);
+
 }  // namespace residue::nn

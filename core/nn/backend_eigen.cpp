@@ -255,6 +255,7 @@ class EigenBackend final : public Backend {
     const View head = view(head_out_);
     conv(state_, tail_, view(temp_), &head, 1);
     conv(temp_, out_, {output.data(), w * 3, 3}, nullptr, 1);
+    if (arch_.input_skip) add_input_skip(input, output);
   }
 
  private:

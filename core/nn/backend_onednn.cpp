@@ -182,6 +182,7 @@ class OneDnnBackend final : public Backend {
       s.primitive.execute(stream_, args);
     }
     stream_.wait();
+    if (arch_.input_skip) add_input_skip(input, output);
   }
 
  private:

@@ -97,6 +97,11 @@ Model load_model(const std::filesystem::path& path) {
                                         "\" is not a list of dilations from 1 to 64 (\"1,2,4,8\")");
     arch.dilations = *d;
   }
+  if (md.count("residue.input_skip")) {
+    const std::string v = md.at("residue.input_skip");
+    if (v != "0" && v != "1") throw Error(ErrorKind::Input, where + ": metadata \"residue.input_skip\" must be 0 or 1, not \"" + v + "\"");
+    arch.input_skip = v == "1";
+  }
   const float eps = md.count("residue.bn_eps") ? std::stof(md.at("residue.bn_eps")) : kBnEps;
 
   Model m;
@@ -177,6 +182,7 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   f.metadata["residue.width"] = std::to_string(n.arch.width);
   f.metadata["residue.features"] = to_string(n.arch.features);
   if (n.arch.max_dilation() > 1) f.metadata["residue.dilations"] = dilations_to_string(n.arch.dilations);
+  if (n.arch.input_skip) f.metadata["residue.input_skip"] = "1";
   f.metadata["residue.bn_eps"] = "0";
   const int64_t w = n.arch.width;
   auto put = [&](const std::string& name, std::vector<int64_t> shape, const std::vector<float>& v) {

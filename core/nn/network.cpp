@@ -47,6 +47,7 @@ std::optional<std::vector<int>> parse_dilations(const std::string& text) {
 std::string Architecture::to_string() const {
   std::string s = std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
   if (max_dilation() > 1) s += " dilated " + dilations_to_string(dilations);
+  if (input_skip) s += " input-skip";
   return s;
 }
 

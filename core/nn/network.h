@@ -9,7 +9,9 @@
 // 2N + 3 convolutions (35 for the paper's N = 16, W = 128), every one 3x3 with zero 'same' padding, so the
 // receptive field reaches 2N + 3 pixels on each side. A variant (not in the paper) dilates the ResBlocks'
 // convs (taps d pixels apart, padding d) for a larger receptive field at the same cost: dilations 1,2,4,8
-// repeated over 8 blocks reach 63 pixels instead of 19. Batch norm is folded into the convolutions when a
+// repeated over 8 blocks reach 63 pixels instead of 19. Another variant adds the input's log colour planes
+// to the output ("input skip"): the network then learns the correction to the noisy colour, which is zero
+// where the input is already clean, instead of the whole image. Batch norm is folded into the convolutions when a
 // model is loaded: every layer below is a conv with bias.
 #pragma once
 
@@ -27,6 +29,7 @@ struct Architecture {
   int width = 128;   // W, filters per conv
   FeatureSet features = FeatureSet::Full;
   std::vector<int> dilations;  // per ResBlock, repeated over the blocks; empty: all 1 (the paper)
+  bool input_skip = false;     // variant: out += the input's log colour planes (the net predicts the correction)
 
   int in_channels() const { return feature_channels(features); }
   int conv_layers() const { return 2 * blocks + 3; }
@@ -37,7 +40,7 @@ struct Architecture {
   int halo() const;  // the receptive field's reach: d pixels per 3x3 conv of dilation d
   // Multiply-adds x 2 per output pixel.
   double flops_per_pixel() const;
-  std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8"
+  std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip"
 };
 
 // A 3x3 convolution with bias. Weights in OIHW order (as PyTorch stores them): weight[((o*in + i)*3 + ky)*3 + kx].
