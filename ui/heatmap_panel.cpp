@@ -6,7 +6,6 @@
 #include <QLineEdit>
 #include <QPainter>
 #include <QVBoxLayout>
-#include <QtConcurrent/QtConcurrentRun>
 #include <cmath>
 
 namespace residue::ui {
@@ -125,24 +124,20 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   connect(lo_, &QLineEdit::editingFinished, this, &HeatmapPanel::recolor);
   connect(hi_, &QLineEdit::editingFinished, this, &HeatmapPanel::recolor);
 
-  watcher_ = new QFutureWatcher<std::shared_ptr<Result>>(this);
-  connect(watcher_, &QFutureWatcherBase::finished, this, [this] {
-    auto r = watcher_->result();
-    if (!r) return;
-    delivered_ = true;
-    if (!r->error.isEmpty()) {
-      bar_->setScale(colormap(), 0, 1, false, r->error);
+  task_ = std::make_unique<LatestTask<Result>>(this, [this](Result&& r) {
+    if (!r.error.isEmpty()) {
+      bar_->setScale(colormap(), 0, 1, false, r.error);
       return;
     }
-    map_ = r->map;
-    image_ = r->image;
-    range_ = r->range;
+    map_ = std::move(r.map);
+    image_ = std::move(r.image);
+    range_ = r.range;
     bar_->setScale(colormap(), range_.first, range_.second, scale().log, title());
     emit ready();
   });
 }
 
-HeatmapPanel::~HeatmapPanel() { watcher_->waitForFinished(); }
+HeatmapPanel::~HeatmapPanel() = default;
 
 HeatmapPanel::Display HeatmapPanel::display() const {
   switch (display_->currentIndex()) {
@@ -172,7 +167,7 @@ QString HeatmapPanel::title() const {
            scale().log ? tr(" (log)") : QString());
 }
 
-bool HeatmapPanel::busy() const { return watcher_->isRunning() || !delivered_; }
+bool HeatmapPanel::busy() const { return task_->busy(); }
 
 void HeatmapPanel::setKind(metrics::MapKind k) { kind_->setCurrentIndex(kind_->findData(static_cast<int>(k))); }
 void HeatmapPanel::setOf(Of o) { of_->setCurrentIndex(o == Of::Noisy ? 1 : 0); }
@@ -187,9 +182,9 @@ void HeatmapPanel::setRange(std::optional<double> lo, std::optional<double> hi) 
 
 void HeatmapPanel::compute(std::shared_ptr<const Image> noisy, std::shared_ptr<const Image> denoised,
                            std::shared_ptr<const Image> reference, const metrics::Options& options) {
-  const int generation = ++generation_;
   auto test = of() == Of::Noisy ? noisy : denoised;
   if (!test || !reference) {
+    task_->supersede();
     map_.reset();
     image_ = QImage();
     bar_->setScale(colormap(), 0, 1, false, reference ? tr("no denoised image yet") : tr("no reference"));
@@ -201,20 +196,19 @@ void HeatmapPanel::compute(std::shared_ptr<const Image> noisy, std::shared_ptr<c
   const auto k = kind();
   const auto cm = colormap();
   const auto sc = scale();
-  delivered_ = false;
-  watcher_->setFuture(QtConcurrent::run([=, this]() -> std::shared_ptr<Result> {
-    auto r = std::make_shared<Result>();
+  task_->start([=](const LatestTask<Result>::Token& token) {
+    Result r;
     try {
       auto map = std::make_shared<Image>(metrics::error_map(*test, *reference, k, o));
-      if (generation != generation_) return nullptr;
-      r->range = resolve_range(*map, sc);
-      r->image = colorize(*map, cm, sc);
-      r->map = std::move(map);
+      if (token.superseded()) return r;  // dropped anyway: skip the colouring
+      r.range = resolve_range(*map, sc);
+      r.image = colorize(*map, cm, sc);
+      r.map = std::move(map);
     } catch (const std::exception& e) {
-      r->error = QString::fromStdString(e.what());
+      r.error = QString::fromStdString(e.what());
     }
-    return generation == generation_ ? r : nullptr;
-  }));
+    return r;
+  });
 }
 
 void HeatmapPanel::recolor() {
@@ -234,17 +228,15 @@ void HeatmapPanel::recolor() {
     return;
   }
   // Colouring a large map takes a moment: off the UI thread too.
-  const int generation = ++generation_;
   const auto map = map_;
   const auto cm = colormap();
-  delivered_ = false;
-  watcher_->setFuture(QtConcurrent::run([=, this]() -> std::shared_ptr<Result> {
-    auto r = std::make_shared<Result>();
-    r->range = resolve_range(*map, sc);
-    r->image = colorize(*map, cm, sc);
-    r->map = map;
-    return generation == generation_ ? r : nullptr;
-  }));
+  task_->start([=](const LatestTask<Result>::Token&) {
+    Result r;
+    r.range = resolve_range(*map, sc);
+    r.image = colorize(*map, cm, sc);
+    r.map = map;
+    return r;
+  });
 }
 
 }  // namespace residue::ui

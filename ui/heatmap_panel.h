@@ -3,14 +3,13 @@
 // exported PNG holds), with a colour bar that shows the scale. Maps are computed on a worker thread.
 #pragma once
 
-#include <QFutureWatcher>
 #include <QImage>
 #include <QWidget>
-#include <atomic>
 #include <memory>
 
 #include "core/image/colormap.h"
 #include "core/metrics/metrics.h"
+#include "ui/latest_task.h"
 
 class QCheckBox;
 class QComboBox;
@@ -91,9 +90,7 @@ class HeatmapPanel : public QWidget {
     std::pair<double, double> range;
     QString error;
   };
-  QFutureWatcher<std::shared_ptr<Result>>* watcher_ = nullptr;
-  std::atomic<int> generation_{0};
-  bool delivered_ = true;  // the newest request's result has been taken
+  std::unique_ptr<LatestTask<Result>> task_;
   std::shared_ptr<const Image> map_;
   QImage image_;
   std::pair<double, double> range_{0, 1};

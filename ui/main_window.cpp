@@ -71,7 +71,6 @@ QString errorText(const std::exception& e) { return QString::fromStdString(e.wha
 }  // namespace
 
 struct MainWindow::Rendered {
-  int generation = 0;
   std::vector<Pane> panes;
   QSize size;
 };
@@ -86,7 +85,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   canvas_->setObjectName("canvas");
   setCentralWidget(canvas_);
   help_ = new HelpOverlay(shortcutTable(), canvas_);
-  render_watcher_ = new QFutureWatcher<std::shared_ptr<Rendered>>(this);
+  render_ = std::make_unique<LatestTask<Rendered>>(this, [this](Rendered&& r) { showRendered(std::move(r)); });
 
   buildDocks();
   buildToolBar();
@@ -117,21 +116,6 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     if (!denoise_->running()) refreshAnalysis();
   });
   connect(session_, &Session::denoisedTileChanged, this, &MainWindow::patchDenoisedTile);
-  connect(render_watcher_, &QFutureWatcherBase::finished, this, [this] {
-    auto r = render_watcher_->result();
-    if (!r || r->generation != render_generation_) return;
-    render_delivered_ = true;
-    canvas_->setPanes(std::move(r->panes), r->size);
-    // Tiles that landed while these panes were being drawn are in the session: show them too.
-    if (const int d = paneIndex(Source::Denoised); d >= 0 && session_->denoised()) {
-      canvas_->setPaneValues(d, std::shared_ptr<const Image>(std::shared_ptr<const Image>(), session_->denoised()));
-      if (denoise_->running())
-        for (const Rect& t : run_tiles_) drawDenoisedTile(t);
-    }
-    applyHeatmap();
-    updateStatus();
-    emit panesRendered();
-  });
   connect(canvas_, &ImageCanvas::hovered, this, [this](std::optional<QPoint> p) {
     hover_ = p;
     const auto map = heatmap_->map();
@@ -161,7 +145,20 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   updateStatus();
 }
 
-MainWindow::~MainWindow() { render_watcher_->waitForFinished(); }
+MainWindow::~MainWindow() { render_.reset(); }  // first: its jobs post to this window
+
+void MainWindow::showRendered(Rendered&& r) {
+  canvas_->setPanes(std::move(r.panes), r.size);
+  // Tiles that landed while these panes were being drawn are in the session: show them too.
+  if (const int d = paneIndex(Source::Denoised); d >= 0 && session_->denoised()) {
+    canvas_->setPaneValues(d, std::shared_ptr<const Image>(std::shared_ptr<const Image>(), session_->denoised()));
+    if (denoise_->running())
+      for (const Rect& t : run_tiles_) drawDenoisedTile(t);
+  }
+  applyHeatmap();
+  updateStatus();
+  emit panesRendered();
+}
 
 // ---------------------------------------------------------------------------------------------------------------
 // Construction
@@ -550,7 +547,7 @@ std::shared_ptr<const Image> MainWindow::shared(Source s) const {
   return img ? std::shared_ptr<const Image>(stack, img) : nullptr;
 }
 
-bool MainWindow::rendering() const { return render_watcher_->isRunning() || !render_delivered_; }
+bool MainWindow::rendering() const { return render_->busy(); }
 
 bool MainWindow::busy() const {
   return session_->loading() || rendering() || metrics_->busy() || heatmap_->busy() || denoise_->running() ||
@@ -558,15 +555,14 @@ bool MainWindow::busy() const {
 }
 
 void MainWindow::refreshPanes() {
-  if (!session_ || !canvas_ || !render_watcher_) return;
-  const int generation = ++render_generation_;
+  if (!session_ || !canvas_ || !render_) return;
   if (!session_->hasStack()) {
+    render_->supersede();
     pane_sources_.clear();
     canvas_->setPanes({}, {});
     return;
   }
   const auto stack = session_->stack();
-  render_delivered_ = false;
   pane_sources_ = {Source::Noisy, Source::Denoised};
   if (session_->reference()) {
     pane_sources_.push_back(Source::Reference);
@@ -588,18 +584,18 @@ void MainWindow::refreshPanes() {
   in.display = display_;
   in.settings = displaySettings();
   const QSize size(static_cast<int>(stack->width()), static_cast<int>(stack->height()));
-  render_watcher_->setFuture(QtConcurrent::run([this, in, size, generation]() {
+  render_->start([this, in, size](const LatestTask<Rendered>::Token& token) {
     // A large render is first shown from every step-th pixel (what a fitted view needs), then in full.
     if (const int step = preview_step(size.width(), size.height()); step > 1) {
-      auto preview = std::make_shared<Rendered>(Rendered{generation, render_panes(in, step), size});
-      QMetaObject::invokeMethod(this, [this, preview] {
-        if (preview->generation == render_generation_ && !render_delivered_) canvas_->setPanes(std::move(preview->panes), preview->size);
+      auto preview = std::make_shared<Rendered>(Rendered{render_panes(in, step), size});
+      QMetaObject::invokeMethod(this, [this, preview, generation = token.generation()] {
+        if (render_->pending(generation)) canvas_->setPanes(std::move(preview->panes), preview->size);
         applyHeatmap();
         emit panesRendered();
       }, Qt::QueuedConnection);
     }
-    return std::make_shared<Rendered>(Rendered{generation, render_panes(in, 1), size});
-  }));
+    return Rendered{render_panes(in, 1), size};
+  });
 }
 
 void MainWindow::patchDenoisedTile(const Rect& rect) {

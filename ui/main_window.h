@@ -17,6 +17,7 @@
 #include "ui/display_transform.h"
 #include "ui/heatmap_panel.h"
 #include "ui/session.h"
+#include "ui/latest_task.h"
 
 class QComboBox;
 class QDoubleSpinBox;
@@ -88,6 +89,8 @@ class MainWindow : public QMainWindow {
   void applyHeatmap();
   void patchDenoisedTile(const Rect& rect);  // a tile arrived: remember it and draw it
   void drawDenoisedTile(const Rect& rect);
+  struct Rendered;  // panes drawn on a worker
+  void showRendered(Rendered&& r);  // the newest panes, on the canvas
   void updateStatus();
   void updateTitle();
   void addRecent(const QStringList& files);
@@ -125,10 +128,7 @@ class MainWindow : public QMainWindow {
   QString last_error_;
   bool mapping_retry_ = false;
 
-  struct Rendered;
-  QFutureWatcher<std::shared_ptr<Rendered>>* render_watcher_ = nullptr;
-  int render_generation_ = 0;
-  bool render_delivered_ = true;
+  std::unique_ptr<LatestTask<Rendered>> render_;  // the panes, drawn on a worker
   std::vector<Rect> run_tiles_;  // tiles of the running denoise, re-drawn over panes rendered meanwhile
   int exports_running_ = 0;
 };

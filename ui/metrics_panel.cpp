@@ -8,7 +8,6 @@
 #include <QScrollBar>
 #include <QTableWidget>
 #include <QVBoxLayout>
-#include <QtConcurrent/QtConcurrentRun>
 #include <cmath>
 
 namespace residue::ui {
@@ -68,20 +67,16 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   connect(eps_, &QDoubleSpinBox::valueChanged, this, &MetricsPanel::optionsChanged);
   connect(space_, &QComboBox::currentIndexChanged, this, &MetricsPanel::optionsChanged);
 
-  watcher_ = new QFutureWatcher<std::shared_ptr<Computed>>(this);
-  connect(watcher_, &QFutureWatcherBase::finished, this, [this] {
-    auto r = watcher_->result();
-    if (!r) return;  // superseded
-    delivered_ = true;
-    report_ = r->report;
-    error_ = r->error;
+  task_ = std::make_unique<LatestTask<Computed>>(this, [this](Computed&& r) {
+    report_ = std::move(r.report);
+    error_ = r.error;
     showReport();
     emit computed();
   });
   setToolTip(QString::fromStdString(metrics::formula_text(options())));
 }
 
-MetricsPanel::~MetricsPanel() { watcher_->waitForFinished(); }
+MetricsPanel::~MetricsPanel() = default;
 
 metrics::Options MetricsPanel::options() const {
   metrics::Options o;
@@ -91,15 +86,15 @@ metrics::Options MetricsPanel::options() const {
 }
 
 // Until the newest result is shown, not only computed: a caller that waits on busy() then reads report().
-bool MetricsPanel::busy() const { return watcher_->isRunning() || !delivered_; }
+bool MetricsPanel::busy() const { return task_->busy(); }
 
 void MetricsPanel::compute(Inputs inputs) {
   last_ = inputs;
-  const int generation = ++generation_;
   metrics::Options o = options();
   o.roi = inputs.roi;
   setToolTip(QString::fromStdString(metrics::formula_text(o)));
   if (!inputs.reference) {
+    task_->supersede();
     report_ = {};
     error_.clear();
     scope_->setText(tr("No reference: open one with File > Open Reference"));
@@ -109,10 +104,9 @@ void MetricsPanel::compute(Inputs inputs) {
     return;
   }
   scope_->setText(tr("Computing..."));
-  delivered_ = false;
-  watcher_->setFuture(QtConcurrent::run([this, inputs, o, generation]() -> std::shared_ptr<Computed> {
-    auto c = std::make_shared<Computed>();
-    io::MetricsReport* r = &c->report;
+  task_->start([inputs, o](const LatestTask<Computed>::Token&) {
+    Computed c;
+    io::MetricsReport* r = &c.report;
     r->reference_file = inputs.reference_file.toStdString();
     r->width = inputs.reference->width();
     r->height = inputs.reference->height();
@@ -125,12 +119,10 @@ void MetricsPanel::compute(Inputs inputs) {
             {"denoised", inputs.denoised_file.toStdString(), metrics::compare(*inputs.denoised, *inputs.reference, o)});
     } catch (const std::exception& e) {
       r->rows.clear();
-      c->error = QString::fromStdString(e.what());
+      c.error = QString::fromStdString(e.what());
     }
-    // Only the newest request is shown.
-    if (generation != generation_) return nullptr;
     return c;
-  }));
+  });
 }
 
 void MetricsPanel::showReport() {

@@ -2,13 +2,12 @@
 // whole image or the ROI, computed by core's metrics on a worker thread (the same numbers residue-cli prints).
 #pragma once
 
-#include <QFutureWatcher>
 #include <QWidget>
-#include <atomic>
 #include <memory>
 #include <optional>
 
 #include "core/io/metrics_report.h"
+#include "ui/latest_task.h"
 
 class QComboBox;
 class QDoubleSpinBox;
@@ -52,10 +51,8 @@ class MetricsPanel : public QWidget {
     io::MetricsReport report;
     QString error;  // e.g. a reference of another size: shown instead of scores
   };
-  QFutureWatcher<std::shared_ptr<Computed>>* watcher_ = nullptr;
+  std::unique_ptr<LatestTask<Computed>> task_;
   QString error_;
-  std::atomic<int> generation_{0};  // read by workers to drop superseded results
-  bool delivered_ = true;  // the newest request's result has been shown
   Inputs last_;
   io::MetricsReport report_;
 };
