@@ -502,13 +502,7 @@ TEST(DenoiseJob, ErrorsAreValues) {
 
 // --- streamed denoise (band by band, bounded memory) ------------------------------------------------------
 
-Image read_exr_float(const std::filesystem::path& p) {
-  LoadOptions lo;
-  lo.load_reference = false;
-  return load_aov_stack({p}, lo).color.image;
-}
-
-TEST(DenoiseStreamed, EqualsTheInMemoryDenoise) {
+ TEST(DenoiseStreamed, EqualsTheInMemoryDenoise) {
   const auto dir = testing::shared_dataset("cycles-starter/s104");
   RESIDUE_REQUIRE_SHARED(dir);
   const nn::Model model = small_model(FeatureSet::Full, 2, 8, 9);
@@ -533,7 +527,7 @@ TEST(DenoiseStreamed, EqualsTheInMemoryDenoise) {
     const DenoiseStats stats = denoise_to_exr(reader, model, o, tmp / c.file, exr);
     EXPECT_EQ(stats.tile_size, c.tile);
     EXPECT_EQ(stats.energy_corrected, c.energy);
-    const Image streamed = read_exr_float(tmp / c.file);
+    const Image streamed = testing::read_exr_float(tmp / c.file);
     EXPECT_LT(max_rel_diff(streamed, in_memory), 1e-5) << c.file;
   }
   // The written file keeps the source's metadata and says which backend ran.
@@ -578,7 +572,7 @@ TEST(CliDenoise, LargeRendersAreStreamedWithinMaxMemory) {
       << text;
   EXPECT_NE(text.find("streamed band by band"), std::string::npos) << text;
   EXPECT_NE(text.find("denoised"), std::string::npos) << text;
-  EXPECT_EQ(read_exr_float(tmp / "s.exr").width(), 192);
+  EXPECT_EQ(testing::read_exr_float(tmp / "s.exr").width(), 192);
 }
 
 // --- the shipped models ---------------------------------------------------------------------------------

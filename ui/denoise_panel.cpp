@@ -87,6 +87,12 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
                          "(Gaussian, 16 px). Networks trained with L1 on log colour darken very noisy dark "
                          "regions by up to 8 %; this removes that bias (see docs/MODELS.md)"));
   row->addWidget(energy_);
+  blend_ = new QCheckBox(tr("Blend"), this);
+  blend_->setObjectName("varianceBlend");
+  blend_->setChecked(true);
+  blend_->setToolTip(tr("Variance blend (renders with a variance AOV): where the input is already clean (small "
+                        "relative variance over 7x7 pixels), keep more of it than of the network's output"));
+  row->addWidget(blend_);
   layout->addLayout(row);
 
   auto* buttons = new QHBoxLayout;
@@ -199,7 +205,8 @@ QString DenoisePanel::cacheKey() const {
   const QString model = selectedModel();
   if (model == "bilateral") return model;
   return QString("%1 %2 %3%4")
-      .arg(model, precision_->currentText(), backend_->currentData().toString(), energy_->isChecked() ? "" : " raw");
+      .arg(model, precision_->currentText(), backend_->currentData().toString(),
+           QString(energy_->isChecked() ? "" : " raw") + (blend_->isChecked() ? "" : " noblend"));
 }
 
 void DenoisePanel::start() {
@@ -272,6 +279,7 @@ void DenoisePanel::start() {
   options.roi = rect;
   options.tile = tile_->currentData().toInt();
   options.energy_correction = energy_->isChecked();
+  options.variance_blend = blend_->isChecked();
   running_description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->network.arch.to_string()),
                                                     precision_->currentText());
   if (!options.energy_correction) running_description_ += tr(", no energy correction");

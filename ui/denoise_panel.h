@@ -85,6 +85,7 @@ class DenoisePanel : public QWidget {
   QComboBox* tile_ = nullptr;
   QCheckBox* roi_only_ = nullptr;
   QCheckBox* energy_ = nullptr;
+  QCheckBox* blend_ = nullptr;
   QPushButton* denoise_ = nullptr;
   QPushButton* cancel_ = nullptr;
   QProgressBar* progress_ = nullptr;

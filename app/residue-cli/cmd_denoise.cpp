@@ -35,6 +35,7 @@ struct DenoiseCliOptions {
   size_t max_memory_mib = 4096;
   bool no_skip = false;
   bool no_energy_correction = false;
+  bool no_variance_blend = false;
   bool float_output = false;
   std::string compression = "zip";
   bool force = false;
@@ -81,6 +82,7 @@ int run(const DenoiseCliOptions& o) {
   d.max_memory = o.max_memory_mib << 20;
   d.skip_empty_tiles = !o.no_skip;
   d.energy_correction = !o.no_energy_correction;
+  d.variance_blend = !o.no_variance_blend;
   if (!o.roi.empty()) d.roi = parse_roi(o.roi);
 
   io::ExrWriteOptions w;
@@ -128,6 +130,7 @@ int run(const DenoiseCliOptions& o) {
       w.residue_attributes.attribute("residue:model", model_name);
       w.residue_attributes.attribute("residue:architecture", architecture);
       w.residue_attributes.attribute("residue:energy_correction", d.energy_correction ? 1 : 0);
+      w.residue_attributes.attribute("residue:variance_blend", d.variance_blend && layout.variance ? 1 : 0);
       if (streamed) {
         stats = denoise_to_exr(reader, model, d, o.output, w, on_tile);
       } else {
@@ -192,6 +195,9 @@ Command add_denoise_command(CLI::App& app) {
   cmd->add_flag("--no-energy-correction", o->no_energy_correction,
                 "Keep the network's output as it is (by default it is rescaled to the noisy input's local mean, "
                 "which removes the darkening of very noisy dark regions)");
+  cmd->add_flag("--no-variance-blend", o->no_variance_blend,
+                "Keep the network's output where the input is already clean (by default, when the render has a "
+                "variance AOV, pixels with a small relative variance keep more of the noisy input)");
   cmd->add_flag("--float", o->float_output, "Write 32-bit float channels (default: half)");
   cmd->add_option("--compression", o->compression, "EXR compression (zip, piz, dwaa, none, ...)")->capture_default_str();
   cmd->add_flag("-f,--force", o->force, "Replace the output if it exists");

@@ -33,6 +33,7 @@ struct EvalSetOptions {
   std::string split = "all";  // or the data set's "train" / "validation" cut (index.json)
   std::string perturb = "none";  // input-convention studies: see perturb_inputs
   std::string energy = "on";     // energy correction: on, off, or both (two columns per model)
+  std::string variance_blend = "on";  // with the data set's variance (from the two halves): on or off
   std::string out_md, out_json;
   int threads = 0;
   bool force = false;
@@ -160,6 +161,7 @@ int run(const EvalSetOptions& o) {
         d.precision = columns[ci].precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
         d.threads = o.threads;
         d.energy_correction = columns[ci].energy_correction;
+        d.variance_blend = o.variance_blend == "on";
         DenoiseStats st;
         out = denoise(stack, model, d, {}, &st);
         cell.seconds = st.seconds;
@@ -246,6 +248,9 @@ Command add_evaluate_set_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--split", o->split, "all, or the data set's train / validation cut (its index.json)")
       ->capture_default_str()->check(CLI::IsMember({"all", "train", "validation"}));
+  cmd->add_option("--variance-blend", o->variance_blend,
+                  "on or off: keep clean input pixels, from the variance of the scenes' two halves")
+      ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
   cmd->add_option("--energy-correction", o->energy,
                   "on, off, or both (a second column per model, labelled \"raw\", without the correction)")
       ->capture_default_str()->check(CLI::IsMember({"on", "off", "both"}));

@@ -9,6 +9,7 @@
 #include <tbb/task_arena.h>
 
 #include "core/denoise/energy_correction.h"
+#include "core/denoise/variance_blend.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
 #include "core/util/error.h"
@@ -44,6 +45,7 @@ struct TileRunner {
   nn::Backend& backend;
   const FeatureStats& stats;
   bool skip_empty;
+  float blend_tau;  // variance blend (when the stack has variance); 0: off
   Image features, result;
 
   bool run(const AovStack& src, const Rect& src_rect, const Rect& bounds, const Rect& t, Image& out, int64_t out_x0,
@@ -63,6 +65,7 @@ struct TileRunner {
       for (int64_t x = 0; x < t.width; ++x)
         for (int c = 0; c < 3; ++c)
           out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = expand_color(result.at(tx - in.x + x, ty - in.y + y, c));
+    if (blend_tau > 0 && src.variance) blend_by_variance(src, src_rect, bounds, t, out, out_x0, out_y0, blend_tau);
     return false;
   }
 };
@@ -131,8 +134,10 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
     local.tile_size = tile;
     local.backend = backend->description();
     local.features = arch.features;
+    local.variance_blended = options.variance_blend && stack.variance.has_value();
 
-    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, {}, {}};
+    TileRunner runner{arch,    *backend, fstats, options.skip_empty_tiles,
+                      options.variance_blend ? blend_tau(model.metadata) : 0.0f, {}, {}};
     for (size_t i = 0; i < tiles.size(); ++i) {
       const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
       if (skip) ++local.skipped;
@@ -202,6 +207,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     local.backend = backend->description();
     local.features = arch.features;
     local.energy_corrected = options.energy_correction;
+    local.variance_blended = options.variance_blend && layout.variance.has_value();
     exr.residue_attributes.attribute("residue:backend", local.backend);
 
     // Pass 1: the whole-image statistics the features need (the same depth sample denoise() draws).
@@ -227,7 +233,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       if (x1 > x0 && y1 > y0) tiles.push_back({x0, y0, x1 - x0, y1 - y0});
     }
     local.tiles = static_cast<int64_t>(tiles.size());
-    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, {}, {}};
+    TileRunner runner{arch,    *backend, fstats, options.skip_empty_tiles,
+                      options.variance_blend ? blend_tau(model.metadata) : 0.0f, {}, {}};
     EnergyCorrection correction(region);
     int64_t done = 0;
     struct Band {

@@ -5,6 +5,8 @@
 #include <random>
 #include <sys/wait.h>
 
+#include "core/aov/aov_loader.h"
+
 namespace residue::testing {
 
 TempDir::TempDir() {
@@ -38,6 +40,12 @@ static std::string shell_quote(const std::string& s) {
     else out += c;
   }
   return out + "'";
+}
+
+Image read_exr_float(const std::filesystem::path& p) {
+  LoadOptions lo;
+  lo.load_reference = false;
+  return load_aov_stack({p}, lo).color.image;
 }
 
 int run_cli(const std::vector<std::string>& args, std::string* output) { return run_program(RESIDUE_CLI_PATH, args, output); }

@@ -30,6 +30,9 @@ std::filesystem::path shared_dataset(const std::string& relative);
 Image random_image(int64_t width, int64_t height, int channels, unsigned seed, float lo = 0.0f,
                    float hi = 1.0f);
 
+// The colour of an EXR as float (no reference search): for reading back what a test wrote.
+Image read_exr_float(const std::filesystem::path& p);
+
 // Runs residue-cli with the given arguments; returns its exit code and captures stdout+stderr.
 int run_cli(const std::vector<std::string>& args, std::string* output = nullptr);
 // The same for any program.
