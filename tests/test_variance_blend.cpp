@@ -112,6 +112,16 @@ TEST(VarianceBlend, DenoiseUsesItOnlyWithVarianceAndTiledEqualsUntiled) {
   Image expect = raw;
   blend_by_variance(s, s.color.image.bounds(), s.color.image.bounds(), s.color.image.bounds(), expect, 0, 0);
   for (size_t i = 0; i < whole.size(); ++i) ASSERT_NEAR(whole.data()[i], expect.data()[i], 1e-5f * std::max(1.0f, expect.data()[i]));
+  // An explicit tau overrides the model's: a tiny one trusts the network everywhere, a huge one the input.
+  o.variance_blend = true;
+  o.blend_tau = 1e-30f;
+  const Image trust_network = denoise(s, model, o);
+  for (size_t i = 0; i < raw.size(); ++i)
+    ASSERT_NEAR(trust_network.data()[i], raw.data()[i], 1e-5f * std::max(1.0f, raw.data()[i]));
+  o.blend_tau = 1e30f;
+  const Image trust_input = denoise(s, model, o);
+  for (size_t i = 0; i < raw.size(); ++i) ASSERT_NEAR(trust_input.data()[i], s.color.image.data()[i], 1e-5f);
+  o.blend_tau = 0;
   AovStack without = s;
   without.variance.reset();
   o.variance_blend = true;

@@ -7,13 +7,10 @@ input and the cross-bilateral baseline, the brightness ratio, seconds per megapi
   /usr/bin/python3 tools/model_card.py resources/models/base.safetensors --eval eval.json \\
       --label base --dataset /work/datasets/residue-v1 --curve models/base_training.png > card.md
 """
-import argparse, json, os, struct
+import argparse, json, os, sys
 
-
-def metadata(path):
-    with open(path, "rb") as f:
-        n = struct.unpack("<Q", f.read(8))[0]
-        return json.loads(f.read(n)).get("__metadata__", {})
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from safetensors_meta import metadata  # noqa: E402
 
 
 def spp_of(dataset, scene):

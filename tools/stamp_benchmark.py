@@ -8,22 +8,10 @@ speed-versus-accuracy table reads it.
 Only the JSON header changes (the tensors are copied byte for byte); the file is replaced atomically.
 Run it on an idle machine: the numbers are what users compare models by.
 """
-import argparse, glob, json, os, platform, struct, subprocess, sys, tempfile
+import argparse, glob, json, os, platform, subprocess, sys
 
-def read_header(path):
-    with open(path, "rb") as f:
-        n = struct.unpack("<Q", f.read(8))[0]
-        header = json.loads(f.read(n))
-        data = f.read()
-    return header, data
-
-def write_header(path, header, data):
-    text = json.dumps(header, separators=(",", ":")).encode()
-    text += b" " * (-len(text) % 8)  # safetensors pads the header to 8 bytes
-    fd, tmp = tempfile.mkstemp(dir=os.path.dirname(path), prefix=".stamp-")
-    with os.fdopen(fd, "wb") as f:
-        f.write(struct.pack("<Q", len(text)) + text + data)
-    os.replace(tmp, path)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from safetensors_meta import read_header, write_header  # noqa: E402
 
 def cpu_name():
     try:

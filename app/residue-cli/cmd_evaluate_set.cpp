@@ -34,6 +34,7 @@ struct EvalSetOptions {
   std::string perturb = "none";  // input-convention studies: see perturb_inputs
   std::string energy = "on";     // energy correction: on, off, or both (two columns per model)
   std::string variance_blend = "on";  // with the data set's variance (from the two halves): on or off
+  float blend_tau = 0;                // 0: each model's own (or the default)
   std::string out_md, out_json;
   int threads = 0;
   bool force = false;
@@ -162,6 +163,7 @@ int run(const EvalSetOptions& o) {
         d.threads = o.threads;
         d.energy_correction = columns[ci].energy_correction;
         d.variance_blend = o.variance_blend == "on";
+        d.blend_tau = o.blend_tau;
         DenoiseStats st;
         out = denoise(stack, model, d, {}, &st);
         cell.seconds = st.seconds;
@@ -216,7 +218,7 @@ int run(const EvalSetOptions& o) {
                        {"mean_ratio", mean[ci].mean_ratio},
                        {"relmse_reduction", mean[0].relmse / mean[ci].relmse},
                        {"seconds_per_megapixel", mean[ci].seconds / megapixels_total}});
-  const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb},
+  const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb}, {"variance_blend", o.variance_blend}, {"blend_tau", o.blend_tau},
                             {"scenes", json_scenes}, {"summary", summary},
                             {"metrics", metrics::formula_text({})}};
 
@@ -251,6 +253,8 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("--variance-blend", o->variance_blend,
                   "on or off: keep clean input pixels, from the variance of the scenes' two halves")
       ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+  cmd->add_option("--blend-tau", o->blend_tau, "The variance blend's tau for every model (tools/fit_blend_tau.py)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--energy-correction", o->energy,
                   "on, off, or both (a second column per model, labelled \"raw\", without the correction)")
       ->capture_default_str()->check(CLI::IsMember({"on", "off", "both"}));

@@ -38,6 +38,12 @@ bool colour_is_empty(const Image& colour, const Rect& r) {
 
 Rect expand(const Rect& r, int64_t halo, const Rect& bounds);
 
+// The variance blend's tau for this denoise; 0 when it is off.
+float tau_for(const DenoiseOptions& o, const nn::Model& model) {
+  if (!o.variance_blend) return 0.0f;
+  return o.blend_tau > 0 ? o.blend_tau : blend_tau(model.metadata);
+}
+
 // Denoises one tile. `src` holds the image's pixels of `src_rect` (image coordinates; it covers the tile and
 // its halo); the result goes to `out` at the tile's position minus (out_x0, out_y0). Returns true when skipped.
 struct TileRunner {
@@ -137,7 +143,7 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
     local.variance_blended = options.variance_blend && stack.variance.has_value();
 
     TileRunner runner{arch,    *backend, fstats, options.skip_empty_tiles,
-                      options.variance_blend ? blend_tau(model.metadata) : 0.0f, {}, {}};
+                      tau_for(options, model), {}, {}};
     for (size_t i = 0; i < tiles.size(); ++i) {
       const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
       if (skip) ++local.skipped;
@@ -234,7 +240,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     }
     local.tiles = static_cast<int64_t>(tiles.size());
     TileRunner runner{arch,    *backend, fstats, options.skip_empty_tiles,
-                      options.variance_blend ? blend_tau(model.metadata) : 0.0f, {}, {}};
+                      tau_for(options, model), {}, {}};
     EnergyCorrection correction(region);
     int64_t done = 0;
     struct Band {

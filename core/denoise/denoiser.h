@@ -31,6 +31,7 @@ struct DenoiseOptions {
   bool skip_empty_tiles = true;                 // pass through tiles whose colour (with halo) is all zero
   bool energy_correction = true;                // rescale to the noisy input's local mean (energy_correction.h)
   bool variance_blend = true;                   // with a variance AOV: keep clean input pixels (variance_blend.h)
+  float blend_tau = 0;                          // the blend's tau; 0: the model's (residue.blend_tau) or the default
 };
 
 struct TileEvent {

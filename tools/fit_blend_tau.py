@@ -1,0 +1,53 @@
+#!/usr/bin/python3
+"""Fits a model's variance-blend tau on a data set's validation scenes and writes it into the model file
+("residue.blend_tau", read by core/denoise/variance_blend). tau stands for the network's own relative error:
+a better model should keep more of its output, so each model gets its own. For every candidate tau this runs
+`residue-cli evaluate-set --split validation --blend-tau TAU` (the scenes' variance comes from their two
+halves) and keeps the tau with the lowest mean relMSE, printing the whole sweep.
+
+  /usr/bin/python3 tools/fit_blend_tau.py resources/models/base.safetensors /work/datasets/residue-v1 \\
+      [--taus 0.0001,0.0003,0.001,0.003,0.01] [--cli build/release/app/residue-cli/residue-cli] [--dry-run]
+"""
+import argparse, json, os, subprocess, sys, tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from safetensors_meta import read_header, write_header  # noqa: E402
+
+
+def main():
+    here = os.path.dirname(os.path.abspath(__file__))
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("model")
+    p.add_argument("dataset")
+    p.add_argument("--taus", default="0.0001,0.0003,0.001,0.003,0.01")
+    p.add_argument("--cli", default=os.path.join(here, "..", "build", "release", "app", "residue-cli", "residue-cli"))
+    p.add_argument("--dry-run", action="store_true", help="print the sweep, leave the model file as it is")
+    a = p.parse_args()
+
+    label = os.path.splitext(os.path.basename(a.model))[0]
+    sweep = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for tau in [float(t) for t in a.taus.split(",")]:
+            out = os.path.join(tmp, f"{tau}.json")
+            subprocess.run([a.cli, "evaluate-set", a.dataset, "--split", "validation", "--models", a.model,
+                            "--blend-tau", str(tau), "--json", out, "--force"], check=True,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            summary = {r["label"]: r for r in json.load(open(out))["summary"]}
+            relmse, ssim = summary[label]["mean_relmse"], summary[label]["mean_ssim"]
+            sweep.append((relmse, tau, ssim))
+            print(f"tau {tau:<8g} mean relMSE {relmse:.5f}  SSIM {ssim:.4f}", flush=True)
+    best = min(sweep)
+    print(f"best tau {best[1]:g} (mean relMSE {best[0]:.5f})")
+    if a.dry_run:
+        return
+    header, data = read_header(a.model)
+    meta = header.setdefault("__metadata__", {})
+    meta["residue.blend_tau"] = f"{best[1]:g}"
+    meta["blend_tau_fit"] = json.dumps({"dataset": os.path.abspath(a.dataset), "split": "validation",
+                                        "sweep": [{"tau": t, "relmse": r, "ssim": s} for r, t, s in sweep]})
+    write_header(a.model, header, data)
+    print(f"wrote residue.blend_tau = {best[1]:g} into {a.model}")
+
+
+if __name__ == "__main__":
+    main()
