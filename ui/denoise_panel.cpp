@@ -283,6 +283,7 @@ void DenoisePanel::start() {
   running_description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->network.arch.to_string()),
                                                     precision_->currentText());
   if (!options.energy_correction) running_description_ += tr(", no energy correction");
+  if (stack->variance) running_description_ += options.variance_blend ? tr(", variance blend") : tr(", no variance blend");
   if (variant != model) running_description_ += tr(" — picked for the AOVs this render has");
   status_->setText(tr("Denoising with %1...").arg(running_description_));
   emit started(running_description_);
