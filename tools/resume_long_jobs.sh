@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Starts (or resumes) the two long background jobs of issue 5 side by side, at the same lowered priority so
+# they share the cores: rendering the data set, and training the zoo on it. Both pick up where they stopped
+# (the renderer skips finished scenes; each model resumes from its checkpoint and is skipped when done).
+#
+#   tools/resume_long_jobs.sh [DATASET_DIR] [ZOO_DIR] [LOG_DIR]
+#   defaults: /work/datasets/residue-v1 /work/train/zoo /work/logs
+#
+# Environment: ZOO_MODELS (default: base base-albedo-normal base-color paper tiny small), as for train_zoo.sh.
+set -euo pipefail
+repo=$(cd "$(dirname "$0")/.." && pwd)
+data=${1:-/work/datasets/residue-v1}
+zoo=${2:-/work/train/zoo}
+logs=${3:-/work/logs}
+mkdir -p "$data" "$zoo" "$logs"
+cd "$repo"
+if pgrep -f "render_dataset.py --out $data" >/dev/null; then
+  echo "resume_long_jobs: the renderer is already running"
+else
+  nohup nice -n 10 /usr/bin/python3 tools/datagen/render_dataset.py --out "$data" --seeds 1000-1329 \
+    >>"$logs/render.out" 2>&1 &
+  echo "resume_long_jobs: renderer started (log $logs/render.out)"
+fi
+if pgrep -f "train_zoo.sh $zoo" >/dev/null; then
+  echo "resume_long_jobs: the zoo training is already running"
+else
+  ZOO_MODELS=${ZOO_MODELS:-"base base-albedo-normal base-color paper tiny small"} ZOO_BF16=1 \
+    nohup nice -n 10 tools/train_zoo.sh "$zoo" "$data" "$repo/../shared/datasets/cycles-starter" \
+    >>"$logs/zoo.out" 2>&1 &
+  echo "resume_long_jobs: zoo training started (logs $zoo/<model>.out, $logs/zoo.out)"
+fi
