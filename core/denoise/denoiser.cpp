@@ -140,10 +140,10 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
     local.tile_size = tile;
     local.backend = backend->description();
     local.features = arch.features;
-    local.variance_blended = options.variance_blend && stack.variance.has_value();
+    const float tau = tau_for(options, model);
+    local.variance_blended = tau > 0 && stack.variance.has_value();
 
-    TileRunner runner{arch,    *backend, fstats, options.skip_empty_tiles,
-                      tau_for(options, model), {}, {}};
+    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, tau, {}, {}};
     for (size_t i = 0; i < tiles.size(); ++i) {
       const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
       if (skip) ++local.skipped;
@@ -213,7 +213,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     local.backend = backend->description();
     local.features = arch.features;
     local.energy_corrected = options.energy_correction;
-    local.variance_blended = options.variance_blend && layout.variance.has_value();
+    const float tau = tau_for(options, model);
+    local.variance_blended = tau > 0 && layout.variance.has_value();
     exr.residue_attributes.attribute("residue:backend", local.backend);
 
     // Pass 1: the whole-image statistics the features need (the same depth sample denoise() draws).
@@ -239,8 +240,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       if (x1 > x0 && y1 > y0) tiles.push_back({x0, y0, x1 - x0, y1 - y0});
     }
     local.tiles = static_cast<int64_t>(tiles.size());
-    TileRunner runner{arch,    *backend, fstats, options.skip_empty_tiles,
-                      tau_for(options, model), {}, {}};
+    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, tau, {}, {}};
     EnergyCorrection correction(region);
     int64_t done = 0;
     struct Band {
