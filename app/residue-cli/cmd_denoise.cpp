@@ -154,6 +154,9 @@ int run(const DenoiseCliOptions& o) {
   std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
               stats.seconds / megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
               static_cast<long long>(stats.skipped));
+  if (stats.guarded_values > 0)
+    std::printf("guard      %lld output values clamped where the network overshot its input's range\n",
+                static_cast<long long>(stats.guarded_values));
   if (layout.reference) {
     // Scored from the file written, as the user will see it.
     const AovStack stack = reader.read(whole);

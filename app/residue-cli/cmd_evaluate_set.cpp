@@ -34,6 +34,7 @@ struct EvalSetOptions {
   std::string perturb = "none";  // input-convention studies: see perturb_inputs
   std::string energy = "on";     // energy correction: on, off, or both (two columns per model)
   std::string variance_blend = "on";  // with the data set's variance (from the two halves): on or off
+  std::string output_guard = "on";    // bound the network's output by its receptive field's max: on or off
   float blend_tau = 0;                // 0: each model's own (or the default)
   std::string out_md, out_json;
   int threads = 0;
@@ -43,6 +44,7 @@ struct EvalSetOptions {
 struct Cell {
   double relmse = 0, ssim = 0, seconds = 0;
   double mean_ratio = 1;  // mean of the output over the mean of the reference (brightness bias)
+  int64_t guarded = 0;    // output values the guard clamped
 };
 
 // Changes a scene's AOVs the way another renderer's conventions would, to measure what the models make of
@@ -163,17 +165,19 @@ int run(const EvalSetOptions& o) {
         d.threads = o.threads;
         d.energy_correction = columns[ci].energy_correction;
         d.variance_blend = o.variance_blend == "on";
+        d.output_guard = o.output_guard == "on";
         d.blend_tau = o.blend_tau;
         DenoiseStats st;
         out = denoise(stack, model, d, {}, &st);
         cell.seconds = st.seconds;
+        cell.guarded = st.guarded_values;
       }
       const auto s = metrics::compare(out, stack.reference->image);
       cell.relmse = s.relmse;
       cell.ssim = s.ssim;
       cell.mean_ratio = mean_ratio(out, stack.reference->image);
       js["results"][columns[ci].label] = {{"relmse", s.relmse}, {"ssim", s.ssim}, {"seconds", cell.seconds},
-                                         {"mean_ratio", cell.mean_ratio}, {"model_file", model_file},
+                                         {"mean_ratio", cell.mean_ratio}, {"model_file", model_file}, {"guarded_values", cell.guarded},
                                          {"energy_correction", !columns[ci].model.empty() && columns[ci].model != "bilateral" && columns[ci].energy_correction}};
     }
     json_scenes.push_back(js);
@@ -199,6 +203,7 @@ int run(const EvalSetOptions& o) {
       mean[ci].ssim += c.ssim / static_cast<double>(scenes.size());
       mean[ci].seconds += c.seconds;
       mean[ci].mean_ratio += c.mean_ratio / static_cast<double>(scenes.size());
+      mean[ci].guarded += c.guarded;
     }
     md << "\n";
   }
@@ -208,6 +213,9 @@ int run(const EvalSetOptions& o) {
        << (columns[ci].model.empty() ? "" : " " + fmt("%.2f", mean[ci].seconds / megapixels_total) + " s/MP |");
   md << "\n\nMean brightness ratio (output / reference, 1 = unbiased):";
   for (size_t ci = 0; ci < columns.size(); ++ci) md << " " << columns[ci].label << " " << fmt("%.4f", mean[ci].mean_ratio);
+  md << "\n\nOutput values clamped by the guard (all scenes):";
+  for (size_t ci = 0; ci < columns.size(); ++ci)
+    if (!columns[ci].model.empty() && columns[ci].model != "bilateral") md << " " << columns[ci].label << " " << mean[ci].guarded;
   if (o.perturb != "none") md << "\n\nInputs perturbed: " << o.perturb;
   md << "\n";
 
@@ -218,7 +226,7 @@ int run(const EvalSetOptions& o) {
                        {"mean_ratio", mean[ci].mean_ratio},
                        {"relmse_reduction", mean[0].relmse / mean[ci].relmse},
                        {"seconds_per_megapixel", mean[ci].seconds / megapixels_total}});
-  const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb}, {"variance_blend", o.variance_blend}, {"blend_tau", o.blend_tau},
+  const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb}, {"variance_blend", o.variance_blend}, {"output_guard", o.output_guard}, {"blend_tau", o.blend_tau},
                             {"scenes", json_scenes}, {"summary", summary},
                             {"metrics", metrics::formula_text({})}};
 
@@ -252,6 +260,9 @@ Command add_evaluate_set_command(CLI::App& app) {
       ->capture_default_str()->check(CLI::IsMember({"all", "train", "validation"}));
   cmd->add_option("--variance-blend", o->variance_blend,
                   "on or off: keep clean input pixels, from the variance of the scenes' two halves")
+      ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+  cmd->add_option("--output-guard", o->output_guard,
+                  "on or off: clamp the network's output to its receptive field's brightest input (x2)")
       ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
   cmd->add_option("--blend-tau", o->blend_tau, "The variance blend's tau for every model (tools/fit_blend_tau.py)")
       ->check(CLI::PositiveNumber);

@@ -52,6 +52,8 @@ struct Options {
   bool force = false;
   bool bf16 = false;  // CPU autocast: convolutions in bfloat16, weights, loss and optimiser in float
   std::string loss = "l1-log";  // or "l1-log+mean": see training_loss
+  int precise_bn = 0;            // batches for recalibrating BN statistics before validation and export; 0: off
+  double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
 };
 
 struct Validation {
@@ -189,6 +191,19 @@ int run(const Options& o) {
   int loss_n = 0;
   auto t_last = std::chrono::steady_clock::now();
   Validation last_val;
+  bool validated = false;  // in this run
+  const int freeze_step = static_cast<int>(std::lround(o.freeze_bn_after * o.steps));
+  auto frozen = [&] { return step >= freeze_step && o.freeze_bn_after < 1.0; };
+  auto recalibrate = [&] {
+    if (o.precise_bn <= 0) return;
+    if (frozen() && step > freeze_step) return;  // the statistics were fixed at freeze_step and trained with
+    std::mt19937 bn_rng(o.seed * 7919u + static_cast<uint32_t>(step));
+    train::recalibrate_batch_norm(net, [&] {
+      torch::Tensor x, y;
+      set.sample(bn_rng, o.batch, x, y);
+      return x;
+    }, o.precise_bn);
+  };
   while (step < o.steps) {
     // Cosine decay from lr to lr / 100, after 100 steps of linear warm-up.
     const double progress = static_cast<double>(step) / o.steps;
@@ -196,7 +211,9 @@ int run(const Options& o) {
     if (step < 100) lr *= (step + 1) / 100.0;
     for (auto& g : opt.param_groups()) static_cast<torch::optim::AdamOptions&>(g.options()).lr(lr);
 
+    if (step == freeze_step && frozen()) recalibrate();  // freeze the best statistics there are
     net->train();
+    if (frozen()) train::freeze_batch_norm(net);
     torch::Tensor x, y;
     set.sample(rng, o.batch, x, y);
     opt.zero_grad();
@@ -224,9 +241,11 @@ int run(const Options& o) {
       const double sps = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_last).count() / loss_n;
       std::string val_cols = ",,,";
       if (do_val) {
+        recalibrate();
         net->eval();
         torch::NoGradGuard no_grad;
         last_val = validate(net, val_scenes, tmp_model);
+        validated = true;
         val_cols = std::to_string(last_val.relmse) + "," + std::to_string(last_val.ssim) + "," +
                    std::to_string(last_val.noisy_relmse) + "," + std::to_string(last_val.mean_ratio);
       }
@@ -245,6 +264,13 @@ int run(const Options& o) {
     }
   }
 
+  if (!validated) {  // a finished checkpoint, exported again (e.g. with --precise-bn)
+    recalibrate();
+    net->eval();
+    torch::NoGradGuard no_grad;
+    if (!val_scenes.empty()) last_val = validate(net, val_scenes, tmp_model);
+    std::printf("step %6d  val relMSE %f SSIM %f mean ratio %f\n", step, last_val.relmse, last_val.ssim, last_val.mean_ratio);
+  }
   net->eval();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
@@ -252,7 +278,8 @@ int run(const Options& o) {
                              {"loss", o.loss == "l1-log" ? "L1 on log(1+c)" : "L1 on log(1+c) + L1 of the log patch means"}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
                              {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
                              {"wall_s", wall_before + wall},
-                             {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features}};
+                             {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features},
+                             {"precise_bn_batches", o.precise_bn}, {"freeze_bn_after", o.freeze_bn_after}};
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -293,6 +320,14 @@ int main(int argc, char** argv) {
   app.add_flag("-f,--force", o.force, "Replace the output model file");
   app.add_option("--loss", o.loss, "l1-log (the paper's), or l1-log+mean (adds the L1 of the log patch means)")
       ->capture_default_str()->check(CLI::IsMember({"l1-log", "l1-log+mean"}));
+  app.add_option("--precise-bn", o.precise_bn,
+                 "Before each validation and the export, recompute BN statistics as the plain mean over N batches "
+                 "(0: keep the running averages)")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
+  app.add_option("--freeze-bn-after", o.freeze_bn_after,
+                 "Fraction of the steps after which BN uses fixed statistics (recomputed there with --precise-bn) "
+                 "while training goes on: the last steps train the network as inference runs it (1: never)")
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0));
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -61,6 +61,29 @@ void initialise(ResidueNet& net) {
   }
 }
 
+void recalibrate_batch_norm(ResidueNet& net, const std::function<torch::Tensor()>& next_batch, int batches) {
+  std::vector<torch::nn::BatchNorm2dImpl*> norms;
+  for (const auto& m : net->modules(/*include_self=*/false))
+    if (auto* bn = dynamic_cast<torch::nn::BatchNorm2dImpl*>(m.get())) norms.push_back(bn);
+  for (auto* bn : norms) {
+    bn->reset_running_stats();
+    bn->options.momentum(c10::nullopt);  // a cumulative average over the batches below
+  }
+  const bool was_training = net->is_training();
+  net->train();
+  {
+    torch::NoGradGuard no_grad;
+    for (int i = 0; i < batches; ++i) net->forward(next_batch());
+  }
+  for (auto* bn : norms) bn->options.momentum(0.1);
+  net->train(was_training);
+}
+
+void freeze_batch_norm(ResidueNet& net) {
+  for (const auto& m : net->modules(/*include_self=*/false))
+    if (auto* bn = dynamic_cast<torch::nn::BatchNorm2dImpl*>(m.get())) bn->eval();
+}
+
 nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::string> metadata) {
   nn::SafetensorsFile f;
   f.metadata = std::move(metadata);

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <string>
 
@@ -57,6 +58,15 @@ TORCH_MODULE(ResidueNet);
 
 // He initialisation (for PReLU), zero biases, BN gamma 1 / beta 0; PReLU slopes 0.25.
 void initialise(ResidueNet& net);
+
+// "Precise BN": replaces every BatchNorm's running statistics (an exponential average of the last few dozen
+// batches, which drifts with the weights and with one unusual batch) by their plain average over `batches`
+// batches drawn by `next_batch`, in fp32 with the current weights. Inference uses only these statistics.
+void recalibrate_batch_norm(ResidueNet& net, const std::function<torch::Tensor()>& next_batch, int batches);
+
+// Puts every BatchNorm in inference mode (its running statistics, no updates) while the rest trains: the
+// network is then fine-tuned with the normalisation it will be run with. Call after net->train().
+void freeze_batch_norm(ResidueNet& net);
 
 // The state dict as a model file (F32 tensors; BN as trained, folded by core on load) with metadata.
 nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::string> metadata);

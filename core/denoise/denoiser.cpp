@@ -9,6 +9,7 @@
 #include <tbb/task_arena.h>
 
 #include "core/denoise/energy_correction.h"
+#include "core/denoise/output_guard.h"
 #include "core/denoise/variance_blend.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
@@ -51,7 +52,9 @@ struct TileRunner {
   nn::Backend& backend;
   const FeatureStats& stats;
   bool skip_empty;
+  bool guard;       // clamp overshoots to the receptive field's brightest input (output_guard.h)
   float blend_tau;  // variance blend (when the stack has variance); 0: off
+  int64_t guarded = 0;  // values the guard clamped so far
   Image features, result;
 
   bool run(const AovStack& src, const Rect& src_rect, const Rect& bounds, const Rect& t, Image& out, int64_t out_x0,
@@ -67,6 +70,7 @@ struct TileRunner {
     }
     make_features(src, arch.features, stats, in, features);
     backend.run(features, result);
+    if (guard) guarded += guard_output(features, {tx - in.x, ty - in.y, t.width, t.height}, arch.halo(), result);
     for (int64_t y = 0; y < t.height; ++y)
       for (int64_t x = 0; x < t.width; ++x)
         for (int c = 0; c < 3; ++c)
@@ -143,12 +147,13 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
     const float tau = tau_for(options, model);
     local.variance_blended = tau > 0 && stack.variance.has_value();
 
-    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, tau, {}, {}};
+    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}};
     for (size_t i = 0; i < tiles.size(); ++i) {
       const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
       if (skip) ++local.skipped;
       if (on_tile && !on_tile({tiles[i], skip, static_cast<int64_t>(i + 1), local.tiles}, output)) throw Cancelled();
     }
+    local.guarded_values = runner.guarded;
     if (options.energy_correction) {
       EnergyCorrection correction(region);
       correction.accumulate(stack.color.image, 0, output, 0, region.y, region.height);
@@ -240,7 +245,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       if (x1 > x0 && y1 > y0) tiles.push_back({x0, y0, x1 - x0, y1 - y0});
     }
     local.tiles = static_cast<int64_t>(tiles.size());
-    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, tau, {}, {}};
+    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}};
     EnergyCorrection correction(region);
     int64_t done = 0;
     struct Band {
@@ -274,6 +279,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       if (options.energy_correction) correction.apply(band.out, band.y0, y0, rows);
       return std::move(band.out);
     });
+    local.guarded_values = runner.guarded;
   });
   local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return local;

@@ -2,9 +2,10 @@
 //
 // The image (or the ROI) is cut into square tiles; each tile is extended by a halo equal to the network's
 // receptive field (one pixel per 3x3 conv), run through the backend, and only its centre is kept, so tiled
-// output equals untiled output. Tiles run one after another, each using every allowed thread; where the render
-// has a variance AOV each tile is blended back towards its clean input pixels. Then, unless turned off, the
-// energy correction rescales the region to the noisy input's local mean.
+// output equals untiled output; the guard bounds it by the brightest input within that halo. Tiles run one
+// after another, each using every allowed thread; where the render has a variance AOV each tile is blended
+// back towards its clean input pixels. Then, unless turned off, the energy correction rescales the region to
+// the noisy input's local mean.
 #pragma once
 
 #include <cstddef>
@@ -29,6 +30,7 @@ struct DenoiseOptions {
   int threads = 0;                              // 0: every core
   std::optional<Rect> roi;                      // denoise only this rectangle; elsewhere the noisy colour
   bool skip_empty_tiles = true;                 // pass through tiles whose colour (with halo) is all zero
+  bool output_guard = true;                     // clamp overshoots to the receptive field's max (output_guard.h)
   bool energy_correction = true;                // rescale to the noisy input's local mean (energy_correction.h)
   bool variance_blend = true;                   // with a variance AOV: keep clean input pixels (variance_blend.h)
   float blend_tau = 0;                          // the blend's tau; 0: the model's (residue.blend_tau) or the default
@@ -50,6 +52,7 @@ struct DenoiseStats {
   FeatureSet features = FeatureSet::Full;
   bool energy_corrected = false;
   bool variance_blended = false;  // the option was on and the render has variance
+  int64_t guarded_values = 0;     // output values the guard clamped (channels, not pixels)
 };
 
 // Thrown when the tile callback asks to stop.

@@ -1,0 +1,27 @@
+// Output guard: bounds the network's output by the brightest input it could see.
+//
+// A network extrapolates badly on inputs brighter than its training patches held: a base model at 4000
+// steps turned a small emitter of (57, 69, 81) into (765, 0, 517292), a log-space overshoot of 9 in one
+// channel, and 25 such pixels made a validation scene's relMSE 306. Denoising averages; it cannot make a
+// pixel brighter than everything in its receptive field. So each output channel, in the network's log space
+// log(1 + x), is clamped to the maximum of the same input channel over the receptive field (the tile's halo)
+// plus log 2: in linear terms, at most 2 (1 + max) - 1. The bound is far from anything a good output needs
+// (on the validation scenes it clamps almost nothing) and costs a separable max filter per tile.
+#pragma once
+
+#include <cstdint>
+
+#include "core/image/image.h"
+
+namespace residue {
+
+struct OutputGuard {
+  static constexpr float kMargin = 0.6931472f;  // log 2
+};
+
+// Clamps `output`'s first three channels (log space) inside `tile` (in `output`'s and `features`'s
+// coordinates, which are the same rectangle) to the max of `features`'s first three channels (the log colour)
+// within `radius` pixels, clipped to `features`, plus the margin. Returns how many values it clamped.
+int64_t guard_output(const Image& features, const Rect& tile, int64_t radius, Image& output);
+
+}  // namespace residue
