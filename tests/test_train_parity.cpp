@@ -93,6 +93,58 @@ TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
 // The trainer end to end on three real scenes: a dilated model trains 10 steps, a second run with --steps 20
 // resumes from the checkpoint (not from scratch), the log goes on, the training time adds up, and core loads
 // the exported file.
+// Precise BN: the running statistics become the plain mean of the batches' statistics, computed here by hand
+// for the first BatchNorm (blocks.0.bn1, fed by blocks.0.conv1 of the head's output).
+TEST(TrainBatchNorm, RecalibrationAveragesTheBatchesStatistics) {
+  torch::manual_seed(5);
+  train::ResidueNet net(nn::Architecture{2, 8, FeatureSet::Full});
+  train::initialise(net);
+  std::vector<torch::Tensor> batches;
+  for (int i = 0; i < 6; ++i) batches.push_back(torch::randn({3, 9, 12, 12}) * (0.5 + i) + 0.1 * i);
+  size_t next = 0;
+  train::recalibrate_batch_norm(net, [&] { return batches[next++]; }, 6);
+  ASSERT_EQ(next, 6u);
+  auto* block = net->blocks[0]->as<train::ResBlock>();
+  torch::Tensor mean = torch::zeros({8}), var = torch::zeros({8});
+  {
+    torch::NoGradGuard no_grad;
+    for (const auto& x : batches) {
+      const auto h = block->conv1(net->head->prelu(net->head->conv(x)));
+      mean += h.mean({0, 2, 3}) / 6.0;
+      var += h.var({0, 2, 3}, /*unbiased=*/true) / 6.0;
+    }
+  }
+  EXPECT_TRUE(torch::allclose(block->bn1->running_mean, mean, 1e-4, 1e-5)) << block->bn1->running_mean << mean;
+  EXPECT_TRUE(torch::allclose(block->bn1->running_var, var, 1e-4, 1e-5)) << block->bn1->running_var << var;
+  EXPECT_TRUE(net->is_training()) << "the mode is restored";
+  EXPECT_EQ(block->bn1->options.momentum().value(), 0.1) << "and the momentum";
+}
+
+// Frozen BN: training steps leave the statistics alone and the training forward is the inference forward.
+TEST(TrainBatchNorm, FrozenStatisticsTrainAsInferenceRuns) {
+  torch::manual_seed(6);
+  train::ResidueNet net(nn::Architecture{2, 8, FeatureSet::Full});
+  train::initialise(net);
+  net->train();
+  {
+    torch::NoGradGuard no_grad;
+    for (int i = 0; i < 3; ++i) net->forward(torch::randn({4, 9, 12, 12}));
+  }
+  const torch::Tensor stats = net->blocks[1]->as<train::ResBlock>()->bn2->running_var.clone();
+  const torch::Tensor x = torch::randn({2, 9, 12, 12}) * 3;
+  net->train();
+  train::freeze_batch_norm(net);
+  const torch::Tensor trained = net->forward(x);
+  trained.abs().mean().backward();  // gradients still reach the BN's affine parameters
+  EXPECT_TRUE(net->blocks[1]->as<train::ResBlock>()->bn2->weight.grad().defined());
+  EXPECT_TRUE(torch::equal(net->blocks[1]->as<train::ResBlock>()->bn2->running_var, stats));
+  net->eval();
+  torch::NoGradGuard no_grad;
+  EXPECT_TRUE(torch::allclose(trained.detach(), net->forward(x), 1e-5, 1e-6));
+  net->train();
+  EXPECT_FALSE(torch::allclose(net->forward(x), trained.detach(), 1e-3, 1e-3)) << "unfrozen, batch statistics differ";
+}
+
 TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {
   const auto starter = testing::shared_dataset("cycles-starter");
   RESIDUE_REQUIRE_SHARED(starter / "s100");
@@ -104,7 +156,8 @@ TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {
     return testing::run_program(RESIDUE_TRAIN_PATH,
                                 {"--data", (tmp / "data").string(), "--val", "1", "--arch", "2/8", "--dilations", "1,2",
                                  "--patch", "32", "--batch", "2", "--steps", std::to_string(steps), "--val-every", "10",
-                                 "--checkpoint-every", "5", "--threads", "1", "-o", out, "--log", csv, "--force"},
+                                 "--checkpoint-every", "5", "--threads", "1", "--precise-bn", "3", "--freeze-bn-after", "0.75",
+                                 "-o", out, "--log", csv, "--force"},
                                 text);
   };
   std::string first, second;
@@ -128,6 +181,8 @@ TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {
   EXPECT_EQ(model.network.arch.dilations, (std::vector<int>{1, 2}));
   const auto training = nlohmann::json::parse(model.metadata.at("training"));
   EXPECT_EQ(training.at("steps"), 20);
+  EXPECT_EQ(training.at("precise_bn_batches"), 3);
+  EXPECT_EQ(training.at("freeze_bn_after"), 0.75);
   EXPECT_GT(training.at("wall_s").get<double>(), training.at("wall_s_this_run").get<double>())
       << "the first run's time is counted";
   const auto validation = nlohmann::json::parse(model.metadata.at("validation"));
