@@ -10,6 +10,8 @@
 # base-variance (the noise-level input), base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
 # ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=4000), ZOO_BF16=1 to train with CPU autocast
 # to bfloat16 (1.5-1.9x faster here), RESIDUE_BUILD (build/release).
+# Every model recomputes its BN statistics over 100 batches before each validation (--precise-bn) and trains
+# its last 10 % with them fixed (--freeze-bn-after): docs/MODELS.md, "Batch norm at inference".
 # Copy the finished OUT_DIR/<name>.safetensors into resources/models/ and run tools/stamp_benchmark.py.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
@@ -38,6 +40,7 @@ for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color paper}; 
   echo "train_zoo: $name (${arch[$name]}, ${features[$name]}, $n steps)"
   "$train" --data "$@" --arch "${arch[$name]}" --features "${features[$name]}" --steps "$n" \
     --val-every $(( n / 10 )) --checkpoint-every 250 --threads "$threads" ${ZOO_BF16:+--bf16} ${extra[$name]:-} \
+    --precise-bn 100 --freeze-bn-after 0.9 \
     --name "$name" -o "$out/$name.safetensors" \
     --log "$out/$name.csv" | tee -a "$out/$name.out"
   /usr/bin/python3 "$repo/tools/plot_training.py" "$out/$name.csv" "$out/${name}_training.png" || true
