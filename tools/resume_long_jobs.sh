@@ -6,6 +6,8 @@
 #   tools/resume_long_jobs.sh [DATASET_DIR] [ZOO_DIR] [LOG_DIR]
 #   defaults: /work/datasets/residue-v1 /work/train/zoo /work/logs
 #
+# The zoo is trained on the finished set only (the models must be trained on all of it): until every one of
+# the 330 scenes has its reference, only the renderer runs; ZOO_NOW=1 trains beside it anyway.
 # Environment: ZOO_MODELS (default: base base-albedo-normal base-color paper tiny small), as for train_zoo.sh.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
@@ -21,7 +23,10 @@ else
     >>"$logs/render.out" 2>&1 &
   echo "resume_long_jobs: renderer started (log $logs/render.out)"
 fi
-if pgrep -f "train_zoo.sh $zoo" >/dev/null; then
+rendered=$(find "$data" -mindepth 2 -maxdepth 2 -name reference.exr | wc -l)
+if [ "$rendered" -lt 330 ] && [ "${ZOO_NOW:-0}" != 1 ]; then
+  echo "resume_long_jobs: $rendered of 330 scenes rendered; the zoo waits for the finished set (ZOO_NOW=1 to start it)"
+elif pgrep -f "train_zoo.sh $zoo" >/dev/null; then
   echo "resume_long_jobs: the zoo training is already running"
 else
   ZOO_MODELS=${ZOO_MODELS:-"base base-albedo-normal base-color paper tiny small"} ZOO_BF16=1 \
