@@ -25,26 +25,11 @@ namespace residue {
 namespace {
 
 using testing::random_image;
+using testing::random_stack;
 using testing::TempDir;
 
 const float kNan = std::numeric_limits<float>::quiet_NaN();
 const float kInf = std::numeric_limits<float>::infinity();
-
-// A stack with every AOV, random but plausible values.
-AovStack make_stack(int64_t w, int64_t h, unsigned seed) {
-  AovStack s;
-  s.convention = "test";
-  s.color.image = random_image(w, h, 3, seed, 0.0f, 4.0f);
-  s.color.source.file = "test.exr";
-  s.albedo = Aov{random_image(w, h, 3, seed + 1, 0.0f, 1.0f), {}, {}, 0};
-  s.normal = Aov{random_image(w, h, 3, seed + 2, -1.0f, 1.0f), {}, {}, 0};
-  s.depth = Aov{random_image(w, h, 1, seed + 3, 1.0f, 10.0f), {}, {}, 0};
-  s.normal_space = NormalSpace::Camera;
-  s.data_window = {0, 0, w, h};
-  s.display_width = w;
-  s.display_height = h;
-  return s;
-}
 
 nn::Model small_model(FeatureSet set = FeatureSet::Full, int blocks = 2, int width = 8, uint32_t seed = 1) {
   nn::Model m;
@@ -96,7 +81,7 @@ TEST(Features, ColourTransformAndInverse) {
 }
 
 TEST(Features, PlanesInPaperOrder) {
-  AovStack s = make_stack(4, 3, 5);
+  AovStack s = random_stack(4, 3, 5);
   s.depth->image.at(1, 1) = 0.0f;  // background
   const FeatureStats stats = compute_feature_stats(s);
   std::vector<float> hits;
@@ -122,7 +107,7 @@ TEST(Features, PlanesInPaperOrder) {
 }
 
 TEST(Features, WorldNormalsRotatedByTheCamera) {
-  AovStack s = make_stack(1, 1, 2);
+  AovStack s = random_stack(1, 1, 2);
   s.normal_space = NormalSpace::World;
   // A camera rotated 90 degrees about world z: world +x maps to camera +y.
   s.world_to_camera = std::array<double, 16>{0, -1, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
@@ -138,7 +123,7 @@ TEST(Features, WorldNormalsRotatedByTheCamera) {
 }
 
 TEST(Features, NoiseLevelPlaneIsTheLogStandardDeviation) {
-  AovStack s = make_stack(3, 2, 4);
+  AovStack s = random_stack(3, 2, 4);
   EXPECT_EQ(feature_set_for(s), FeatureSet::Full);
   EXPECT_THROW(check_features_available(s, FeatureSet::FullVariance), Error);
   s.variance = Aov{random_image(3, 2, 3, 9, 0.0f, 2.0f), {}, {}, 0};
@@ -167,7 +152,7 @@ TEST(Features, NoiseLevelPlaneIsTheLogStandardDeviation) {
 }
 
 TEST(Features, MissingAovNamesWhatIsMissing) {
-  AovStack s = make_stack(2, 2, 1);
+  AovStack s = random_stack(2, 2, 1);
   s.depth.reset();
   EXPECT_EQ(feature_set_for(s), FeatureSet::ColorAlbedoNormal);
   try {
@@ -315,7 +300,7 @@ TEST(Denoise, TiledEqualsUntiled) {
   dilated.network = nn::random_network({3, 8, FeatureSet::Full, {1, 4}}, 6);
   for (const nn::Model& model : {small_model(), dilated})
     for (auto [w, h] : std::vector<std::pair<int64_t, int64_t>>{{1, 1}, {3, 5}, {40, 33}, {1000, 7}}) {
-      const AovStack s = make_stack(w, h, 3);
+      const AovStack s = random_stack(w, h, 3);
       const Image whole = denoise(s, model, eigen_options(std::max(w, h)));
       for (int64_t tile : {16, 23}) {
         DenoiseStats stats;
@@ -328,7 +313,7 @@ TEST(Denoise, TiledEqualsUntiled) {
 
 TEST(Denoise, MatchesTheFloat64ReferenceThroughFeatures) {
   const nn::Model model = small_model(FeatureSet::Full, 1, 8, 3);
-  const AovStack s = make_stack(9, 7, 8);
+  const AovStack s = random_stack(9, 7, 8);
   const Image out = denoise(s, model, eigen_options(4));
   Image f;
   make_features(s, FeatureSet::Full, compute_feature_stats(s), {0, 0, 9, 7}, f);
@@ -339,7 +324,7 @@ TEST(Denoise, MatchesTheFloat64ReferenceThroughFeatures) {
 
 TEST(Denoise, RegionOfInterestOnly) {
   const nn::Model model = small_model();
-  const AovStack s = make_stack(30, 20, 4);
+  const AovStack s = random_stack(30, 20, 4);
   const Image full = denoise(s, model, eigen_options(32));
   DenoiseOptions o = eigen_options(8);
   o.roi = Rect{5, 4, 12, 9};
@@ -360,7 +345,7 @@ TEST(Denoise, RegionOfInterestOnly) {
 
 TEST(Denoise, EmptyTilesArePassedThrough) {
   const nn::Model model = small_model(FeatureSet::Full, 1, 8);  // halo 5
-  AovStack s = make_stack(64, 16, 6);
+  AovStack s = random_stack(64, 16, 6);
   for (int64_t y = 0; y < 16; ++y)
     for (int64_t x = 0; x < 40; ++x)
       for (int c = 0; c < 3; ++c) s.color.image.at(x, y, c) = 0.0f;
@@ -378,7 +363,7 @@ TEST(Denoise, EmptyTilesArePassedThrough) {
 
 TEST(Denoise, ExtremeInputsGiveFiniteOutputAndStayLocal) {
   const nn::Model model = small_model(FeatureSet::Full, 1, 8, 7);  // halo 5
-  const AovStack clean = make_stack(40, 40, 12);
+  const AovStack clean = random_stack(40, 40, 12);
   const Image clean_out = denoise(clean, model, eigen_options(64));
   struct Case {
     const char* name;
@@ -400,7 +385,7 @@ TEST(Denoise, ExtremeInputsGiveFiniteOutputAndStayLocal) {
       {"denormal colour", [](AovStack& s) { s.color.image.at(20, 20, 0) = 1e-42f; }},
   };
   for (const auto& c : cases) {
-    AovStack s = make_stack(40, 40, 12);
+    AovStack s = random_stack(40, 40, 12);
     c.spoil(s);
     const Image out = denoise(s, model, eigen_options(64));
     EXPECT_TRUE(all_finite_nonnegative(out)) << c.name;
@@ -415,10 +400,10 @@ TEST(Denoise, ExtremeInputsGiveFiniteOutputAndStayLocal) {
         }
   }
   // All black, and a fully non-finite image.
-  AovStack black = make_stack(20, 20, 3);
+  AovStack black = random_stack(20, 20, 3);
   for (size_t i = 0; i < black.color.image.size(); ++i) black.color.image.data()[i] = 0;
   EXPECT_TRUE(all_finite_nonnegative(denoise(black, model, eigen_options(8))));
-  AovStack nan = make_stack(20, 20, 3);
+  AovStack nan = random_stack(20, 20, 3);
   for (size_t i = 0; i < nan.color.image.size(); ++i) nan.color.image.data()[i] = kNan;
   EXPECT_TRUE(all_finite_nonnegative(denoise(nan, model, eigen_options(8))));
 }
@@ -431,7 +416,7 @@ TEST(Denoise, MemoryBoundChoosesTheTile) {
   EXPECT_GT(big, small);
   EXPECT_GT(small, 0);
   EXPECT_EQ(tile_for_memory(*backend, model.network.arch, 1024), 0);
-  const AovStack s = make_stack(50, 50, 1);
+  const AovStack s = random_stack(50, 50, 1);
   DenoiseOptions o;
   o.backend = "eigen";
   o.max_memory = 4096;
@@ -454,7 +439,7 @@ TEST(Denoise, RealStarterSceneTiledEqualsUntiled) {
 // --- the job API -------------------------------------------------------------------------------------------
 
 TEST(DenoiseJob, RunsOnAWorkerAndReportsEveryTile) {
-  auto stack = std::make_shared<AovStack>(make_stack(48, 32, 2));
+  auto stack = std::make_shared<AovStack>(random_stack(48, 32, 2));
   auto model = std::make_shared<nn::Model>(small_model());
   std::mutex m;
   Image assembled(48, 32, 3, -1.0f);
@@ -475,7 +460,7 @@ TEST(DenoiseJob, RunsOnAWorkerAndReportsEveryTile) {
 }
 
 TEST(DenoiseJob, CancelStopsAfterTheTileInFlight) {
-  auto stack = std::make_shared<AovStack>(make_stack(256, 256, 2));
+  auto stack = std::make_shared<AovStack>(random_stack(256, 256, 2));
   auto model = std::make_shared<nn::Model>(small_model(FeatureSet::Full, 4, 32));
   std::atomic<int> tiles_seen{0};
   std::atomic<DenoiseJob*> self{nullptr};
@@ -491,7 +476,7 @@ TEST(DenoiseJob, CancelStopsAfterTheTileInFlight) {
 }
 
 TEST(DenoiseJob, ErrorsAreValues) {
-  AovStack s = make_stack(8, 8, 1);
+  AovStack s = random_stack(8, 8, 1);
   s.depth.reset();
   DenoiseJob job(std::make_shared<AovStack>(std::move(s)), std::make_shared<nn::Model>(small_model()), eigen_options(8));
   job.wait();

@@ -17,21 +17,7 @@ namespace residue {
 namespace {
 
 using testing::random_image;
-
-AovStack random_stack(int64_t w, int64_t h, unsigned seed) {
-  AovStack s;
-  s.convention = "test";
-  s.color.image = random_image(w, h, 3, seed, 0.0f, 4.0f);
-  s.color.source.file = "test.exr";
-  s.albedo = Aov{random_image(w, h, 3, seed + 1, 0.0f, 1.0f), {}, {}, 0};
-  s.normal = Aov{random_image(w, h, 3, seed + 2, -1.0f, 1.0f), {}, {}, 0};
-  s.depth = Aov{random_image(w, h, 1, seed + 3, 1.0f, 10.0f), {}, {}, 0};
-  s.normal_space = NormalSpace::Camera;
-  s.data_window = {0, 0, w, h};
-  s.display_width = w;
-  s.display_height = h;
-  return s;
-}
+using testing::random_stack;
 
 // The bound of one output value in log space, by the definition: the window's max, computed in float64.
 double naive_bound(const Image& features, int64_t x, int64_t y, int c, int64_t r) {

@@ -119,6 +119,7 @@ int run(const EvalSetOptions& o) {
   struct Column {
     std::string label, model, precision;
     bool energy_correction = true;
+    bool network() const { return !model.empty() && model != "bilateral"; }  // not the input or the baseline
   };
   std::vector<Column> columns = {{"noisy", "", ""}};
   for (const auto& m : o.models) {
@@ -178,7 +179,7 @@ int run(const EvalSetOptions& o) {
       cell.mean_ratio = mean_ratio(out, stack.reference->image);
       js["results"][columns[ci].label] = {{"relmse", s.relmse}, {"ssim", s.ssim}, {"seconds", cell.seconds},
                                          {"mean_ratio", cell.mean_ratio}, {"model_file", model_file}, {"guarded_values", cell.guarded},
-                                         {"energy_correction", !columns[ci].model.empty() && columns[ci].model != "bilateral" && columns[ci].energy_correction}};
+                                         {"energy_correction", columns[ci].network() && columns[ci].energy_correction}};
     }
     json_scenes.push_back(js);
     std::fprintf(stderr, "evaluate-set: %zu/%zu %s\n", si + 1, scenes.size(), scenes[si].filename().string().c_str());
@@ -215,7 +216,7 @@ int run(const EvalSetOptions& o) {
   for (size_t ci = 0; ci < columns.size(); ++ci) md << " " << columns[ci].label << " " << fmt("%.4f", mean[ci].mean_ratio);
   md << "\n\nOutput values clamped by the guard (all scenes):";
   for (size_t ci = 0; ci < columns.size(); ++ci)
-    if (!columns[ci].model.empty() && columns[ci].model != "bilateral") md << " " << columns[ci].label << " " << mean[ci].guarded;
+    if (columns[ci].network()) md << " " << columns[ci].label << " " << mean[ci].guarded;
   if (o.perturb != "none") md << "\n\nInputs perturbed: " << o.perturb;
   md << "\n";
 

@@ -204,6 +204,13 @@ int run(const Options& o) {
       return x;
     }, o.precise_bn);
   };
+  auto run_validation = [&] {
+    recalibrate();
+    net->eval();
+    torch::NoGradGuard no_grad;
+    last_val = validate(net, val_scenes, tmp_model);
+    validated = true;
+  };
   while (step < o.steps) {
     // Cosine decay from lr to lr / 100, after 100 steps of linear warm-up.
     const double progress = static_cast<double>(step) / o.steps;
@@ -241,11 +248,7 @@ int run(const Options& o) {
       const double sps = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_last).count() / loss_n;
       std::string val_cols = ",,,";
       if (do_val) {
-        recalibrate();
-        net->eval();
-        torch::NoGradGuard no_grad;
-        last_val = validate(net, val_scenes, tmp_model);
-        validated = true;
+        run_validation();
         val_cols = std::to_string(last_val.relmse) + "," + std::to_string(last_val.ssim) + "," +
                    std::to_string(last_val.noisy_relmse) + "," + std::to_string(last_val.mean_ratio);
       }
@@ -264,12 +267,13 @@ int run(const Options& o) {
     }
   }
 
-  if (!validated) {  // a finished checkpoint, exported again (e.g. with --precise-bn)
-    recalibrate();
-    net->eval();
-    torch::NoGradGuard no_grad;
-    if (!val_scenes.empty()) last_val = validate(net, val_scenes, tmp_model);
-    std::printf("step %6d  val relMSE %f SSIM %f mean ratio %f\n", step, last_val.relmse, last_val.ssim, last_val.mean_ratio);
+  if (!validated) {  // no validation scenes, or a finished checkpoint exported again (e.g. with --precise-bn)
+    if (val_scenes.empty()) {
+      recalibrate();
+    } else {
+      run_validation();
+      std::printf("step %6d  val relMSE %f SSIM %f mean ratio %f\n", step, last_val.relmse, last_val.ssim, last_val.mean_ratio);
+    }
   }
   net->eval();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();

@@ -61,11 +61,22 @@ void initialise(ResidueNet& net) {
   }
 }
 
-void recalibrate_batch_norm(ResidueNet& net, const std::function<torch::Tensor()>& next_batch, int batches) {
+namespace {
+
+std::vector<torch::nn::BatchNorm2dImpl*> batch_norms(ResidueNet& net) {
   std::vector<torch::nn::BatchNorm2dImpl*> norms;
   for (const auto& m : net->modules(/*include_self=*/false))
     if (auto* bn = dynamic_cast<torch::nn::BatchNorm2dImpl*>(m.get())) norms.push_back(bn);
+  return norms;
+}
+
+}  // namespace
+
+void recalibrate_batch_norm(ResidueNet& net, const std::function<torch::Tensor()>& next_batch, int batches) {
+  const auto norms = batch_norms(net);
+  std::vector<c10::optional<double>> momentum;
   for (auto* bn : norms) {
+    momentum.push_back(bn->options.momentum());
     bn->reset_running_stats();
     bn->options.momentum(c10::nullopt);  // a cumulative average over the batches below
   }
@@ -75,13 +86,12 @@ void recalibrate_batch_norm(ResidueNet& net, const std::function<torch::Tensor()
     torch::NoGradGuard no_grad;
     for (int i = 0; i < batches; ++i) net->forward(next_batch());
   }
-  for (auto* bn : norms) bn->options.momentum(0.1);
+  for (size_t i = 0; i < norms.size(); ++i) norms[i]->options.momentum(momentum[i]);
   net->train(was_training);
 }
 
 void freeze_batch_norm(ResidueNet& net) {
-  for (const auto& m : net->modules(/*include_self=*/false))
-    if (auto* bn = dynamic_cast<torch::nn::BatchNorm2dImpl*>(m.get())) bn->eval();
+  for (auto* bn : batch_norms(net)) bn->eval();
 }
 
 nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::string> metadata) {

@@ -33,6 +33,21 @@ Image random_image(int64_t width, int64_t height, int channels, unsigned seed, f
   return img;
 }
 
+AovStack random_stack(int64_t w, int64_t h, unsigned seed) {
+  AovStack s;
+  s.convention = "test";
+  s.color.image = random_image(w, h, 3, seed, 0.0f, 4.0f);
+  s.color.source.file = "test.exr";
+  s.albedo = Aov{random_image(w, h, 3, seed + 1, 0.0f, 1.0f), {}, {}, 0};
+  s.normal = Aov{random_image(w, h, 3, seed + 2, -1.0f, 1.0f), {}, {}, 0};
+  s.depth = Aov{random_image(w, h, 1, seed + 3, 1.0f, 10.0f), {}, {}, 0};
+  s.normal_space = NormalSpace::Camera;
+  s.data_window = {0, 0, w, h};
+  s.display_width = w;
+  s.display_height = h;
+  return s;
+}
+
 static std::string shell_quote(const std::string& s) {
   std::string out = "'";
   for (char c : s) {

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/aov/aov_stack.h"
 #include "core/image/image.h"
 
 namespace residue::testing {
@@ -29,6 +30,10 @@ std::filesystem::path shared_dataset(const std::string& relative);
 // An image filled with deterministic pseudo-random values in [lo, hi).
 Image random_image(int64_t width, int64_t height, int channels, unsigned seed, float lo = 0.0f,
                    float hi = 1.0f);
+
+// A stack with every AOV (colour in [0, 4), albedo, camera-space normals, depth in [1, 10)), random but
+// plausible values, named "test.exr".
+AovStack random_stack(int64_t width, int64_t height, unsigned seed);
 
 // The colour of an EXR as float (no reference search): for reading back what a test wrote.
 Image read_exr_float(const std::filesystem::path& p);
