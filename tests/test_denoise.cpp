@@ -628,6 +628,39 @@ TEST(CliDenoise, WritesAnExrWithProvenanceAndNeverOverwrites) {
   EXPECT_EQ(testing::run_cli({"denoise", (ex / "noisy.exr").string(), "-o", (tmp / "y.exr").string(), "-m", "no-such-model"}, &text), 3) << text;
 }
 
+// The header records the post-steps that ran, as core decided them, in memory and streamed: Tungsten's file
+// set has a variance AOV (so the blend runs unless switched off), the bundled room has none.
+TEST(CliDenoise, HeaderSaysWhichPostStepsRan) {
+  const auto tungsten = testing::shared_dataset("tungsten-example/cornell-box");
+  RESIDUE_REQUIRE_SHARED(tungsten);
+  TempDir tmp;
+  const auto model = tmp / "random.safetensors";
+  nn::write_safetensors(model, nn::to_safetensors(nn::random_network({2, 8, FeatureSet::Full}, 1)), false);
+  const std::string room = (std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room/noisy.exr").string();
+  struct Case {
+    std::string input;
+    std::vector<std::string> flags;
+    int energy, blend;
+  };
+  int n = 0;
+  for (const Case& c : {Case{tungsten.string(), {}, 1, 1}, Case{tungsten.string(), {"--no-variance-blend"}, 1, 0},
+                        Case{tungsten.string(), {"--no-energy-correction"}, 0, 1}, Case{room, {}, 1, 0}}) {
+    for (const char* memory : {"4096", "2"}) {  // 2 MiB: the 384x384 Tungsten render is streamed band by band
+      const auto out = tmp / ("out" + std::to_string(n++) + ".exr");
+      std::vector<std::string> args = {"denoise", c.input, "-o", out.string(), "--model", model.string(),
+                                       "--backend", "eigen", "--max-memory", memory};
+      args.insert(args.end(), c.flags.begin(), c.flags.end());
+      std::string text;
+      ASSERT_EQ(testing::run_cli(args, &text), 0) << text;
+      OIIO::ImageBuf img(out.string());
+      ASSERT_TRUE(img.read());
+      const std::string what = c.input + " " + memory + " MiB " + (c.flags.empty() ? "" : c.flags[0]);
+      EXPECT_EQ(img.spec().get_int_attribute("residue:energy_correction", -1), c.energy) << what;
+      EXPECT_EQ(img.spec().get_int_attribute("residue:variance_blend", -1), c.blend) << what;
+    }
+  }
+}
+
 TEST(CliDenoise, ModelNamePicksTheVariantForTheAovsPresent) {
   TempDir tmp;
   nn::write_safetensors(tmp / "fam.safetensors",

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include <nlohmann/json.hpp>
@@ -10,6 +11,7 @@
 #include "core/nn/backend.h"
 #include "core/nn/model_file.h"
 #include "core/nn/safetensors.h"
+#include "core/util/error.h"
 #include "support/test_support.h"
 #include "torch_network.h"
 #include "training_set.h"
@@ -73,6 +75,58 @@ INSTANTIATE_TEST_SUITE_P(Architectures, TrainParity,
                            return std::string(info.param.max_dilation() > 1 ? "dilated" : "paper") +
                                   (info.param.input_skip ? "_input_skip" : "");
                          });
+
+// --init-from: a variant for another feature set starts as its source network with the planes it lacks set
+// to zero (depth dropped, the noise plane new), for every variant; a source of another size is refused.
+TEST(TrainInitFrom, AVariantStartsAsItsSourceWithTheMissingPlanesZero) {
+  torch::manual_seed(9);
+  train::ResidueNet source(nn::Architecture{2, 8, FeatureSet::Full});
+  train::initialise(source);
+  {
+    torch::NoGradGuard no_grad;
+    for (auto& p : source->named_parameters())
+      if (p.key().find("bn") != std::string::npos || p.key().find("bias") != std::string::npos) p.value().uniform_(0.5, 1.5);
+    source->train();
+    for (int i = 0; i < 3; ++i) source->forward(torch::randn({4, 9, 12, 12}));
+  }
+  source->eval();
+  testing::TempDir tmp;
+  const auto file = tmp / "source.safetensors";
+  nn::write_safetensors(file, train::export_model(source, {{"name", "src"}}), false);
+  const nn::SafetensorsFile read = nn::read_safetensors(file);
+  const std::vector<std::string> source_planes = feature_planes(FeatureSet::Full);
+
+  for (FeatureSet set : {FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly, FeatureSet::FullVariance}) {
+    train::ResidueNet variant(nn::Architecture{2, 8, set});
+    train::initialise(variant);
+    train::initialise_from(variant, read, file);
+    variant->eval();
+    const std::vector<std::string> planes = feature_planes(set);
+    const torch::Tensor x = torch::randn({2, static_cast<int64_t>(planes.size()), 12, 12});
+    torch::Tensor x_source = torch::zeros({2, 9, 12, 12});
+    int shared = 0;
+    for (size_t c = 0; c < planes.size(); ++c) {
+      const auto it = std::find(source_planes.begin(), source_planes.end(), planes[c]);
+      if (it == source_planes.end()) continue;
+      x_source.select(1, it - source_planes.begin()).copy_(x.select(1, static_cast<int64_t>(c)));
+      ++shared;
+    }
+    EXPECT_EQ(shared, set == FeatureSet::FullVariance ? 9 : static_cast<int>(planes.size())) << to_string(set);
+    torch::NoGradGuard no_grad;
+    const torch::Tensor expect = source->forward(x_source), got = variant->forward(x);
+    EXPECT_TRUE(torch::allclose(got, expect, 1e-5, 1e-5))
+        << to_string(set) << ": max difference " << (got - expect).abs().max().item<float>();
+  }
+
+  train::ResidueNet deeper(nn::Architecture{3, 8, FeatureSet::Full});
+  try {
+    train::initialise_from(deeper, read, file);
+    ADD_FAILURE() << "a 2/8 file initialised a 3/8 network";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("2/8"), std::string::npos) << e.what();
+  }
+}
 
 TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
   // A scene-free check of the dihedral transforms: build a TrainingSet on the starter data when present.

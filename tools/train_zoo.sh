@@ -29,18 +29,27 @@ declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 
                  [base-variance]=8/64 [base-dilated]=8/64)
 declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=color+albedo+normal
                      [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full)
-declare -A steps=([tiny]=4000 [small]=8000 [base]=20000 [base-albedo-normal]=12000 [base-color]=12000 [paper]=6000
-                  [base-variance]=12000 [base-dilated]=12000)
+declare -A steps=([tiny]=4000 [small]=8000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=6000
+                  [base-variance]=3000 [base-dilated]=12000)
 declare -A extra=([base-dilated]="--dilations 1,2,4,8")
+# The feature-set variants of base are fine-tuned from the trained base (--init-from: its weights, the input
+# planes matched by name) at a lower peak learning rate, a quarter of the steps of training from scratch.
+declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base)
 
 for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color paper}; do
   var="ZOO_STEPS_${name//-/_}"
   n=${!var:-${steps[$name]}}
   if [ -f "$out/$name.safetensors" ]; then echo "train_zoo: $name exists, skipped"; continue; fi
-  echo "train_zoo: $name (${arch[$name]}, ${features[$name]}, $n steps)"
+  warm=()
+  if [ -n "${init[$name]:-}" ]; then
+    src="$out/${init[$name]}.safetensors"
+    [ -f "$src" ] || { echo "train_zoo: $name is fine-tuned from ${init[$name]}: train that first" >&2; exit 2; }
+    warm=(--init-from "$src" --lr 3e-4)
+  fi
+  echo "train_zoo: $name (${arch[$name]}, ${features[$name]}, $n steps${warm:+, from ${init[$name]}})"
   "$train" --data "$@" --arch "${arch[$name]}" --features "${features[$name]}" --steps "$n" \
     --val-every $(( n / 10 )) --checkpoint-every 250 --threads "$threads" ${ZOO_BF16:+--bf16} ${extra[$name]:-} \
-    --precise-bn 100 --freeze-bn-after 0.9 \
+    --precise-bn 100 --freeze-bn-after 0.9 "${warm[@]}" \
     --name "$name" -o "$out/$name.safetensors" \
     --log "$out/$name.csv" | tee -a "$out/$name.out"
   /usr/bin/python3 "$repo/tools/plot_training.py" "$out/$name.csv" "$out/${name}_training.png" || true

@@ -129,15 +129,15 @@ int run(const DenoiseCliOptions& o) {
       architecture = model.network.arch.to_string();
       w.residue_attributes.attribute("residue:model", model_name);
       w.residue_attributes.attribute("residue:architecture", architecture);
-      w.residue_attributes.attribute("residue:energy_correction", d.energy_correction ? 1 : 0);
-      w.residue_attributes.attribute("residue:variance_blend", d.variance_blend && layout.variance ? 1 : 0);
-      if (streamed) {
+      if (streamed) {  // the header, written first, says which post-steps run (core decides, as below)
         stats = denoise_to_exr(reader, model, d, o.output, w, on_tile);
       } else {
         const AovStack stack = reader.read(whole);
         const Image out = denoise(stack, model, d, on_tile, &stats);
         w.residue_attributes.attribute("residue:backend", stats.backend);
         w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
+        w.residue_attributes.attribute("residue:energy_correction", stats.energy_corrected ? 1 : 0);
+        w.residue_attributes.attribute("residue:variance_blend", stats.variance_blended ? 1 : 0);
         io::write_exr(o.output, out, w);
       }
     }

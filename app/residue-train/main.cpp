@@ -54,6 +54,7 @@ struct Options {
   std::string loss = "l1-log";  // or "l1-log+mean": see training_loss
   int precise_bn = 0;            // batches for recalibrating BN statistics before validation and export; 0: off
   double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
+  std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
 };
 
 struct Validation {
@@ -164,6 +165,13 @@ int run(const Options& o) {
 
   train::ResidueNet net(arch);
   train::initialise(net);
+  std::string init_from_name;  // for the metadata
+  if (!o.init_from.empty()) {
+    const nn::SafetensorsFile source = nn::read_safetensors(o.init_from);
+    train::initialise_from(net, source, o.init_from);
+    const auto name = source.metadata.find("name");
+    init_from_name = name != source.metadata.end() ? name->second : fs::path(o.init_from).stem().string();
+  }
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(o.lr).betas({0.9, 0.999}));
   const fs::path ckpt = o.checkpoint.empty() ? fs::path(o.out).replace_extension(".ckpt") : fs::path(o.checkpoint);
   int step = 0;
@@ -174,6 +182,8 @@ int run(const Options& o) {
     std::ifstream(ckpt / "step") >> step;
     if (fs::exists(ckpt / "wall_s")) std::ifstream(ckpt / "wall_s") >> wall_before;
     std::printf("resumed from %s at step %d (%.0f s of training before)\n", ckpt.string().c_str(), step, wall_before);
+  } else if (!init_from_name.empty()) {
+    std::printf("initialised from %s (%s)\n", o.init_from.c_str(), init_from_name.c_str());
   }
   std::ofstream log;
   if (!o.log.empty()) {
@@ -284,6 +294,7 @@ int run(const Options& o) {
                              {"wall_s", wall_before + wall},
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features},
                              {"precise_bn_batches", o.precise_bn}, {"freeze_bn_after", o.freeze_bn_after}};
+  if (!init_from_name.empty()) training["init_from"] = init_from_name;
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -332,6 +343,10 @@ int main(int argc, char** argv) {
                  "Fraction of the steps after which BN uses fixed statistics (recomputed there with --precise-bn) "
                  "while training goes on: the last steps train the network as inference runs it (1: never)")
       ->capture_default_str()->check(CLI::Range(0.0, 1.0));
+  app.add_option("--init-from", o.init_from,
+                 "Start from this model file's weights (same blocks/width; the input planes matched by name, new "
+                 "ones zero) instead of He initialisation: fine-tunes a feature-set variant of a trained model")
+      ->check(CLI::ExistingFile);
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser");
   CLI11_PARSE(app, argc, argv);
   try {

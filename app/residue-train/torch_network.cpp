@@ -1,5 +1,9 @@
 #include "torch_network.h"
 
+#include <algorithm>
+
+#include "core/util/error.h"
+
 namespace residue::train {
 namespace {
 
@@ -59,6 +63,46 @@ void initialise(ResidueNet& net) {
       if (conv->options.bias()) conv->bias.zero_();
     }
   }
+}
+
+void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path) {
+  const std::string file = path.string();
+  auto meta = [&](const std::string& key, const std::string& fallback) {
+    const auto it = source.metadata.find(key);
+    return it == source.metadata.end() ? fallback : it->second;
+  };
+  const auto source_features = feature_set_from_string(meta("residue.features", "full"));
+  if (!source_features) throw Error(ErrorKind::Input, file + ": unknown feature set '" + meta("residue.features", "") + "'");
+  const std::string dilations = net->arch.max_dilation() > 1 ? nn::dilations_to_string(net->arch.dilations) : "";
+  if (meta("residue.blocks", "") != std::to_string(net->arch.blocks) || meta("residue.width", "") != std::to_string(net->arch.width) ||
+      meta("residue.dilations", "") != dilations)
+    throw Error(ErrorKind::Input, file + ": a " + meta("residue.blocks", "?") + "/" + meta("residue.width", "?") +
+                                      " network cannot initialise a " + std::to_string(net->arch.blocks) + "/" +
+                                      std::to_string(net->arch.width) + " one (blocks, width and dilations must match)");
+  const std::vector<std::string> from = feature_planes(*source_features), to = feature_planes(net->arch.features);
+
+  torch::NoGradGuard no_grad;
+  auto copy = [&](const std::string& name, torch::Tensor& target) {
+    if (name.find("num_batches_tracked") != std::string::npos) return;
+    const auto it = source.tensors.find(name);
+    if (it == source.tensors.end()) throw Error(ErrorKind::Input, file + ": no tensor '" + name + "'");
+    const nn::Tensor& t = it->second;
+    torch::Tensor value = torch::from_blob(const_cast<float*>(t.values.data()),
+                                           std::vector<int64_t>(t.shape.begin(), t.shape.end()), torch::kFloat32);
+    if (name == "head.conv.weight" && value.dim() == 4 && value.size(1) == static_cast<int64_t>(from.size())) {
+      torch::Tensor matched = torch::zeros({value.size(0), static_cast<int64_t>(to.size()), value.size(2), value.size(3)});
+      for (size_t c = 0; c < to.size(); ++c) {
+        const auto src = std::find(from.begin(), from.end(), to[c]);
+        if (src != from.end()) matched.select(1, static_cast<int64_t>(c)).copy_(value.select(1, src - from.begin()));
+      }
+      value = matched;
+    }
+    if (value.sizes() != target.sizes())
+      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has the wrong shape for this network");
+    target.copy_(value);
+  };
+  for (auto& p : net->named_parameters()) copy(p.key(), p.value());
+  for (auto& b : net->named_buffers()) copy(b.key(), b.value());
 }
 
 namespace {

@@ -59,6 +59,13 @@ TORCH_MODULE(ResidueNet);
 // He initialisation (for PReLU), zero biases, BN gamma 1 / beta 0; PReLU slopes 0.25.
 void initialise(ResidueNet& net);
 
+// Warm start from a trained model file (`source`, read from `path`) of the same blocks, width and dilations,
+// typically to fine-tune a variant for another feature set instead of training it from scratch. Every tensor
+// is copied; the head's input planes are matched by name (feature_planes): planes the source lacks get zero
+// weights and planes only the source had are dropped, so the new network starts out computing exactly what the
+// source computes with those planes set to zero. Throws Error(Input) naming the file and the tensor on a mismatch.
+void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path);
+
 // "Precise BN": replaces every BatchNorm's running statistics (an exponential average of the last few dozen
 // batches, which drifts with the weights and with one unusual batch) by their plain average over `batches`
 // batches drawn by `next_batch`, in fp32 with the current weights. Inference uses only these statistics.

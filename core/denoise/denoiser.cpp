@@ -221,6 +221,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     const float tau = tau_for(options, model);
     local.variance_blended = tau > 0 && layout.variance.has_value();
     exr.residue_attributes.attribute("residue:backend", local.backend);
+    exr.residue_attributes.attribute("residue:energy_correction", local.energy_corrected ? 1 : 0);
+    exr.residue_attributes.attribute("residue:variance_blend", local.variance_blended ? 1 : 0);
 
     // Pass 1: the whole-image statistics the features need (the same depth sample denoise() draws).
     FeatureStats fstats = compute_feature_stats(layout);

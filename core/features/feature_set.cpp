@@ -2,14 +2,15 @@
 
 namespace residue {
 
-int feature_channels(FeatureSet set) {
-  switch (set) {
-    case FeatureSet::Full: return 9;
-    case FeatureSet::ColorAlbedoNormal: return 8;
-    case FeatureSet::ColorOnly: return 3;
-    case FeatureSet::FullVariance: return 10;
-  }
-  return 0;
+int feature_channels(FeatureSet set) { return static_cast<int>(feature_planes(set).size()); }
+
+std::vector<std::string> feature_planes(FeatureSet set) {
+  std::vector<std::string> planes = {"color.r", "color.g", "color.b"};
+  if (set == FeatureSet::ColorOnly) return planes;
+  if (set == FeatureSet::Full || set == FeatureSet::FullVariance) planes.push_back("depth");
+  for (const char* p : {"normal.x", "normal.y", "albedo.r", "albedo.g", "albedo.b"}) planes.push_back(p);
+  if (set == FeatureSet::FullVariance) planes.push_back("noise");
+  return planes;
 }
 
 const char* to_string(FeatureSet set) {

@@ -3,6 +3,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace residue {
 
@@ -15,6 +16,9 @@ enum class FeatureSet {
 };
 
 int feature_channels(FeatureSet set);
+// The input planes by name, in the network's order (core/features/features.h says what each holds):
+// "color.r", "color.g", "color.b", "depth", "normal.x", "normal.y", "albedo.r", "albedo.g", "albedo.b", "noise".
+std::vector<std::string> feature_planes(FeatureSet set);
 const char* to_string(FeatureSet set);  // "full", "color+albedo+normal", "color"
 std::optional<FeatureSet> feature_set_from_string(const std::string& name);
 
