@@ -242,6 +242,23 @@ TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {
   const auto validation = nlohmann::json::parse(model.metadata.at("validation"));
   EXPECT_EQ(validation.at("scenes"), 1);
   EXPECT_GT(validation.at("relmse").get<double>(), 0.0);
+
+  // A colour-only variant fine-tuned from it: a fresh run (its own checkpoint) that starts from the file and
+  // records where it started.
+  std::string third;
+  const std::string variant = (tmp / "m-color.safetensors").string();
+  ASSERT_EQ(testing::run_program(RESIDUE_TRAIN_PATH,
+                                 {"--data", (tmp / "data").string(), "--val", "1", "--arch", "2/8", "--dilations", "1,2",
+                                  "--features", "color", "--init-from", out, "--lr", "3e-4", "--patch", "32", "--batch",
+                                  "2", "--steps", "3", "--threads", "1", "--name", "m-color", "-o", variant},
+                                 &third),
+            0)
+      << third;
+  EXPECT_NE(third.find("initialised from"), std::string::npos) << third;
+  EXPECT_EQ(third.find("resumed from"), std::string::npos) << third;
+  const nn::Model color = nn::load_model(variant);
+  EXPECT_EQ(color.network.arch.features, FeatureSet::ColorOnly);
+  EXPECT_EQ(nlohmann::json::parse(color.metadata.at("training")).at("init_from"), "m");
 }
 
 }  // namespace
