@@ -48,13 +48,14 @@ def main():
     out.append(f"- **Network**: {arch} ({md['residue.blocks']} ResBlocks of width {md['residue.width']}{dil}), "
                f"features `{md['residue.features']}`, receptive field {receptive} px each side.")
     if training:
-        data = ", ".join(f"`{d}`" for d in training.get("data", []))
+        data = ", ".join(f"`{os.path.normpath(d)}`" for d in training.get("data", []))
         wall = training.get("wall_s", training.get("wall_s_this_run", 0))
         out.append(f"- **Training**: {training.get('steps')} steps of {training.get('batch')} patches of "
                    f"{training.get('patch')}x{training.get('patch')}, {training.get('loss')}, "
                    f"{training.get('optimizer')}, lr {training.get('lr')} ({training.get('schedule')}), "
                    f"{training.get('precision', 'fp32')}, {training.get('threads')} threads, seed {training.get('seed')}; "
-                   f"{hours(wall)} of training on a 2-core machine.")
+                   f"{hours(wall)} of training on a 2-core machine"
+                   + (f"; fine-tuned from `{training['init_from']}`." if training.get("init_from") else "."))
         out.append(f"- **Data**: {training.get('train_scenes')} training scenes from {data}.")
     if a.curve:
         out.append(f"- **Curve**: ![{label} training]({a.curve})")
