@@ -3,12 +3,13 @@
 ("residue.blend_tau", read by core/denoise/variance_blend). tau stands for the network's own relative error:
 a better model should keep more of its output, so each model gets its own. For every candidate tau this runs
 `residue-cli evaluate-set --split validation --blend-tau TAU` (the scenes' variance comes from their two
-halves) and keeps the tau with the lowest mean relMSE among those whose mean SSIM is within --max-ssim-loss
-of the sweep's best (a larger tau keeps more of the noisy input: relMSE can fall while visible noise comes
-back, which SSIM sees), printing the whole sweep.
+halves) and keeps, among the taus whose mean SSIM is within --max-ssim-loss of the sweep's best, the smallest
+whose mean relMSE is within --relmse-tolerance of the lowest: a larger tau keeps more of the noisy input, so
+relMSE can fall while visible noise comes back (SSIM sees it), and a tau that buys no clear gain on these scenes
+only risks it on others. Prints the whole sweep.
 
   /usr/bin/python3 tools/fit_blend_tau.py resources/models/base.safetensors /work/datasets/residue-v1 \\
-      [--taus 0.0001,0.0003,0.001,0.003,0.01] [--max-ssim-loss 0.005] [--cli build/release/app/residue-cli/residue-cli] [--dry-run]
+      [--taus 0.0001,0.0003,0.001,0.003,0.01] [--max-ssim-loss 0.005] [--relmse-tolerance 0.005] [--cli build/release/app/residue-cli/residue-cli] [--dry-run]
 """
 import argparse, json, os, subprocess, sys, tempfile
 
@@ -25,6 +26,8 @@ def main():
     p.add_argument("--cli", default=os.path.join(here, "..", "build", "release", "app", "residue-cli", "residue-cli"))
     p.add_argument("--max-ssim-loss", type=float, default=0.005,
                    help="a tau may cost at most this much mean SSIM against the sweep's best")
+    p.add_argument("--relmse-tolerance", type=float, default=0.005,
+                   help="relative: a smaller tau is kept when its mean relMSE is within this of the lowest")
     p.add_argument("--dry-run", action="store_true", help="print the sweep, leave the model file as it is")
     a = p.parse_args()
 
@@ -41,16 +44,19 @@ def main():
             sweep.append((relmse, tau, ssim))
             print(f"tau {tau:<8g} mean relMSE {relmse:.5f}  SSIM {ssim:.4f}", flush=True)
     best_ssim = max(s for _, _, s in sweep)
-    best = min(r for r in sweep if r[2] >= best_ssim - a.max_ssim_loss)
-    print(f"best tau {best[1]:g} (mean relMSE {best[0]:.5f}, SSIM {best[2]:.4f}; SSIM within {a.max_ssim_loss:g} "
-          f"of the best, {best_ssim:.4f})")
+    eligible = [r for r in sweep if r[2] >= best_ssim - a.max_ssim_loss]
+    lowest = min(r[0] for r in eligible)
+    best = min((r for r in eligible if r[0] <= lowest * (1 + a.relmse_tolerance)), key=lambda r: r[1])
+    print(f"best tau {best[1]:g} (mean relMSE {best[0]:.5f}, SSIM {best[2]:.4f}; the smallest tau within "
+          f"{a.relmse_tolerance:g} of the lowest relMSE, {lowest:.5f}, among those within {a.max_ssim_loss:g} "
+          f"of the best SSIM, {best_ssim:.4f})")
     if a.dry_run:
         return
     header, data = read_header(a.model)
     meta = header.setdefault("__metadata__", {})
     meta["residue.blend_tau"] = f"{best[1]:g}"
     meta["blend_tau_fit"] = json.dumps({"dataset": os.path.abspath(a.dataset), "split": "validation",
-                                        "max_ssim_loss": a.max_ssim_loss,
+                                        "max_ssim_loss": a.max_ssim_loss, "relmse_tolerance": a.relmse_tolerance,
                                         "sweep": [{"tau": t, "relmse": r, "ssim": s} for r, t, s in sweep]})
     write_header(a.model, header, data)
     print(f"wrote residue.blend_tau = {best[1]:g} into {a.model}")
