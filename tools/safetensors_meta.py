@@ -25,3 +25,17 @@ def metadata(path):
     with open(path, "rb") as f:
         n = struct.unpack("<Q", f.read(8))[0]
         return json.loads(f.read(n)).get("__metadata__", {})
+
+
+if __name__ == "__main__":
+    # /usr/bin/python3 tools/safetensors_meta.py MODEL: the metadata, JSON-valued entries expanded.
+    import sys
+    if len(sys.argv) != 2:
+        sys.exit("usage: safetensors_meta.py MODEL.safetensors")
+    meta = metadata(sys.argv[1])
+    for key, value in meta.items():
+        try:
+            meta[key] = json.loads(value) if value[:1] in "[{" else value
+        except ValueError:
+            pass
+    print(json.dumps(meta, indent=2, sort_keys=True))
