@@ -230,6 +230,16 @@ TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {
   }
   EXPECT_EQ(rows, 1 + 4) << "header, steps 5 and 10 (first run; a line per checkpoint), 15 and 20 (second run)";
   EXPECT_EQ(last.rfind("20,", 0), 0u) << last;
+  // Each validation per scene: steps 10 (first run) and 20 (the resumed run appends).
+  std::ifstream scene_log(csv + ".scenes.jsonl");
+  std::vector<int> validated_steps;
+  while (std::getline(scene_log, line)) {
+    const auto v = nlohmann::json::parse(line);
+    validated_steps.push_back(v.at("step").get<int>());
+    ASSERT_EQ(v.at("per_scene").size(), 1u) << line;
+    EXPECT_EQ(v.at("per_scene")[0].at("scene"), "s102") << line;
+  }
+  EXPECT_EQ(validated_steps, (std::vector<int>{10, 20}));
 
   const nn::Model model = nn::load_model(out);
   EXPECT_EQ(model.network.arch.dilations, (std::vector<int>{1, 2}));

@@ -214,12 +214,20 @@ int run(const Options& o) {
       return x;
     }, o.precise_bn);
   };
+  // Each validation's per-scene numbers go to LOG.scenes.jsonl (one line per validation), so that a spike in
+  // the mean can be traced to the scene that caused it.
+  std::ofstream scene_log;
+  if (!o.log.empty()) scene_log.open(o.log + ".scenes.jsonl", step == 0 ? std::ios::trunc : std::ios::app);
   auto run_validation = [&] {
     recalibrate();
     net->eval();
     torch::NoGradGuard no_grad;
     last_val = validate(net, val_scenes, tmp_model);
     validated = true;
+    if (scene_log.is_open())
+      scene_log << nlohmann::json{{"step", step}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
+                                  {"per_scene", last_val.per_scene}}.dump()
+                << "\n" << std::flush;
   };
   while (step < o.steps) {
     // Cosine decay from lr to lr / 100, after 100 steps of linear warm-up.
@@ -329,7 +337,7 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("-o,--out", o.out, "Model file to write")->required();
   app.add_option("--name", o.name, "Model name in the metadata");
-  app.add_option("--log", o.log, "CSV log of loss and validation");
+  app.add_option("--log", o.log, "CSV log of loss and validation (and LOG.scenes.jsonl: each validation per scene)");
   app.add_option("--threads", o.threads, "Threads")->capture_default_str();
   app.add_option("--seed", o.seed, "Random seed")->capture_default_str();
   app.add_flag("-f,--force", o.force, "Replace the output model file");
