@@ -6,9 +6,9 @@
 #   tools/train_zoo.sh OUT_DIR DATA_DIR [DATA_DIR...]
 #   e.g. tools/train_zoo.sh /work/train/zoo /work/datasets/residue-v1 ../shared/datasets/cycles-starter
 #
-# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color paper"; also known:
-# base-variance (the noise-level input), base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
-# ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=4000), ZOO_BF16=1 to train with CPU autocast
+# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color base-variance paper";
+# base-variance reads the noise-level input; also known: base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
+# ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=2000), ZOO_BF16=1 to train with CPU autocast
 # to bfloat16 (1.5-1.9x faster here), RESIDUE_BUILD (build/release).
 # Every model recomputes its BN statistics over 100 batches before each validation (--precise-bn) and trains
 # its last 10 % with them fixed (--freeze-bn-after): docs/MODELS.md, "Batch norm at inference".
@@ -36,7 +36,7 @@ declare -A extra=([base-dilated]="--dilations 1,2,4,8")
 # planes matched by name) at a lower peak learning rate, a quarter of the steps of training from scratch.
 declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base)
 
-for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color paper}; do
+for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-variance paper}; do
   var="ZOO_STEPS_${name//-/_}"
   n=${!var:-${steps[$name]}}
   if [ -f "$out/$name.safetensors" ]; then echo "train_zoo: $name exists, skipped"; continue; fi
