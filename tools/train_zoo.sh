@@ -7,7 +7,8 @@
 #   e.g. tools/train_zoo.sh /work/train/zoo /work/datasets/residue-v1 ../shared/datasets/cycles-starter
 #
 # Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color base-variance paper";
-# base-variance reads the noise-level input; also known: base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
+# base-variance reads the noise-level input; also known: base-dilated (dilations 1,2,4,8), base-ft (base
+# fine-tuned 3000 more steps with all its inputs: the control for the variants' extra steps)), ZOO_THREADS (2),
 # ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=2000), ZOO_BF16=1 to train with CPU autocast
 # to bfloat16 (1.5-1.9x faster here), RESIDUE_BUILD (build/release).
 # Every model recomputes its BN statistics over 100 batches before each validation (--precise-bn) and trains
@@ -26,15 +27,16 @@ export OMP_WAIT_POLICY=passive
 
 # name: architecture, feature set, steps, validation interval
 declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 [base-color]=8/64 [paper]=16/128
-                 [base-variance]=8/64 [base-dilated]=8/64)
+                 [base-variance]=8/64 [base-dilated]=8/64 [base-ft]=8/64)
 declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=color+albedo+normal
-                     [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full)
+                     [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full
+                     [base-ft]=full)
 declare -A steps=([tiny]=16000 [small]=8000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=4000
-                  [base-variance]=3000 [base-dilated]=12000)
+                  [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000)
 declare -A extra=([base-dilated]="--dilations 1,2,4,8")
 # The feature-set variants of base are fine-tuned from the trained base (--init-from: its weights, the input
 # planes matched by name) at a lower peak learning rate, a quarter of the steps of training from scratch.
-declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base)
+declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base [base-ft]=base)
 
 for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-variance paper}; do
   var="ZOO_STEPS_${name//-/_}"
