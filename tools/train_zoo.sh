@@ -31,7 +31,7 @@ declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 
 declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=color+albedo+normal
                      [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full
                      [base-ft]=full)
-declare -A steps=([tiny]=16000 [small]=8000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=4000
+declare -A steps=([tiny]=16000 [small]=16000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=4000
                   [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000)
 declare -A extra=([base-dilated]="--dilations 1,2,4,8")
 # The feature-set variants of base are fine-tuned from the trained base (--init-from: its weights, the input
