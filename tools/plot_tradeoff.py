@@ -3,7 +3,10 @@
 seconds per megapixel against mean relMSE (left) and mean SSIM (right), the noisy input as a line. This is the
 measured trade users pick from (docs/MODELS.md).
 
-  /usr/bin/python3 tools/plot_tradeoff.py eval.json tradeoff.png [--title TEXT]
+  /usr/bin/python3 tools/plot_tradeoff.py eval.json tradeoff.png [--title TEXT] [--models tiny,small,base]
+
+--models keeps only those columns (the label without its precision): the feature-set variants serve renders
+that lack AOVs, so they are not a choice on the same data and only crowd the plot.
 """
 import argparse, json
 import matplotlib
@@ -15,11 +18,14 @@ def main():
     p.add_argument("json")
     p.add_argument("png")
     p.add_argument("--title", default="")
+    p.add_argument("--models", default="", help="comma-separated labels to plot (default: all)")
     a = p.parse_args()
     d = json.load(open(a.json))
     rows = d["summary"]
     noisy = next(r for r in rows if r["label"] == "noisy")
-    points = [r for r in rows if r["label"] != "noisy"]
+    keep = set(filter(None, a.models.split(",")))
+    points = [r for r in rows if r["label"] != "noisy"
+              and (not keep or r["label"].rsplit(" ", 1)[0] in keep or r["label"] in keep)]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, name in ((axes[0], "mean_relmse", "mean relMSE (lower is better)"),
                           (axes[1], "mean_ssim", "mean SSIM (higher is better)")):
