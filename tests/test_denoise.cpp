@@ -591,6 +591,14 @@ TEST_P(ShippedModels, DenoiseTheBundledExample) {
 
 INSTANTIATE_TEST_SUITE_P(Zoo, ShippedModels, ::testing::Values("tiny", "small", "base"));
 
+// The shipped model file the family name picks for a render with these AOVs (resources/models only).
+std::filesystem::path shipped_model_for(const std::string& family, FeatureSet available) {
+  setenv("RESIDUE_MODEL_PATH", (std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "models").c_str(), 1);
+  const auto path = nn::find_model_for(family, available);
+  unsetenv("RESIDUE_MODEL_PATH");
+  return path;
+}
+
 // base's variants serve renders that lack AOVs: the family name picks them, and they denoise the example with
 // only the AOVs they read (the others dropped from the loaded stack, as a render without them would load).
 TEST(ShippedModels, BaseVariantsServeRendersWithoutDepthOrAovs) {
@@ -612,9 +620,7 @@ TEST(ShippedModels, BaseVariantsServeRendersWithoutDepthOrAovs) {
       s.normal.reset();
     }
     ASSERT_EQ(feature_set_for(s), c.set);
-    setenv("RESIDUE_MODEL_PATH", (res / "models").c_str(), 1);
-    const auto path = nn::find_model_for("base", feature_set_for(s));
-    unsetenv("RESIDUE_MODEL_PATH");
+    const auto path = shipped_model_for("base", feature_set_for(s));
     EXPECT_EQ(path.filename(), std::string(c.variant) + ".safetensors");
     const nn::Model model = nn::load_model(path);
     EXPECT_EQ(model.network.arch.features, c.set);
@@ -633,9 +639,7 @@ TEST(ShippedModels, BaseVariancePicksTheNoiseLevelVariantForARenderWithVariance)
   const AovStack s = load_aov_stack({dir}, {});
   ASSERT_TRUE(s.reference.has_value());
   ASSERT_EQ(feature_set_for(s), FeatureSet::FullVariance);
-  setenv("RESIDUE_MODEL_PATH", (std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "models").c_str(), 1);
-  const auto path = nn::find_model_for("base", feature_set_for(s));
-  unsetenv("RESIDUE_MODEL_PATH");
+  const auto path = shipped_model_for("base", feature_set_for(s));
   EXPECT_EQ(path.filename(), "base-variance.safetensors");
   const nn::Model model = nn::load_model(path);
   EXPECT_EQ(model.network.arch.features, FeatureSet::FullVariance);

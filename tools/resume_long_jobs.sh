@@ -8,7 +8,7 @@
 #
 # The zoo is trained on the finished set only (the models must be trained on all of it): until every one of
 # the 330 scenes has its reference, only the renderer runs; ZOO_NOW=1 trains beside it anyway.
-# Environment: ZOO_MODELS (default: tiny small base base-albedo-normal base-color base-variance paper), as for train_zoo.sh.
+# Environment: ZOO_MODELS, passed to train_zoo.sh (its default: the whole zoo in order).
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 data=${1:-/work/datasets/residue-v1}
@@ -29,7 +29,7 @@ if [ "$rendered" -lt 330 ] && [ "${ZOO_NOW:-0}" != 1 ]; then
 elif pgrep -f "train_zoo.sh $zoo" >/dev/null; then
   echo "resume_long_jobs: the zoo training is already running"
 else
-  ZOO_MODELS=${ZOO_MODELS:-"tiny small base base-albedo-normal base-color base-variance paper"} ZOO_BF16=1 \
+  ZOO_BF16=1 \
     nohup nice -n 10 tools/train_zoo.sh "$zoo" "$data" "$repo/../shared/datasets/cycles-starter" \
     >>"$logs/zoo.out" 2>&1 &
   echo "resume_long_jobs: zoo training started (logs $zoo/<model>.out, $logs/zoo.out)"
