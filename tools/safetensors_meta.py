@@ -29,10 +29,22 @@ def metadata(path):
 
 if __name__ == "__main__":
     # /usr/bin/python3 tools/safetensors_meta.py MODEL: the metadata, JSON-valued entries expanded.
-    import sys
-    if len(sys.argv) != 2:
-        sys.exit("usage: safetensors_meta.py MODEL.safetensors")
-    meta = metadata(sys.argv[1])
+    # --set KEY=VALUE (repeatable) rewrites entries instead, e.g. --set name=base to ship a run under its
+    # family's name (the name is what tables and the viewer show).
+    import argparse
+    p = argparse.ArgumentParser(description="Shows (or with --set, rewrites) a model file's metadata.")
+    p.add_argument("model")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    a = p.parse_args()
+    if a.set:
+        header, data = read_header(a.model)
+        for item in a.set:
+            key, sep, value = item.partition("=")
+            if not sep or not key:
+                p.error(f"--set {item}: expected KEY=VALUE")
+            header.setdefault("__metadata__", {})[key] = value
+        write_header(a.model, header, data)
+    meta = metadata(a.model)
     for key, value in meta.items():
         try:
             meta[key] = json.loads(value) if value[:1] in "[{" else value

@@ -6,14 +6,15 @@
 #   tools/train_zoo.sh OUT_DIR DATA_DIR [DATA_DIR...]
 #   e.g. tools/train_zoo.sh /work/train/zoo /work/datasets/residue-v1 ../shared/datasets/cycles-starter
 #
-# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color base-variance paper";
-# base-variance reads the noise-level input; also known: base-dilated (dilations 1,2,4,8), base-ft (base
-# fine-tuned 3000 more steps with all its inputs: the control for the variants' extra steps)), ZOO_THREADS (2),
+# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color base-variance base-ft paper";
+# base-variance reads the noise-level input; base-ft is base fine-tuned 3000 more steps with its own inputs, the
+# variants' control, and is what ships as base; also known: base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
 # ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=2000), ZOO_BF16=1 to train with CPU autocast
 # to bfloat16 (1.5-1.9x faster here), RESIDUE_BUILD (build/release).
 # Every model recomputes its BN statistics over 100 batches before each validation (--precise-bn) and trains
 # its last 10 % with them fixed (--freeze-bn-after): docs/MODELS.md, "Batch norm at inference".
-# Copy the finished OUT_DIR/<name>.safetensors into resources/models/ and run tools/stamp_benchmark.py.
+# Copy the finished OUT_DIR/<name>.safetensors into resources/models/ (base-ft as base.safetensors, renamed with
+# tools/safetensors_meta.py --set name=base) and run tools/stamp_benchmark.py.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:?usage: train_zoo.sh OUT_DIR DATA_DIR...}; shift
@@ -38,7 +39,7 @@ declare -A extra=([base-dilated]="--dilations 1,2,4,8")
 # planes matched by name) at a lower peak learning rate, a quarter of the steps of training from scratch.
 declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base [base-ft]=base)
 
-for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-variance paper}; do
+for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-variance base-ft paper}; do
   var="ZOO_STEPS_${name//-/_}"
   n=${!var:-${steps[$name]}}
   if [ -f "$out/$name.safetensors" ]; then echo "train_zoo: $name exists, skipped"; continue; fi
