@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The speed-versus-accuracy plot of an `evaluate-set --json` result: one point per model and precision,
-seconds per megapixel against mean relMSE (left) and mean SSIM (right), the noisy input's values named above. This is the
-measured trade users pick from (docs/MODELS.md).
+seconds per megapixel against mean relMSE (left) and mean SSIM (right), the noisy input's values named above
+the panels. This is the measured trade users pick from (docs/MODELS.md).
 
   /usr/bin/python3 tools/plot_tradeoff.py eval.json tradeoff.png [--title TEXT] [--models tiny,small,base]
 
@@ -28,8 +28,9 @@ def main():
               and (not keep or r["label"].rsplit(" ", 1)[0] in keep or r["label"] in keep)]
     # One colour per model, a filled circle for fp32 and a hollow triangle for bf16, named in one legend:
     # labels written beside the points collide where models are close (the base family).
-    models = list(dict.fromkeys(r["model"] for r in points))
-    colour = {m: ("C3" if m == "bilateral" else f"C{i if i < 3 else i + 1}") for i, m in enumerate(models)}
+    # Red is the bilateral baseline's; the networks take the other default colours in the order they appear.
+    palette = iter(f"C{k}" for k in range(10) if k != 3)
+    colour = {m: "C3" if m == "bilateral" else next(palette) for m in dict.fromkeys(r["model"] for r in points)}
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.6))
     for ax, key, name in ((axes[0], "mean_relmse", "mean relMSE (lower is better)"),
                           (axes[1], "mean_ssim", "mean SSIM (higher is better)")):
