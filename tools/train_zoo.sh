@@ -6,15 +6,16 @@
 #   tools/train_zoo.sh OUT_DIR DATA_DIR [DATA_DIR...]
 #   e.g. tools/train_zoo.sh /work/train/zoo /work/datasets/residue-v1 ../shared/datasets/cycles-starter
 #
-# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color base-variance base-ft paper";
-# base-variance reads the noise-level input; base-ft is base fine-tuned 3000 more steps with its own inputs, the
-# variants' control, and is what ships as base; also known: base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
+# Environment: ZOO_MODELS (default "tiny small base base-albedo-normal base-color base-variance base-ft paper
+# paper-ft"; base-variance reads the noise-level input; base-ft is base fine-tuned 3000 more steps with its own
+# inputs, the variants' control, and is what ships as base; paper-ft is paper fine-tuned 1500 more steps the same
+# way, and ships as paper; also known: base-dilated (dilations 1,2,4,8)), ZOO_THREADS (2),
 # ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=2000), ZOO_BF16=1 to train with CPU autocast
 # to bfloat16 (1.5-1.9x faster here), RESIDUE_BUILD (build/release).
 # Every model recomputes its BN statistics over 100 batches before each validation (--precise-bn) and trains
 # its last 10 % with them fixed (--freeze-bn-after): docs/MODELS.md, "Batch norm at inference".
-# Copy the finished OUT_DIR/<name>.safetensors into resources/models/ (base-ft as base.safetensors, renamed with
-# tools/safetensors_meta.py --set name=base) and run tools/stamp_benchmark.py.
+# Copy the finished OUT_DIR/<name>.safetensors into resources/models/ (base-ft as base.safetensors and paper-ft as
+# paper.safetensors, renamed with tools/safetensors_meta.py --set name=...) and run tools/stamp_benchmark.py.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:?usage: train_zoo.sh OUT_DIR DATA_DIR...}; shift
@@ -28,18 +29,21 @@ export OMP_WAIT_POLICY=passive
 
 # name: architecture, feature set, steps, validation interval
 declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 [base-color]=8/64 [paper]=16/128
-                 [base-variance]=8/64 [base-dilated]=8/64 [base-ft]=8/64)
+                 [base-variance]=8/64 [base-dilated]=8/64 [base-ft]=8/64 [paper-ft]=16/128)
 declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=color+albedo+normal
                      [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full
-                     [base-ft]=full)
+                     [base-ft]=full [paper-ft]=full)
 declare -A steps=([tiny]=16000 [small]=16000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=4000
-                  [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000)
+                  [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000
+                  [paper-ft]=1500)
 declare -A extra=([base-dilated]="--dilations 1,2,4,8")
 # The feature-set variants of base are fine-tuned from the trained base (--init-from: its weights, the input
 # planes matched by name) at a lower peak learning rate, a quarter of the steps of training from scratch.
-declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base [base-ft]=base)
+declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base [base-ft]=base [paper-ft]=paper)
+# A 16/128 validation takes 2-3 min on 2 cores: paper-ft validates 3 times, not 10.
+declare -A val_every=([paper-ft]=500)
 
-for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-variance base-ft paper}; do
+for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-variance base-ft paper paper-ft}; do
   var="ZOO_STEPS_${name//-/_}"
   n=${!var:-${steps[$name]}}
   if [ -f "$out/$name.safetensors" ]; then echo "train_zoo: $name exists, skipped"; continue; fi
@@ -51,7 +55,7 @@ for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-var
   fi
   echo "train_zoo: $name (${arch[$name]}, ${features[$name]}, $n steps${warm:+, from ${init[$name]}})"
   "$train" --data "$@" --arch "${arch[$name]}" --features "${features[$name]}" --steps "$n" \
-    --val-every $(( n / 10 )) --checkpoint-every 250 --threads "$threads" ${ZOO_BF16:+--bf16} ${extra[$name]:-} \
+    --val-every ${val_every[$name]:-$(( n / 10 ))} --checkpoint-every 250 --threads "$threads" ${ZOO_BF16:+--bf16} ${extra[$name]:-} \
     --precise-bn 100 --freeze-bn-after 0.9 "${warm[@]}" \
     --name "$name" -o "$out/$name.safetensors" \
     --log "$out/$name.csv" | tee -a "$out/$name.out"
