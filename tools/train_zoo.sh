@@ -34,14 +34,13 @@ declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=c
                      [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full
                      [base-ft]=full [paper-ft]=full)
 declare -A steps=([tiny]=16000 [small]=16000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=4000
-                  [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000
-                  [paper-ft]=1500)
+                  [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000 [paper-ft]=1500)
 declare -A extra=([base-dilated]="--dilations 1,2,4,8")
-# The feature-set variants of base are fine-tuned from the trained base (--init-from: its weights, the input
-# planes matched by name) at a lower peak learning rate, a quarter of the steps of training from scratch.
+# The feature-set variants of base, and the -ft runs, are fine-tuned from a trained model (--init-from: its
+# weights, the input planes matched by name) at a lower peak learning rate, for a quarter to a third of its steps.
 declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base [base-ft]=base [paper-ft]=paper)
-# A 16/128 validation takes 2-3 min on 2 cores: paper-ft validates 3 times, not 10.
-declare -A val_every=([paper-ft]=500)
+# Validations per run (default 10): a 16/128 validation takes 2-3 min on 2 cores, so paper-ft validates 3 times.
+declare -A validations=([paper-ft]=3)
 
 for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-variance base-ft paper paper-ft}; do
   var="ZOO_STEPS_${name//-/_}"
@@ -55,7 +54,7 @@ for name in ${ZOO_MODELS:-tiny small base base-albedo-normal base-color base-var
   fi
   echo "train_zoo: $name (${arch[$name]}, ${features[$name]}, $n steps${warm:+, from ${init[$name]}})"
   "$train" --data "$@" --arch "${arch[$name]}" --features "${features[$name]}" --steps "$n" \
-    --val-every ${val_every[$name]:-$(( n / 10 ))} --checkpoint-every 250 --threads "$threads" ${ZOO_BF16:+--bf16} ${extra[$name]:-} \
+    --val-every $(( n / ${validations[$name]:-10} )) --checkpoint-every 250 --threads "$threads" ${ZOO_BF16:+--bf16} ${extra[$name]:-} \
     --precise-bn 100 --freeze-bn-after 0.9 "${warm[@]}" \
     --name "$name" -o "$out/$name.safetensors" \
     --log "$out/$name.csv" | tee -a "$out/$name.out"
