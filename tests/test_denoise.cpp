@@ -32,10 +32,7 @@ const float kNan = std::numeric_limits<float>::quiet_NaN();
 const float kInf = std::numeric_limits<float>::infinity();
 
 nn::Model small_model(FeatureSet set = FeatureSet::Full, int blocks = 2, int width = 8, uint32_t seed = 1) {
-  nn::Model m;
-  m.name = "test";
-  m.network = nn::random_network({blocks, width, set}, seed);
-  return m;
+  return nn::model_from_network(nn::random_network({blocks, width, set}, seed), "test");
 }
 
 double max_rel_diff(const Image& a, const Image& b) {
@@ -296,8 +293,8 @@ TEST(ModelFile, ErrorsNameTheFileAndTheTensor) {
 // --- tiled inference ---------------------------------------------------------------------------------------
 
 TEST(Denoise, TiledEqualsUntiled) {
-  nn::Model dilated;  // halo 3 + 2 * (1 + 4 + 1) = 15: tiles need the dilated reach as their halo
-  dilated.network = nn::random_network({3, 8, FeatureSet::Full, {1, 4}}, 6);
+  // halo 3 + 2 * (1 + 4 + 1) = 15: tiles need the dilated reach as their halo
+  const nn::Model dilated = nn::model_from_network(nn::random_network({3, 8, FeatureSet::Full, {1, 4}}, 6));
   for (const nn::Model& model : {small_model(), dilated})
     for (auto [w, h] : std::vector<std::pair<int64_t, int64_t>>{{1, 1}, {3, 5}, {40, 33}, {1000, 7}}) {
       const AovStack s = random_stack(w, h, 3);
@@ -411,11 +408,11 @@ TEST(Denoise, ExtremeInputsGiveFiniteOutputAndStayLocal) {
 TEST(Denoise, MemoryBoundChoosesTheTile) {
   const nn::Model model = small_model(FeatureSet::Full, 4, 32);
   auto backend = nn::make_backend("eigen", model.network, {});
-  const int64_t big = tile_for_memory(*backend, model.network.arch, size_t{1} << 30);
-  const int64_t small = tile_for_memory(*backend, model.network.arch, size_t{8} << 20);
+  const int64_t big = tile_for_memory(*backend, model.graph, size_t{1} << 30);
+  const int64_t small = tile_for_memory(*backend, model.graph, size_t{8} << 20);
   EXPECT_GT(big, small);
   EXPECT_GT(small, 0);
-  EXPECT_EQ(tile_for_memory(*backend, model.network.arch, 1024), 0);
+  EXPECT_EQ(tile_for_memory(*backend, model.graph, 1024), 0);
   const AovStack s = random_stack(50, 50, 1);
   DenoiseOptions o;
   o.backend = "eigen";

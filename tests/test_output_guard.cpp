@@ -66,11 +66,9 @@ TEST(OutputGuard, LeavesNaNForTheExpansionToZero) {
 
 // A network whose last conv adds 20 to the log output: e^20 = 5e8 everywhere, an overshoot of every pixel.
 nn::Model overshooting_model() {
-  nn::Model m;
-  m.name = "overshoot";
-  m.network = nn::random_network({2, 8, FeatureSet::Full}, 4);
-  for (float& b : m.network.out.bias) b += 20.0f;
-  return m;
+  nn::Network n = nn::random_network({2, 8, FeatureSet::Full}, 4);
+  for (float& b : n.out.bias) b += 20.0f;
+  return nn::model_from_network(std::move(n), "overshoot");
 }
 
 TEST(OutputGuard, BoundsADenoiseByTheBrightestInputInTheReceptiveField) {

@@ -93,8 +93,7 @@ TEST(VarianceBlend, MatchesTheFormulaAndItsLimits) {
 }
 
 TEST(VarianceBlend, DenoiseUsesItOnlyWithVarianceAndTiledEqualsUntiled) {
-  nn::Model model;
-  model.network = nn::random_network({2, 8, FeatureSet::ColorOnly}, 4);
+  const nn::Model model = nn::model_from_network(nn::random_network({2, 8, FeatureSet::ColorOnly}, 4));
   const AovStack s = stack_with_variance(50, 37, 0.02f, 5);
   DenoiseOptions o;
   o.backend = "eigen";
@@ -135,8 +134,7 @@ TEST(VarianceBlend, StreamedEqualsInMemoryOnTungstensRender) {
   const AovReader reader({dir});
   ASSERT_TRUE(reader.layout().variance.has_value()) << "colorVariance.exr";
   const AovStack whole = reader.read({0, 0, reader.layout().data_window.width, reader.layout().data_window.height});
-  nn::Model model;
-  model.network = nn::random_network({2, 8, FeatureSet::Full}, 8);
+  const nn::Model model = nn::model_from_network(nn::random_network({2, 8, FeatureSet::Full}, 8));
   DenoiseOptions o;
   o.backend = "eigen";
   o.tile = 48;

@@ -280,7 +280,7 @@ void DenoisePanel::start() {
   options.tile = tile_->currentData().toInt();
   options.energy_correction = energy_->isChecked();
   options.variance_blend = blend_->isChecked();
-  running_description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->network.arch.to_string()),
+  running_description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->architecture()),
                                                     precision_->currentText());
   if (!options.energy_correction) running_description_ += tr(", no energy correction");
   if (stack->variance) running_description_ += options.variance_blend ? tr(", variance blend") : tr(", no variance blend");

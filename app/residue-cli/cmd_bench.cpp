@@ -77,10 +77,8 @@ int run(const BenchOptions& o) {
     std::printf("|---|---|---|---|---|---|---|---|\n");
   }
   for (const auto& model_text : o.models) {
-    nn::Model model;
-    model.name = model_text;
-    model.network = nn::random_network(parse_model(model_text), 1);
-    const double flops = model.network.arch.flops_per_pixel() * static_cast<double>(o.size * o.size);
+    const nn::Model model = nn::model_from_network(nn::random_network(parse_model(model_text), 1), model_text);
+    const double flops = model.graph.flops_per_pixel() * static_cast<double>(o.size * o.size);
     for (const auto& backend : backends)
       for (const auto& precision : o.precisions) {
         if (backend == "eigen" && precision != "fp32") continue;

@@ -126,7 +126,7 @@ int run(const DenoiseCliOptions& o) {
       // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
       const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(layout)));
       model_name = model.name;
-      architecture = model.network.arch.to_string();
+      architecture = model.architecture();
       w.residue_attributes.attribute("residue:model", model_name);
       w.residue_attributes.attribute("residue:architecture", architecture);
       if (streamed) {  // the header, written first, says which post-steps run (core decides, as below)

@@ -9,6 +9,7 @@
 #include <tbb/task_arena.h>
 
 #include "core/denoise/energy_correction.h"
+#include "core/denoise/oidn_filter.h"
 #include "core/denoise/output_guard.h"
 #include "core/denoise/variance_blend.h"
 #include "core/features/features.h"
@@ -21,10 +22,12 @@ namespace {
 // Largest tile edge tried when none is given: big tiles waste less on halos, but progress comes per tile.
 constexpr int64_t kMaxAutoTile = 1024;
 
-size_t tile_bytes(const nn::Backend& backend, const nn::Architecture& arch, int64_t tile) {
-  const int64_t e = tile + 2 * arch.halo();
+size_t tile_bytes(const nn::Backend& backend, const nn::Graph& graph, int64_t tile) {
+  const int64_t a = graph.alignment();
+  const int64_t e = (tile + 2 * graph.halo() + a - 1) / a * a;
   const size_t pixels = static_cast<size_t>(e * e);
-  return backend.scratch_bytes(e, e) + pixels * static_cast<size_t>(arch.in_channels() + 3) * sizeof(float);
+  return backend.scratch_bytes(e, e) +
+         pixels * static_cast<size_t>(2 * graph.input_channels() + graph.output_channels()) * sizeof(float);
 }
 
 bool colour_is_empty(const Image& colour, const Rect& r) {
@@ -37,54 +40,135 @@ bool colour_is_empty(const Image& colour, const Rect& r) {
   return true;
 }
 
-Rect expand(const Rect& r, int64_t halo, const Rect& bounds);
+// The tile with its halo, clipped to `bounds`, its origin moved down to the graph's alignment grid (so that the
+// network's pooling grid is the image's, and tiled output equals untiled).
+Rect expand(const Rect& r, int64_t halo, const Rect& bounds, int64_t align) {
+  const int64_t x0 = std::max(bounds.x, r.x - halo) / align * align, y0 = std::max(bounds.y, r.y - halo) / align * align;
+  const int64_t x1 = std::min(bounds.x + bounds.width, r.x + r.width + halo);
+  const int64_t y1 = std::min(bounds.y + bounds.height, r.y + r.height + halo);
+  return {x0, y0, x1 - x0, y1 - y0};
+}
 
 // The variance blend's tau for this denoise; 0 when it is off.
 float tau_for(const DenoiseOptions& o, const nn::Model& model) {
-  if (!o.variance_blend) return 0.0f;
+  if (!o.variance_blend || model.method != nn::Method::Residue) return 0.0f;
   return o.blend_tau > 0 ? o.blend_tau : blend_tau(model.metadata);
+}
+
+// How a model's network is fed and read: AOVs -> input planes, raw output -> linear values.
+class NetworkIO {
+ public:
+  virtual ~NetworkIO() = default;
+  // The input planes of rectangle r of `src` (its pixel coordinates).
+  virtual void input(const AovStack& src, const Rect& r, Image& planes) const = 0;
+  virtual float output(float raw) const = 0;
+};
+
+// Residue's models: log features (core/features), log colour out.
+class ResidueIO final : public NetworkIO {
+ public:
+  ResidueIO(FeatureSet set, FeatureStats stats) : set_(set), stats_(stats) {}
+  void input(const AovStack& src, const Rect& r, Image& planes) const override {
+    make_features(src, set_, stats_, r, planes);
+  }
+  float output(float raw) const override { return expand_color(raw); }
+
+ private:
+  FeatureSet set_;
+  FeatureStats stats_;
+};
+
+// Open Image Denoise's networks, fed and read as OIDN does (oidn_filter.h).
+class OidnIO final : public NetworkIO {
+ public:
+  explicit OidnIO(OidnTransform t) : t_(std::move(t)) {}
+  void input(const AovStack& src, const Rect& r, Image& planes) const override { t_.input(src, r, planes); }
+  float output(float raw) const override { return t_.output(raw); }
+
+ private:
+  OidnTransform t_;
+};
+
+using residue_io_t = std::unique_ptr<NetworkIO>;
+
+// The image a model's output replaces: the colour, or for an OIDN prefilter the albedo or normal it cleans.
+const Image& source_image(const AovStack& stack, const nn::Model& model) {
+  if (model.method == nn::Method::Oidn && !model.oidn.color)
+    return model.oidn.albedo ? stack.albedo->image : stack.normal->image;
+  return stack.color.image;
+}
+
+void check_inputs(const AovStack& stack, const nn::Model& model) {
+  if (model.method == nn::Method::Residue) return check_features_available(stack, model.network.arch.features);
+  const std::string who = "Open Image Denoise's network " + model.name;
+  if (model.oidn.albedo && !stack.albedo) throw Error(ErrorKind::Input, who + " needs an albedo AOV; the render has none");
+  if (model.oidn.normal && !stack.normal) throw Error(ErrorKind::Input, who + " needs a normal AOV; the render has none");
+}
+
+// The input scale an OIDN network runs with: the autoexposure for HDR colour, else 1.
+float oidn_scale(const nn::Model& model, const Image& colour) {
+  return model.oidn.color && model.oidn.hdr ? oidn_autoexposure(colour) : 1.0f;
 }
 
 // Denoises one tile. `src` holds the image's pixels of `src_rect` (image coordinates; it covers the tile and
 // its halo); the result goes to `out` at the tile's position minus (out_x0, out_y0). Returns true when skipped.
 struct TileRunner {
-  const nn::Architecture& arch;
+  const nn::Model& model;
   nn::Backend& backend;
-  const FeatureStats& stats;
+  const NetworkIO& io;
   bool skip_empty;
   bool guard;       // clamp overshoots to the receptive field's brightest input (output_guard.h)
   float blend_tau;  // variance blend (when the stack has variance); 0: off
   int64_t guarded = 0;  // values the guard clamped so far
-  Image features, result;
+  Image features, padded, result;
 
   bool run(const AovStack& src, const Rect& src_rect, const Rect& bounds, const Rect& t, Image& out, int64_t out_x0,
            int64_t out_y0) {
-    Rect in = expand(t, arch.halo(), bounds);
+    const nn::Graph& g = model.graph;
+    const int64_t halo = g.halo(), align = g.alignment();
+    const bool residue = model.method == nn::Method::Residue;
+    Rect in = expand(t, halo, bounds, align);
     in.x -= src_rect.x;
     in.y -= src_rect.y;
     const int64_t tx = t.x - src_rect.x, ty = t.y - src_rect.y;
-    if (skip_empty && colour_is_empty(src.color.image, in)) {
+    const int oc = out.channels();
+    if (residue && skip_empty && colour_is_empty(src.color.image, in)) {
       for (int64_t y = t.y; y < t.y + t.height; ++y)
-        std::memset(&out.at(t.x - out_x0, y - out_y0, 0), 0, static_cast<size_t>(t.width * 3) * sizeof(float));
+        std::memset(&out.at(t.x - out_x0, y - out_y0, 0), 0, static_cast<size_t>(t.width * oc) * sizeof(float));
       return true;
     }
-    make_features(src, arch.features, stats, in, features);
-    backend.run(features, result);
-    if (guard) guarded += guard_output(features, {tx - in.x, ty - in.y, t.width, t.height}, arch.halo(), result);
+    io.input(src, in, features);
+    // Networks that pool take tiles of whole multiples of their alignment: zeros past the image's edge, as
+    // when the whole image is padded.
+    const Image* net_in = &features;
+    if (in.width % align != 0 || in.height % align != 0) {
+      padded = Image((in.width + align - 1) / align * align, (in.height + align - 1) / align * align, features.channels());
+      for (int64_t y = 0; y < in.height; ++y)
+        std::memcpy(&padded.at(0, y, 0), features.row(y).data(), static_cast<size_t>(in.width * features.channels()) * sizeof(float));
+      net_in = &padded;
+    }
+    backend.run(*net_in, result);
+    if (residue && guard) guarded += guard_output(features, {tx - in.x, ty - in.y, t.width, t.height}, halo, result);
     for (int64_t y = 0; y < t.height; ++y)
       for (int64_t x = 0; x < t.width; ++x)
-        for (int c = 0; c < 3; ++c)
-          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = expand_color(result.at(tx - in.x + x, ty - in.y + y, c));
+        for (int c = 0; c < oc; ++c)
+          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = io.output(result.at(tx - in.x + x, ty - in.y + y, c));
     if (blend_tau > 0 && src.variance) blend_by_variance(src, src_rect, bounds, t, out, out_x0, out_y0, blend_tau);
     return false;
   }
 };
 
-Rect expand(const Rect& r, int64_t halo, const Rect& bounds) {
-  const int64_t x0 = std::max(bounds.x, r.x - halo), y0 = std::max(bounds.y, r.y - halo);
-  const int64_t x1 = std::min(bounds.x + bounds.width, r.x + r.width + halo);
-  const int64_t y1 = std::min(bounds.y + bounds.height, r.y + r.height + halo);
-  return {x0, y0, x1 - x0, y1 - y0};
+// Tiles of `tile` px on the image's grid (from its origin, so that each starts on the alignment grid), cut to
+// `region`.
+std::vector<Rect> grid_tiles(const Rect& bounds, const Rect& region, int64_t tile) {
+  std::vector<Rect> tiles;
+  for (const Rect& t : make_tiles(bounds, tile)) {
+    const int64_t x0 = std::max(t.x, region.x), y0 = std::max(t.y, region.y);
+    const int64_t x1 = std::min(t.x + t.width, region.x + region.width);
+    const int64_t y1 = std::min(t.y + t.height, region.y + region.height);
+    if (x1 > x0 && y1 > y0) tiles.push_back({x0, y0, x1 - x0, y1 - y0});
+  }
+  return tiles;
 }
 
 }  // namespace
@@ -97,68 +181,114 @@ std::vector<Rect> make_tiles(const Rect& region, int64_t tile) {
   return tiles;
 }
 
-int64_t tile_for_memory(const nn::Backend& backend, const nn::Architecture& arch, size_t budget) {
-  for (int64_t t = kMaxAutoTile; t >= 16; t = t * 3 / 4)
-    if (tile_bytes(backend, arch, t) <= budget) return t;
+int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget) {
+  const int64_t a = graph.alignment();
+  for (int64_t t = kMaxAutoTile; t >= 16; t = t * 3 / 4) {
+    const int64_t aligned = std::max(a, t / a * a);
+    if (tile_bytes(backend, graph, aligned) <= budget) return aligned;
+  }
   return 0;
 }
+
+namespace {
+
+Rect checked_region(const DenoiseOptions& options, int64_t w, int64_t h) {
+  const Rect bounds{0, 0, w, h};
+  const Rect region = options.roi.value_or(bounds);
+  if (region.empty() || !bounds.contains(region))
+    throw Error(ErrorKind::Usage, "the region " + region.to_string() + " is not inside the " + std::to_string(w) + "x" +
+                                      std::to_string(h) + " image");
+  return region;
+}
+
+// The tile edge: the option (rounded down to the network's alignment), or the largest within `budget`.
+int64_t choose_tile(const DenoiseOptions& options, const nn::Backend& backend, const nn::Graph& graph, size_t budget) {
+  const int64_t a = graph.alignment();
+  int64_t tile = options.tile;
+  if (tile <= 0) {
+    tile = tile_for_memory(backend, graph, budget);
+    if (tile == 0)
+      throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) +
+                                        " MiB is too small even for 16-pixel tiles of this model");
+    return tile;
+  }
+  tile = std::max(a, tile / a * a);
+  if (tile_bytes(backend, graph, tile) > budget)
+    throw Error(ErrorKind::Usage, "tiles of " + std::to_string(tile) + " px need " +
+                                      std::to_string(tile_bytes(backend, graph, tile) >> 20) +
+                                      " MiB, over --max-memory; use smaller tiles or more memory");
+  return tile;
+}
+
+std::string backend_for(const DenoiseOptions& o) {
+  return o.backend.empty() ? nn::available_backends().back() : o.backend;  // the last is the fastest
+}
+
+// The whole denoise of a stack in memory with one model (an OIDN prefilter included: its output is the image it
+// cleans, albedo or normal).
+Image denoise_stack(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
+                    const TileCallback& on_tile, DenoiseStats& local) {
+  check_inputs(stack, model);
+  const Rect bounds{0, 0, stack.width(), stack.height()};
+  const Rect region = checked_region(options, stack.width(), stack.height());
+  Image output = source_image(stack, model);  // outside the region the input stays
+
+  auto backend = nn::make_backend(backend_for(options), model.graph, {options.precision});
+  const size_t output_bytes = output.size() * sizeof(float);
+  const size_t budget = options.max_memory > output_bytes ? options.max_memory - output_bytes : 0;
+  int64_t tile = choose_tile(options, *backend, model.graph, budget);
+  const int64_t a = model.graph.alignment();
+  if (options.tile <= 0) tile = std::min(tile, (std::max(region.width, region.height) + a - 1) / a * a);
+  const residue_io_t io = model.method == nn::Method::Residue
+                              ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, compute_feature_stats(stack)))
+                              : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, oidn_scale(model, stack.color.image))));
+  const std::vector<Rect> tiles = grid_tiles(bounds, region, tile);
+  local.tiles = static_cast<int64_t>(tiles.size());
+  local.tile_size = tile;
+  local.backend = backend->description();
+  local.features = model.features();
+  const float tau = tau_for(options, model);
+  local.variance_blended = tau > 0 && stack.variance.has_value();
+
+  TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}, {}};
+  for (size_t i = 0; i < tiles.size(); ++i) {
+    const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
+    if (skip) ++local.skipped;
+    if (on_tile && !on_tile({tiles[i], skip, static_cast<int64_t>(i + 1), local.tiles}, output)) throw Cancelled();
+  }
+  local.guarded_values = runner.guarded;
+  if (options.energy_correction && model.method == nn::Method::Residue) {
+    EnergyCorrection correction(region);
+    correction.accumulate(stack.color.image, 0, output, 0, region.y, region.height);
+    correction.apply(output, 0, region.y, region.height);
+    local.energy_corrected = true;
+  }
+  return output;
+}
+
+}  // namespace
 
 Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options, const TileCallback& on_tile,
               DenoiseStats* stats) {
   const auto start = std::chrono::steady_clock::now();
-  const nn::Architecture& arch = model.network.arch;
-  check_features_available(stack, arch.features);
-  const Rect bounds{0, 0, stack.width(), stack.height()};
-  const Rect region = options.roi.value_or(bounds);
-  if (region.empty() || !bounds.contains(region))
-    throw Error(ErrorKind::Usage, "the region " + region.to_string() + " is not inside the " +
-                                      std::to_string(stack.width()) + "x" + std::to_string(stack.height()) + " image");
-
-  std::string backend_name = options.backend;
-  if (backend_name.empty()) backend_name = nn::available_backends().back();  // the last is the fastest
   const int threads = options.threads > 0 ? options.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
-
-  Image output = stack.color.image;  // outside the region the noisy colour stays
-
   DenoiseStats local;
+  Image output;
   arena.execute([&] {
-    auto backend = nn::make_backend(backend_name, model.network, {options.precision});
-    const size_t output_bytes = output.size() * sizeof(float);
-    const size_t budget = options.max_memory > output_bytes ? options.max_memory - output_bytes : 0;
-    int64_t tile = options.tile;
-    if (tile <= 0) {
-      tile = tile_for_memory(*backend, arch, budget);
-      if (tile == 0)
-        throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) +
-                                          " MiB is too small even for 16-pixel tiles of this model");
-      tile = std::min(tile, std::max(region.width, region.height));
-    } else if (tile_bytes(*backend, arch, tile) > budget) {
-      throw Error(ErrorKind::Usage, "tiles of " + std::to_string(tile) + " px need " +
-                                        std::to_string(tile_bytes(*backend, arch, tile) >> 20) +
-                                        " MiB, over --max-memory; use smaller tiles or more memory");
-    }
-    const FeatureStats fstats = compute_feature_stats(stack);
-    const std::vector<Rect> tiles = make_tiles(region, tile);
-    local.tiles = static_cast<int64_t>(tiles.size());
-    local.tile_size = tile;
-    local.backend = backend->description();
-    local.features = arch.features;
-    const float tau = tau_for(options, model);
-    local.variance_blended = tau > 0 && stack.variance.has_value();
-
-    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}};
-    for (size_t i = 0; i < tiles.size(); ++i) {
-      const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
-      if (skip) ++local.skipped;
-      if (on_tile && !on_tile({tiles[i], skip, static_cast<int64_t>(i + 1), local.tiles}, output)) throw Cancelled();
-    }
-    local.guarded_values = runner.guarded;
-    if (options.energy_correction) {
-      EnergyCorrection correction(region);
-      correction.accumulate(stack.color.image, 0, output, 0, region.y, region.height);
-      correction.apply(output, 0, region.y, region.height);
-      local.energy_corrected = true;
+    if (model.albedo_prefilter || model.normal_prefilter) {
+      // OIDN's final-frame mode: albedo and normal denoised first (whole image: the main pass reads them
+      // around its region too), then the colour with them.
+      check_inputs(stack, model);
+      AovStack clean = stack;
+      DenoiseOptions whole = options;
+      whole.roi.reset();
+      DenoiseStats ignored;
+      if (model.albedo_prefilter) clean.albedo->image = denoise_stack(stack, *model.albedo_prefilter, whole, {}, ignored);
+      if (model.normal_prefilter) clean.normal->image = denoise_stack(stack, *model.normal_prefilter, whole, {}, ignored);
+      output = denoise_stack(clean, model, options, on_tile, local);
+    } else {
+      output = denoise_stack(stack, model, options, on_tile, local);
     }
   });
   local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -170,33 +300,34 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
                             const std::filesystem::path& output, io::ExrWriteOptions exr, const TileCallback& on_tile) {
   const auto start = std::chrono::steady_clock::now();
   const AovStack& layout = reader.layout();
-  const nn::Architecture& arch = model.network.arch;
-  check_features_available(layout, arch.features);
+  check_inputs(layout, model);
+  if (model.albedo_prefilter || model.normal_prefilter)
+    throw Error(ErrorKind::Usage, model.name + " (OIDN's clean-aux mode) denoises the albedo and normal of the whole "
+                                  "render first and so needs it in memory; raise --max-memory");
+  const bool residue = model.method == nn::Method::Residue;
   const int64_t W = layout.data_window.width, H = layout.data_window.height;
   const Rect bounds{0, 0, W, H};
-  const Rect region = options.roi.value_or(bounds);
-  if (region.empty() || !bounds.contains(region))
-    throw Error(ErrorKind::Usage, "the region " + region.to_string() + " is not inside the " + std::to_string(W) +
-                                      "x" + std::to_string(H) + " image");
+  const Rect region = checked_region(options, W, H);
   const int64_t stack_channels = layout.channel_count();  // floats per pixel of a band as read
 
   if (exr.data_window.empty()) exr.data_window = layout.data_window;
   if (exr.display_width <= 0) exr.display_width = layout.display_width;
   if (exr.display_height <= 0) exr.display_height = layout.display_height;
   if (exr.metadata.empty()) exr.metadata = layout.metadata;
-  std::string backend_name = options.backend.empty() ? nn::available_backends().back() : options.backend;
   const int threads = options.threads > 0 ? options.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
   DenoiseStats local;
   arena.execute([&] {
-    auto backend = nn::make_backend(backend_name, model.network, {options.precision});
-    const int64_t h = arch.halo();
+    auto backend = nn::make_backend(backend_for(options), model.graph, {options.precision});
+    const nn::Graph& graph = model.graph;
+    const int64_t h = graph.halo(), a = graph.alignment();
+    const bool correct = options.energy_correction && residue;
     // The energy correction needs the denoised rows a few blocks below a band before it can finish the band,
     // so bands are denoised that far ahead of the one written.
     auto bands_ahead = [&](int64_t tile) {
-      return options.energy_correction ? (EnergyCorrection::kBlock * (EnergyCorrection::kRadiusBlocks + 2) + tile - 1) / tile : 0;
+      return correct ? (EnergyCorrection::kBlock * (EnergyCorrection::kRadiusBlocks + 2) + tile - 1) / tile : 0;
     };
-    const size_t correction_grid = options.energy_correction
+    const size_t correction_grid = correct
                                        ? static_cast<size_t>((W / EnergyCorrection::kBlock + 1) * (H / EnergyCorrection::kBlock + 1)) *
                                              EnergyCorrection::kBytesPerBlock
                                        : 0;
@@ -204,50 +335,51 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     // and one tile's work.
     auto band_bytes = [&](int64_t tile) {
       return static_cast<size_t>(((tile + 2 * h) * stack_channels + (1 + bands_ahead(tile)) * tile * 3) * W) * sizeof(float) +
-             tile_bytes(*backend, arch, tile) + correction_grid;
+             tile_bytes(*backend, graph, tile) + correction_grid;
     };
-    int64_t tile = options.tile;
+    int64_t tile = options.tile > 0 ? std::max(a, options.tile / a * a) : 0;
     if (tile <= 0)
       for (int64_t t = kMaxAutoTile; t >= 16 && tile <= 0; t = t * 3 / 4)
-        if (band_bytes(t) <= options.max_memory) tile = t;
+        if (band_bytes(std::max(a, t / a * a)) <= options.max_memory) tile = std::max(a, t / a * a);
     if (tile <= 0 || band_bytes(tile) > options.max_memory)
       throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) + " MiB cannot hold a band of " +
                                         std::to_string(std::max<int64_t>(tile, 16)) + "-pixel tiles of this " +
                                         std::to_string(W) + "-pixel-wide image");
     local.tile_size = tile;
     local.backend = backend->description();
-    local.features = arch.features;
-    local.energy_corrected = options.energy_correction;
+    local.features = model.features();
+    local.energy_corrected = correct;
     const float tau = tau_for(options, model);
     local.variance_blended = tau > 0 && layout.variance.has_value();
     exr.residue_attributes.attribute("residue:backend", local.backend);
     exr.residue_attributes.attribute("residue:energy_correction", local.energy_corrected ? 1 : 0);
     exr.residue_attributes.attribute("residue:variance_blend", local.variance_blended ? 1 : 0);
 
-    // Pass 1: the whole-image statistics the features need (the same depth sample denoise() draws).
+    // Pass 1: the whole-image statistics the input needs: the depth scale (the same sample denoise() draws) or
+    // OIDN's autoexposure.
     FeatureStats fstats = compute_feature_stats(layout);
-    if (layout.depth) {
+    const bool exposure = !residue && model.oidn.color && model.oidn.hdr;
+    OidnAutoexposure autoexposure(W, H);
+    if ((residue && layout.depth) || exposure) {
       const int64_t stride = depth_sample_stride(W * H);
       std::vector<float> samples;
       for (int64_t y0 = 0; y0 < H; y0 += tile) {
         const AovStack band = reader.read({0, y0, W, std::min(tile, H - y0)});
+        if (exposure) autoexposure.add(band.color.image, y0);
+        if (!residue) continue;
         for (int64_t i = 0; i < band.depth->image.pixel_count(); ++i)
           if ((y0 * W + i) % stride == 0) samples.push_back(band.depth->image.data()[i]);
       }
-      fstats.depth_scale = depth_scale_from_samples(samples);
+      if (residue) fstats.depth_scale = depth_scale_from_samples(samples);
     }
+    const residue_io_t io = residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, fstats))
+                                    : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, exposure ? autoexposure.scale() : 1.0f)));
 
     // Pass 2: bands of tile rows, denoised (ahead of writing when correcting) and written in order. Tiles sit
     // on the image's grid (so each lies in one band), cut to the region.
-    std::vector<Rect> tiles;
-    for (const Rect& t : make_tiles(bounds, tile)) {
-      const int64_t x0 = std::max(t.x, region.x), y0 = std::max(t.y, region.y);
-      const int64_t x1 = std::min(t.x + t.width, region.x + region.width);
-      const int64_t y1 = std::min(t.y + t.height, region.y + region.height);
-      if (x1 > x0 && y1 > y0) tiles.push_back({x0, y0, x1 - x0, y1 - y0});
-    }
+    const std::vector<Rect> tiles = grid_tiles(bounds, region, tile);
     local.tiles = static_cast<int64_t>(tiles.size());
-    TileRunner runner{arch, *backend, fstats, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}};
+    TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}, {}};
     EnergyCorrection correction(region);
     int64_t done = 0;
     struct Band {
@@ -269,16 +401,16 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
         ++done;
         if (on_tile && !on_tile({t, skip, done, local.tiles}, out)) throw Cancelled();
       }
-      if (options.energy_correction) correction.accumulate(src.color.image, in_y0, out, y0, y0, rows);
+      if (correct) correction.accumulate(src.color.image, in_y0, out, y0, y0, rows);
       denoised.push_back({y0, std::move(out)});
       denoised_end = y0 + rows;
     };
     io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
-      const int64_t needed = options.energy_correction ? std::max(y0 + rows, correction.rows_required(y0 + rows)) : y0 + rows;
+      const int64_t needed = correct ? std::max(y0 + rows, correction.rows_required(y0 + rows)) : y0 + rows;
       while (denoised_end < needed) denoise_band(denoised_end);
       Band band = std::move(denoised.front());
       denoised.pop_front();
-      if (options.energy_correction) correction.apply(band.out, band.y0, y0, rows);
+      if (correct) correction.apply(band.out, band.y0, y0, rows);
       return std::move(band.out);
     });
     local.guarded_values = runner.guarded;

@@ -81,7 +81,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
 // Tile rectangles covering `region`, row by row.
 std::vector<Rect> make_tiles(const Rect& region, int64_t tile);
 
-// The tile edge that keeps one tile's memory within `budget` bytes, or 0 when even 16 px does not fit.
-int64_t tile_for_memory(const nn::Backend& backend, const nn::Architecture& arch, size_t budget);
+// The tile edge (a multiple of the graph's alignment) that keeps one tile's memory within `budget` bytes, or 0
+// when even 16 px does not fit.
+int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget);
 
 }  // namespace residue

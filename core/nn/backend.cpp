@@ -5,16 +5,10 @@
 namespace residue::nn {
 
 #ifdef RESIDUE_HAVE_ONEDNN
-std::unique_ptr<Backend> make_onednn_backend(const Network& network, Precision precision);
+std::unique_ptr<Backend> make_onednn_backend(const Graph& graph, Precision precision);
 #endif
 
 const char* to_string(Precision p) { return p == Precision::BF16 ? "bf16" : "fp32"; }
-
-void add_input_skip(const Image& input, Image& output) {
-  const int c = input.channels();
-  for (int64_t i = 0; i < output.pixel_count(); ++i)
-    for (int k = 0; k < 3; ++k) output.data()[i * 3 + k] += input.data()[i * c + k];
-}
 
 std::vector<std::string> available_backends() {
   std::vector<std::string> names = {"eigen"};
@@ -25,13 +19,17 @@ std::vector<std::string> available_backends() {
 }
 
 std::unique_ptr<Backend> make_backend(const std::string& name, const Network& network, const BackendOptions& options) {
+  return make_backend(name, to_graph(network), options);
+}
+
+std::unique_ptr<Backend> make_backend(const std::string& name, const Graph& graph, const BackendOptions& options) {
   if (name == "eigen") {
     if (options.precision != Precision::FP32)
       throw Error(ErrorKind::Usage, "the eigen backend computes in fp32 only; use --backend onednn for bf16");
-    return make_eigen_backend(network);
+    return make_eigen_backend(graph);
   }
 #ifdef RESIDUE_HAVE_ONEDNN
-  if (name == "onednn") return make_onednn_backend(network, options.precision);
+  if (name == "onednn") return make_onednn_backend(graph, options.precision);
 #endif
   std::string list;
   for (const auto& n : available_backends()) list += (list.empty() ? "" : ", ") + n;

@@ -1,7 +1,8 @@
-// Backends run the network on one tile. One interface, chosen at run time:
-//   "eigen"   portable fp32 (always built; the reference): an AVX-512 direct 3x3 kernel where the CPU has it,
-//             else im2col + Eigen GEMM; strips of rows in parallel on oneTBB
+// Backends run a network graph (graph.h) on one tile. One interface, chosen at run time:
+//   "eigen"   portable fp32 (always built; the reference): an AVX-512 direct conv kernel where the CPU has it,
+//             else im2col + Eigen GEMM; rows in parallel on oneTBB
 //   "onednn"  oneDNN fp32 / bf16 (AVX-512, AMX where present), when built with oneDNN
+// Both plan each tile size once: every op's output placed in one arena (arena.h), reused tile after tile.
 #pragma once
 
 #include <memory>
@@ -9,6 +10,7 @@
 #include <vector>
 
 #include "core/image/image.h"
+#include "core/nn/graph.h"
 #include "core/nn/network.h"
 
 namespace residue::nn {
@@ -25,8 +27,9 @@ class Backend {
   virtual ~Backend() = default;
   // What runs, e.g. "eigen fp32" or "onednn bf16 (avx512_core_amx)".
   virtual std::string description() const = 0;
-  // The network on one tile: `input` is H x W x C_in (the model's feature planes, NHWC), `output` gets
-  // H x W x 3 (the network's raw output). Convolutions pad with zeros at the tile's borders.
+  // The network on one tile: `input` is H x W x C_in (the model's feature planes, NHWC; H and W multiples of the
+  // graph's alignment), `output` gets H x W x C_out (the network's raw output). Convolutions pad with zeros at
+  // the tile's borders.
   // Threads: whatever oneTBB's current arena allows (the caller limits it).
   virtual void run(const Image& input, Image& output) = 0;
   // Scratch memory run() allocates for a tile of this size, in bytes (for memory-bounded tiling).
@@ -34,12 +37,10 @@ class Backend {
 };
 
 // Throws residue::Error(Usage) for an unknown or unavailable backend / precision, saying what is available.
+std::unique_ptr<Backend> make_backend(const std::string& name, const Graph& graph, const BackendOptions& options);
 std::unique_ptr<Backend> make_backend(const std::string& name, const Network& network, const BackendOptions& options);
 std::vector<std::string> available_backends();
 
-std::unique_ptr<Backend> make_eigen_backend(const Network& network);
-
-// The input-skip variant's last step, shared by the backends: output += the input's first 3 planes.
-void add_input_skip(const Image& input, Image& output);
+std::unique_ptr<Backend> make_eigen_backend(const Graph& graph);
 
 }  // namespace residue::nn

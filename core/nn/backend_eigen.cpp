@@ -1,16 +1,19 @@
-// The portable fp32 backend. Activations live in buffers with a zero border as wide as the largest dilation,
-// so a 3x3 conv reads its neighbours without bounds checks. Each conv runs in parallel on oneTBB, in one of two ways:
+// The portable fp32 backend: runs a Graph op by op over one arena (arena.h). Each value is NHWC with a zero
+// border as wide as the convs that read it need, so a conv reads its neighbours without bounds checks.
+// Convs run in parallel on oneTBB, in one of two ways:
 //  - on CPUs with AVX-512 (checked at run time): a direct convolution kernel, compiled for AVX-512 through
 //    function attributes only, so that the rest of the binary (and Eigen, and the standard library) stays
-//    plain x86-64. A tile of 12 pixels x 32 output channels is accumulated in 24 registers over the 9 taps
-//    and all input channels, from weights packed per 32-channel block; bias, PReLU and the residual add are
-//    applied before the store. Rows of the image run in parallel.
-//  - otherwise: im2col + Eigen GEMM over strips of rows, the strips in parallel, bias, PReLU and the
-//    residual add applied while the strip is still in cache.
+//    plain x86-64. A tile of 12 pixels x 32 output channels is accumulated in 24 registers over the taps and
+//    all input channels, from weights packed per 32-channel block; bias, the activation and the residual add
+//    are applied before the store. A concat conv runs one pass per input, accumulating into its output.
+//  - otherwise: im2col + Eigen GEMM over strips of rows, the strips in parallel, bias, the activation and
+//    the residual add applied while the strip is still in cache.
+// Pool, upsample and add are plain loops over rows in parallel.
 // RESIDUE_EIGEN_PORTABLE=1 in the environment forces the second way (for tests and comparisons).
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
+#include <map>
 
 #include <Eigen/Core>
 #include <tbb/blocked_range.h>
@@ -23,102 +26,130 @@
 #define RESIDUE_HAVE_AVX512_KERNEL 1
 #endif
 
+#include "core/nn/arena.h"
 #include "core/nn/backend.h"
+#include "core/util/error.h"
 
 namespace residue::nn {
 namespace {
 
 using RowMatrix = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 
-constexpr int kLanes = 16;  // floats per AVX-512 register
-constexpr int kTileBlock = 2;  // output-channel registers per tile (32 channels)
+constexpr int kLanes = 16;       // floats per AVX-512 register
+constexpr int kTileBlock = 2;    // output-channel registers per tile (32 channels)
 constexpr int kTilePixels = 12;  // pixels per tile: 12 x 2 accumulators, 2 weight registers, 1 broadcast
 
-// A conv ready to run: weights for the Eigen GEMM or blocked for the AVX-512 kernel.
-struct PackedConv {
-  int in = 0, out = 0;
-  RowMatrix weights;          // Eigen: (9 * in) x out, row (ky * 3 + kx) * in + i
-  std::vector<float> blocked;  // AVX-512: per block of kTileBlock * 16 output channels, [tap][in][channel]
-  std::vector<float> bias;     // `out` values; AVX-512: padded to whole registers with zeros
-  std::vector<float> prelu;    // empty: no activation; AVX-512: padded with ones
-};
+enum Act { kNone = 0, kRelu = 1, kPrelu = 2 };
 
 int padded_channels(int out) { return (out + kLanes - 1) / kLanes * kLanes; }
 
-PackedConv pack(const Conv3x3& c, const std::vector<float>& prelu, bool blocked) {
+// One input of a conv (a concat conv has several): its weights for the AVX-512 kernel, blocked per
+// kTileBlock * 16 output channels as [tap][in][channel].
+struct ConvPart {
+  int value = 0;  // the op whose output this part reads
+  int in = 0;     // its channels
+  std::vector<float> blocked;
+};
+
+// A conv ready to run.
+struct PackedConv {
+  int out = 0, kernel = 3, dilation = 1;
+  Act act = kNone;
+  std::vector<ConvPart> parts;
+  RowMatrix weights;          // Eigen: (taps * in_total) x out, rows part by part, then tap, then channel
+  std::vector<float> bias;    // padded to whole registers with zeros
+  std::vector<float> slopes;  // PReLU, padded with ones
+};
+
+PackedConv pack(const Graph& g, const GraphOp& op, bool blocked) {
   PackedConv p;
-  p.in = c.in;
-  p.out = c.out;
-  p.bias = c.bias;
-  p.bias.resize(static_cast<size_t>(c.out), 0.0f);
-  p.prelu = prelu;
-  if (!blocked) {
-    p.weights.resize(9 * c.in, c.out);
-    for (int o = 0; o < c.out; ++o)
-      for (int i = 0; i < c.in; ++i)
-        for (int ky = 0; ky < 3; ++ky)
-          for (int kx = 0; kx < 3; ++kx) p.weights((ky * 3 + kx) * c.in + i, o) = c.w(o, i, ky, kx);
-    return p;
-  }
-  const int padded = padded_channels(c.out);
+  p.out = op.channels;
+  p.kernel = op.kernel;
+  p.dilation = op.dilation;
+  p.act = op.activation == Activation::ReLU ? kRelu : op.activation == Activation::PReLU ? kPrelu : kNone;
+  const int taps = op.kernel * op.kernel;
+  const int padded = padded_channels(op.channels);
+  p.bias = op.bias;
   p.bias.resize(static_cast<size_t>(padded), 0.0f);
-  if (!p.prelu.empty()) p.prelu.resize(static_cast<size_t>(padded), 1.0f);
-  p.blocked.assign(static_cast<size_t>(padded) * 9 * static_cast<size_t>(c.in), 0.0f);
-  for (int o0 = 0; o0 < padded; o0 += kTileBlock * kLanes) {
-    const int n = std::min(kTileBlock * kLanes, padded - o0);  // channels in this block
-    float* block = p.blocked.data() + static_cast<size_t>(o0) * 9 * static_cast<size_t>(c.in);
-    for (int t = 0; t < 9; ++t)
-      for (int i = 0; i < c.in; ++i)
-        for (int k = 0; k < n && o0 + k < c.out; ++k)
-          block[(static_cast<size_t>(t) * static_cast<size_t>(c.in) + static_cast<size_t>(i)) * static_cast<size_t>(n) +
-                static_cast<size_t>(k)] = c.w(o0 + k, i, t / 3, t % 3);
+  p.slopes = op.slopes;
+  if (!p.slopes.empty()) p.slopes.resize(static_cast<size_t>(padded), 1.0f);
+  if (!blocked) p.weights.resize(static_cast<Eigen::Index>(taps) * op.in_channels, op.channels);
+  int first = 0;  // the part's first channel in the concatenation
+  for (int v : op.inputs) {
+    ConvPart part;
+    part.value = v;
+    part.in = g.op(v).channels;
+    if (blocked) {
+      part.blocked.assign(static_cast<size_t>(padded) * static_cast<size_t>(taps) * static_cast<size_t>(part.in), 0.0f);
+      for (int o0 = 0; o0 < padded; o0 += kTileBlock * kLanes) {
+        const int n = std::min(kTileBlock * kLanes, padded - o0);  // channels in this block
+        float* block = part.blocked.data() + static_cast<size_t>(o0) * static_cast<size_t>(taps * part.in);
+        for (int t = 0; t < taps; ++t)
+          for (int i = 0; i < part.in; ++i)
+            for (int k = 0; k < n && o0 + k < op.channels; ++k)
+              block[(static_cast<size_t>(t) * static_cast<size_t>(part.in) + static_cast<size_t>(i)) * static_cast<size_t>(n) +
+                    static_cast<size_t>(k)] = op.w(o0 + k, first + i, t / op.kernel, t % op.kernel);
+      }
+    } else {
+      for (int o = 0; o < op.channels; ++o)
+        for (int t = 0; t < taps; ++t)
+          for (int i = 0; i < part.in; ++i)
+            p.weights(static_cast<Eigen::Index>(taps) * first + t * part.in + i, o) =
+                op.w(o, first + i, t / op.kernel, t % op.kernel);
+    }
+    p.parts.push_back(std::move(part));
+    first += g.op(v).channels;
   }
   return p;
 }
 
-// An H x W x C image with a zero border of b pixels: pixel (y, x) for y in [-b, H + b), x in [-b, W + b).
-struct Padded {
+// A value in the arena: h x w pixels of c channels with a zero border of b pixels around them.
+struct Value {
+  float* base = nullptr;
   int64_t h = 0, w = 0, b = 0;
   int c = 0;
-  std::vector<float> v;
-  void reset(int64_t height, int64_t width, int channels, int64_t border) {
-    if (height == h && width == w && channels == c && border == b) return;  // the border is still zero
-    h = height;
-    w = width;
-    c = channels;
-    b = border;
-    v.assign(static_cast<size_t>((h + 2 * b) * (w + 2 * b) * c), 0.0f);
-  }
   int64_t row() const { return (w + 2 * b) * c; }
-  float* at(int64_t y, int64_t x) { return v.data() + (y + b) * row() + (x + b) * c; }
-  const float* at(int64_t y, int64_t x) const { return v.data() + (y + b) * row() + (x + b) * c; }
+  float* at(int64_t y, int64_t x) const { return base + (y + b) * row() + (x + b) * c; }
+  size_t floats() const { return static_cast<size_t>((h + 2 * b) * (w + 2 * b) * c); }
+  void zero_border() const {
+    if (b == 0) return;
+    const size_t full = static_cast<size_t>(row());
+    for (int64_t y = -b; y < h + b; ++y) {
+      if (y < 0 || y >= h) {
+        std::memset(at(y, -b), 0, full * sizeof(float));
+      } else {
+        std::memset(at(y, -b), 0, static_cast<size_t>(b * c) * sizeof(float));
+        std::memset(at(y, w), 0, static_cast<size_t>(b * c) * sizeof(float));
+      }
+    }
+  }
 };
-
-// Where a conv writes (and where the residual it adds is): pixel (y, x) at data + y * row + x * channels.
-struct View {
-  float* data = nullptr;
-  int64_t row = 0;
-  int channels = 0;
-  float* at(int64_t y, int64_t x) const { return data + y * row + x * channels; }
-};
-
-View view(Padded& p) { return {p.at(0, 0), p.row(), p.c}; }
 
 #ifdef RESIDUE_HAVE_AVX512_KERNEL
-// MR pixels x NR registers of output channels. `src`: the input at pixel (y - d, x - d) for dilation d; `w`:
-// the block's weights [tap][in][NR * 16]; `dst` and `add` at pixel (y, x), channel o0; `last`: the lanes of
-// the last register that are real channels.
-template <int MR, int NR>
+// What one pass of the kernel does with its sums: + bias, + what dst holds (later parts of a concat conv),
+// the activation and + a residual, the last two only on the last pass.
+struct Epilogue {
+  const float* bias = nullptr;  // null: none
+  bool accumulate = false;
+  Act act = kNone;
+  const float* slopes = nullptr;
+  const float* add = nullptr;   // residual at the tile's first pixel; null: none
+  int add_c = 0;                // its pixel stride
+};
+
+// MR pixels x NR registers of output channels, K x K taps. `src`: the input at pixel (y - d*(K/2), x - ...);
+// `w`: the block's weights [tap][in][NR * 16]; `dst` at pixel (y, x), channel o0; `last`: the lanes of the last
+// register that are real channels.
+template <int MR, int NR, int K>
 __attribute__((target("avx512f"))) void tile_avx512(const float* src, int64_t src_row, int cin, int d, const float* w,
-                                                    const float* bias, const float* prelu, float* dst,
-                                                    const float* add, int dst_c, __mmask16 last) {
+                                                    float* dst, int dst_c, const Epilogue& e, __mmask16 last) {
   __m512 acc[MR][NR];
   for (int p = 0; p < MR; ++p)
     for (int j = 0; j < NR; ++j) acc[p][j] = _mm512_setzero_ps();
-  for (int ky = 0; ky < 3; ++ky)
-    for (int kx = 0; kx < 3; ++kx) {
+  for (int ky = 0; ky < K; ++ky)
+    for (int kx = 0; kx < K; ++kx) {
       const float* s = src + ky * d * src_row + kx * d * cin;
-      const float* wt = w + (ky * 3 + kx) * cin * NR * kLanes;
+      const float* wt = w + (ky * K + kx) * cin * NR * kLanes;
       for (int i = 0; i < cin; ++i, wt += NR * kLanes) {
         __m512 wv[NR];
         for (int j = 0; j < NR; ++j) wv[j] = _mm512_loadu_ps(wt + j * kLanes);
@@ -131,61 +162,77 @@ __attribute__((target("avx512f"))) void tile_avx512(const float* src, int64_t sr
   const __m512 zero = _mm512_setzero_ps();
   for (int j = 0; j < NR; ++j) {
     const __mmask16 m = j + 1 == NR ? last : __mmask16(0xFFFF);
-    const __m512 bv = _mm512_loadu_ps(bias + j * kLanes);
-    const __m512 av = prelu ? _mm512_loadu_ps(prelu + j * kLanes) : zero;
+    const __m512 bv = e.bias ? _mm512_loadu_ps(e.bias + j * kLanes) : zero;
+    const __m512 av = e.act == kPrelu ? _mm512_loadu_ps(e.slopes + j * kLanes) : zero;
     for (int p = 0; p < MR; ++p) {
       __m512 v = _mm512_add_ps(acc[p][j], bv);
-      if (prelu) v = _mm512_mask_mul_ps(v, _mm512_cmp_ps_mask(v, zero, _CMP_LT_OQ), v, av);
-      if (add) v = _mm512_add_ps(v, _mm512_maskz_loadu_ps(m, add + p * dst_c + j * kLanes));
+      if (e.accumulate) v = _mm512_add_ps(v, _mm512_maskz_loadu_ps(m, dst + p * dst_c + j * kLanes));
+      if (e.act == kRelu) v = _mm512_maskz_mov_ps(_mm512_cmp_ps_mask(v, zero, _CMP_GT_OQ), v);  // (max_ps trips -Wmaybe-uninitialized)
+      if (e.act == kPrelu) v = _mm512_mask_mul_ps(v, _mm512_cmp_ps_mask(v, zero, _CMP_LT_OQ), v, av);
+      if (e.add) v = _mm512_add_ps(v, _mm512_maskz_loadu_ps(m, e.add + p * e.add_c + j * kLanes));
       _mm512_mask_storeu_ps(dst + p * dst_c + j * kLanes, m, v);
     }
   }
 }
 
 // The last pixels of a row (fewer than kTilePixels): the tile for exactly `r` of them.
-template <int NR, int MR = 1>
+template <int NR, int K, int MR = 1>
 __attribute__((target("avx512f"))) void tile_tail_avx512(int r, const float* src, int64_t src_row, int cin, int d,
-                                                         const float* w, const float* bias, const float* prelu,
-                                                         float* dst, const float* add, int dst_c, __mmask16 last) {
+                                                         const float* w, float* dst, int dst_c, const Epilogue& e,
+                                                         __mmask16 last) {
   if constexpr (MR < kTilePixels) {
-    if (r == MR) return tile_avx512<MR, NR>(src, src_row, cin, d, w, bias, prelu, dst, add, dst_c, last);
-    tile_tail_avx512<NR, MR + 1>(r, src, src_row, cin, d, w, bias, prelu, dst, add, dst_c, last);
+    if (r == MR) return tile_avx512<MR, NR, K>(src, src_row, cin, d, w, dst, dst_c, e, last);
+    tile_tail_avx512<NR, K, MR + 1>(r, src, src_row, cin, d, w, dst, dst_c, e, last);
   }
 }
 
-template <int NR>
+template <int NR, int K>
 __attribute__((target("avx512f"))) void block_row_avx512(const float* src, int64_t src_row, int cin, int d,
-                                                         int64_t width, const float* w, const float* bias,
-                                                         const float* prelu, float* dst, const float* add, int dst_c,
-                                                         __mmask16 last) {
+                                                         int64_t width, const float* w, float* dst, int dst_c,
+                                                         Epilogue e, __mmask16 last) {
   int64_t x = 0;
-  for (; x + kTilePixels <= width; x += kTilePixels)
-    tile_avx512<kTilePixels, NR>(src + x * cin, src_row, cin, d, w, bias, prelu, dst + x * dst_c,
-                                 add ? add + x * dst_c : nullptr, dst_c, last);
-  if (x < width)
-    tile_tail_avx512<NR>(static_cast<int>(width - x), src + x * cin, src_row, cin, d, w, bias, prelu,
-                         dst + x * dst_c, add ? add + x * dst_c : nullptr, dst_c, last);
+  const float* add = e.add;
+  for (; x + kTilePixels <= width; x += kTilePixels) {
+    e.add = add ? add + x * e.add_c : nullptr;
+    tile_avx512<kTilePixels, NR, K>(src + x * cin, src_row, cin, d, w, dst + x * dst_c, dst_c, e, last);
+  }
+  if (x < width) {
+    e.add = add ? add + x * e.add_c : nullptr;
+    tile_tail_avx512<NR, K>(static_cast<int>(width - x), src + x * cin, src_row, cin, d, w, dst + x * dst_c, dst_c, e,
+                            last);
+  }
 }
 
-// One output row, all output channels. `src` at input pixel (y - d, -d); `dst`, `add` at pixel (y, 0).
-__attribute__((target("avx512f"))) void conv_row_avx512(const PackedConv& c, const float* src, int64_t src_row, int d,
-                                                        int64_t width, float* dst, const float* add, int dst_c) {
+// One output row of one part, all output channels. `src` at the part's input pixel (y - r, -r) for the conv's
+// reach r; `dst` and `add` at pixel (y, 0).
+__attribute__((target("avx512f"))) void conv_row_avx512(const PackedConv& c, size_t part, const float* src,
+                                                        int64_t src_row, int64_t width, float* dst, int dst_c,
+                                                        const float* add, int add_c) {
+  const ConvPart& pt = c.parts[part];
+  const bool first = part == 0, final = part + 1 == c.parts.size();
   const int padded = padded_channels(c.out);
-  const float* prelu = c.prelu.empty() ? nullptr : c.prelu.data();
+  const int taps = c.kernel * c.kernel;
   for (int o0 = 0; o0 < padded; o0 += kTileBlock * kLanes) {
     const int regs = std::min(kTileBlock * kLanes, padded - o0) / kLanes;
     const int real = std::min(regs * kLanes, c.out - o0);  // channels of this block that exist
     const int in_last = real - (regs - 1) * kLanes;
     const auto last = static_cast<__mmask16>((1u << in_last) - 1u);
-    const float* w = c.blocked.data() + static_cast<size_t>(o0) * 9 * static_cast<size_t>(c.in);
-    const float* a = add ? add + o0 : nullptr;
-    static_assert(kTileBlock == 2, "block_row_avx512 instances below assume 2 registers per block");
-    if (regs == 2)
-      block_row_avx512<2>(src, src_row, c.in, d, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0,
-                          a, dst_c, last);
-    else
-      block_row_avx512<1>(src, src_row, c.in, d, width, w, c.bias.data() + o0, prelu ? prelu + o0 : nullptr, dst + o0,
-                          a, dst_c, last);
+    const float* w = pt.blocked.data() + static_cast<size_t>(o0) * static_cast<size_t>(taps * pt.in);
+    Epilogue e;
+    e.bias = first ? c.bias.data() + o0 : nullptr;
+    e.accumulate = !first;
+    e.act = final ? c.act : kNone;
+    e.slopes = c.act == kPrelu ? c.slopes.data() + o0 : nullptr;
+    e.add = final && add ? add + o0 : nullptr;
+    e.add_c = add_c;
+    static_assert(kTileBlock == 2, "the instances below assume 2 registers per block");
+    if (c.kernel == 3) {
+      if (regs == 2) block_row_avx512<2, 3>(src, src_row, pt.in, c.dilation, width, w, dst + o0, dst_c, e, last);
+      else block_row_avx512<1, 3>(src, src_row, pt.in, c.dilation, width, w, dst + o0, dst_c, e, last);
+    } else {
+      if (regs == 2) block_row_avx512<2, 1>(src, src_row, pt.in, c.dilation, width, w, dst + o0, dst_c, e, last);
+      else block_row_avx512<1, 1>(src, src_row, pt.in, c.dilation, width, w, dst + o0, dst_c, e, last);
+    }
   }
 }
 
@@ -206,107 +253,186 @@ bool portable_forced() {
 
 class EigenBackend final : public Backend {
  public:
-  explicit EigenBackend(const Network& n) : arch_(n.arch), avx512_(cpu_has_avx512() && !portable_forced()) {
-    head_ = pack(n.head, n.head_prelu, avx512_);
-    for (const auto& b : n.blocks) {
-      blocks_.push_back(pack(b.conv1, b.prelu, avx512_));
-      blocks_.push_back(pack(b.conv2, {}, avx512_));
-    }
-    tail_ = pack(n.tail, {}, avx512_);
-    out_ = pack(n.out, {}, avx512_);
+  explicit EigenBackend(const Graph& g)
+      : graph_(g), avx512_(cpu_has_avx512() && !portable_forced()) {
+    convs_.resize(static_cast<size_t>(g.size()));
+    for (int i = 0; i < g.size(); ++i)
+      if (g.op(i).kind == OpKind::Conv) convs_[static_cast<size_t>(i)] = pack(g, g.op(i), avx512_);
+    // One border for every value (the widest any conv reads), so that a value written in place over its
+    // residual has the same layout; the output has none (nothing reads it).
+    const std::vector<int> b = g.borders();
+    border_ = std::max(1, *std::max_element(b.begin(), b.end()));
   }
 
   std::string description() const override { return avx512_ ? "eigen fp32 (avx512 direct)" : "eigen fp32"; }
 
   size_t scratch_bytes(int64_t width, int64_t height) const override {
-    // Three padded activation buffers (head output, block state, temporary), the padded input, and without
-    // AVX-512 one im2col strip and its GEMM result per thread.
-    const int64_t b = arch_.max_dilation();
-    const auto padded = static_cast<size_t>((width + 2 * b) * (height + 2 * b));
-    size_t bytes = padded * static_cast<size_t>(3 * arch_.width + arch_.in_channels()) * sizeof(float);
+    size_t bytes = plan_for(height, width).arena.bytes;
     if (!avx512_) {
+      int widest = 0;
+      for (const GraphOp& o : graph_.ops())
+        if (o.kind == OpKind::Conv) widest = std::max(widest, o.kernel * o.kernel * o.in_channels + o.channels);
       const auto threads = static_cast<size_t>(tbb::this_task_arena::max_concurrency());
       const auto strip = static_cast<size_t>(std::min(kStripPixels, std::max<int64_t>(width, 1) * height));
-      bytes += threads * strip * static_cast<size_t>(9 * std::max(arch_.width, arch_.in_channels()) + arch_.width) *
-               sizeof(float);
+      bytes += threads * strip * static_cast<size_t>(widest) * sizeof(float);
     }
     return bytes;
   }
 
   void run(const Image& input, Image& output) override {
     const int64_t h = input.height(), w = input.width();
-    output = Image(w, h, 3);
+    if (input.channels() != graph_.input_channels())
+      throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
+                                        " input channels, the tile has " + std::to_string(input.channels()));
+    if (h % graph_.alignment() != 0 || w % graph_.alignment() != 0)
+      throw Error(ErrorKind::Usage, "tile " + std::to_string(w) + "x" + std::to_string(h) +
+                                        " is not a multiple of the network's alignment " +
+                                        std::to_string(graph_.alignment()));
+    output = Image(w, h, graph_.output_channels());
     if (h == 0 || w == 0) return;
-    const int64_t border = arch_.max_dilation();
-    input_.reset(h, w, input.channels(), 1);
-    for (int64_t y = 0; y < h; ++y)
-      std::memcpy(input_.at(y, 0), input.row(y).data(), static_cast<size_t>(w * input.channels()) * sizeof(float));
-    head_out_.reset(h, w, arch_.width, border);
-    state_.reset(h, w, arch_.width, border);
-    temp_.reset(h, w, arch_.width, border);
-    conv(input_, head_, view(head_out_), nullptr, 1);
-    std::memcpy(state_.v.data(), head_out_.v.data(), head_out_.v.size() * sizeof(float));
-    for (size_t b = 0; b < blocks_.size(); b += 2) {
-      const int d = arch_.dilation(static_cast<int>(b / 2));
-      conv(state_, blocks_[b], view(temp_), nullptr, d);
-      const View s = view(state_);
-      conv(temp_, blocks_[b + 1], s, &s, d);  // in place: + identity
+    const Plan& plan = plan_for(h, w);
+    if (arena_.size() < plan.arena.bytes / sizeof(float) + 16) arena_.assign(plan.arena.bytes / sizeof(float) + 16, 0.0f);
+    float* base = arena_.data() + (16 - reinterpret_cast<uintptr_t>(arena_.data()) / sizeof(float) % 16) % 16;  // 64-byte aligned
+    std::vector<Value> values(static_cast<size_t>(graph_.size()));
+    for (int i = 0; i < graph_.size(); ++i) {
+      Value& v = values[static_cast<size_t>(i)];
+      v = plan.values[static_cast<size_t>(i)];
+      v.base = base + plan.arena.offset[static_cast<size_t>(i)] / sizeof(float);
     }
-    const View head = view(head_out_);
-    conv(state_, tail_, view(temp_), &head, 1);
-    conv(temp_, out_, {output.data(), w * 3, 3}, nullptr, 1);
-    if (arch_.input_skip) add_input_skip(input, output);
+    Value& out = values[static_cast<size_t>(graph_.output())];
+    out.base = output.data();  // the output value is the caller's image (no border: nothing reads it)
+
+    for (int i = 0; i < graph_.size(); ++i) {
+      const GraphOp& op = graph_.op(i);
+      const Value& dst = values[static_cast<size_t>(i)];
+      if (plan.arena.in_place[static_cast<size_t>(i)] < 0) dst.zero_border();
+      switch (op.kind) {
+        case OpKind::Input:
+          for (int64_t y = 0; y < h; ++y)
+            std::memcpy(dst.at(y, 0), input.row(y).data(), static_cast<size_t>(w * input.channels()) * sizeof(float));
+          break;
+        case OpKind::Conv: {
+          const Value* add = op.residual >= 0 ? &values[static_cast<size_t>(op.residual)] : nullptr;
+          std::vector<const Value*> srcs;
+          for (int x : op.inputs) srcs.push_back(&values[static_cast<size_t>(x)]);
+          conv(convs_[static_cast<size_t>(i)], srcs, dst, add);
+          break;
+        }
+        case OpKind::Pool: pool(values[static_cast<size_t>(op.inputs[0])], dst); break;
+        case OpKind::Upsample: upsample(values[static_cast<size_t>(op.inputs[0])], dst); break;
+        case OpKind::Add: add(values[static_cast<size_t>(op.inputs[0])], values[static_cast<size_t>(op.inputs[1])], dst); break;
+      }
+    }
   }
 
  private:
-  // out = act(conv(in) + bias) (+ add), taps `d` pixels apart. `out` may alias `add` (the residual), never `in`.
-  void conv(const Padded& in, const PackedConv& c, const View& out, const View* add, int d) {
+  struct Plan {
+    std::vector<Value> values;  // shapes (base pointers unset)
+    ArenaPlan arena;
+  };
+
+  const Plan& plan_for(int64_t h, int64_t w) const {
+    const auto key = std::make_pair(h, w);
+    if (auto it = plans_.find(key); it != plans_.end()) return it->second;
+    if (plans_.size() >= 16) plans_.clear();  // tile sizes are few; this only bounds a pathological caller
+    Plan p;
+    std::vector<size_t> bytes(static_cast<size_t>(graph_.size()), 0);
+    for (int i = 0; i < graph_.size(); ++i) {
+      const GraphOp& op = graph_.op(i);
+      Value v;
+      v.h = h >> op.level;
+      v.w = w >> op.level;
+      v.c = op.channels;
+      v.b = i == graph_.output() ? 0 : border_;
+      p.values.push_back(v);
+      if (i != graph_.output()) bytes[static_cast<size_t>(i)] = v.floats() * sizeof(float);
+    }
+    p.arena = plan_arena(graph_, bytes);
+    return plans_.emplace(key, std::move(p)).first->second;
+  }
+
+  // dst = act(conv(cat(srcs)) + bias) (+ add). `dst` may alias `add` (the residual), never a source.
+  void conv(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add) {
 #ifdef RESIDUE_HAVE_AVX512_KERNEL
     if (avx512_) {
-      tbb::parallel_for(tbb::blocked_range<int64_t>(0, in.h), [&](const tbb::blocked_range<int64_t>& rows) {
+      const int r = c.dilation * (c.kernel / 2);
+      tbb::parallel_for(tbb::blocked_range<int64_t>(0, dst.h), [&](const tbb::blocked_range<int64_t>& rows) {
         for (int64_t y = rows.begin(); y < rows.end(); ++y)
-          conv_row_avx512(c, in.at(y - d, -d), in.row(), d, in.w, out.at(y, 0), add ? add->at(y, 0) : nullptr,
-                          out.channels);
+          for (size_t p = 0; p < srcs.size(); ++p)
+            conv_row_avx512(c, p, srcs[p]->at(y - r, -r), srcs[p]->row(), dst.w, dst.at(y, 0), dst.c,
+                            add ? add->at(y, 0) : nullptr, add ? add->c : 0);
       });
       return;
     }
 #endif
-    conv_eigen(in, c, out, add, d);
+    conv_eigen(c, srcs, dst, add);
   }
 
-  void conv_eigen(const Padded& in, const PackedConv& c, const View& out, const View* add, int d) {
-    const int64_t h = in.h, w = in.w;
+  void conv_eigen(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add) {
+    const int64_t h = dst.h, w = dst.w;
+    const int k = c.kernel, r = c.dilation * (k / 2);
+    const auto cols = static_cast<int64_t>(c.weights.rows());
     const int64_t rows_per_strip = std::max<int64_t>(1, kStripPixels / std::max<int64_t>(w, 1));
     const int64_t strips = (h + rows_per_strip - 1) / rows_per_strip;
     tbb::parallel_for(int64_t{0}, strips, [&](int64_t s) {
       const int64_t y0 = s * rows_per_strip, y1 = std::min(h, y0 + rows_per_strip);
       const int64_t pixels = (y1 - y0) * w;
       Scratch& scratch = scratch_.local();
-      scratch.cols.resize(static_cast<size_t>(pixels * 9 * c.in));
+      scratch.cols.resize(static_cast<size_t>(pixels * cols));
       scratch.result.resize(static_cast<size_t>(pixels * c.out));
-      // Patches: for each pixel, the 3x3 neighbourhood's channels (the border supplies the zeros).
-      const size_t bytes = static_cast<size_t>(c.in) * sizeof(float);
+      // Patches: for each pixel, each input's KxK neighbourhood (the borders supply the zeros).
       for (int64_t y = y0; y < y1; ++y)
         for (int64_t x = 0; x < w; ++x) {
-          float* dst = scratch.cols.data() + ((y - y0) * w + x) * 9 * c.in;
-          for (int ky = 0; ky < 3; ++ky)
-            for (int kx = 0; kx < 3; ++kx, dst += c.in)
-              std::memcpy(dst, in.at(y + (ky - 1) * d, x + (kx - 1) * d), bytes);
+          float* to = scratch.cols.data() + ((y - y0) * w + x) * cols;
+          for (const Value* v : srcs)
+            for (int ky = 0; ky < k; ++ky)
+              for (int kx = 0; kx < k; ++kx, to += v->c)
+                std::memcpy(to, v->at(y - r + ky * c.dilation, x - r + kx * c.dilation),
+                            static_cast<size_t>(v->c) * sizeof(float));
         }
-      Eigen::Map<const RowMatrix> patches(scratch.cols.data(), pixels, 9 * c.in);
+      Eigen::Map<const RowMatrix> patches(scratch.cols.data(), pixels, cols);
       Eigen::Map<RowMatrix> result(scratch.result.data(), pixels, c.out);
       result.noalias() = patches * c.weights;
       for (int64_t p = 0; p < pixels; ++p) {
         const int64_t y = y0 + p / w, x = p % w;
-        const float* r = scratch.result.data() + p * c.out;
+        const float* res = scratch.result.data() + p * c.out;
         const float* a = add ? add->at(y, x) : nullptr;
-        float* v = out.at(y, x);
+        float* v = dst.at(y, x);
         for (int o = 0; o < c.out; ++o) {
-          float value = r[o] + c.bias[static_cast<size_t>(o)];
-          if (!c.prelu.empty() && value < 0) value *= c.prelu[static_cast<size_t>(o)];
+          float value = res[o] + c.bias[static_cast<size_t>(o)];
+          if (c.act == kRelu) value = std::max(value, 0.0f);
+          if (c.act == kPrelu && value < 0) value *= c.slopes[static_cast<size_t>(o)];
           if (a) value += a[o];
           v[o] = value;
         }
+      }
+    });
+  }
+
+  static void pool(const Value& src, const Value& dst) {
+    tbb::parallel_for(int64_t{0}, dst.h, [&](int64_t y) {
+      for (int64_t x = 0; x < dst.w; ++x) {
+        const float *a = src.at(2 * y, 2 * x), *b = src.at(2 * y, 2 * x + 1);
+        const float *c = src.at(2 * y + 1, 2 * x), *d = src.at(2 * y + 1, 2 * x + 1);
+        float* o = dst.at(y, x);
+        for (int k = 0; k < dst.c; ++k) o[k] = std::max(std::max(a[k], b[k]), std::max(c[k], d[k]));
+      }
+    });
+  }
+
+  static void upsample(const Value& src, const Value& dst) {
+    const size_t bytes = static_cast<size_t>(dst.c) * sizeof(float);
+    tbb::parallel_for(int64_t{0}, dst.h, [&](int64_t y) {
+      for (int64_t x = 0; x < dst.w; ++x) std::memcpy(dst.at(y, x), src.at(y / 2, x / 2), bytes);
+    });
+  }
+
+  static void add(const Value& a, const Value& b, const Value& dst) {
+    tbb::parallel_for(int64_t{0}, dst.h, [&](int64_t y) {
+      for (int64_t x = 0; x < dst.w; ++x) {
+        const float *p = a.at(y, x), *q = b.at(y, x);
+        float* o = dst.at(y, x);
+        for (int k = 0; k < dst.c; ++k) o[k] = p[k] + q[k];
       }
     });
   }
@@ -315,18 +441,17 @@ class EigenBackend final : public Backend {
     std::vector<float> cols, result;
   };
 
-  Architecture arch_;
+  Graph graph_;
   bool avx512_ = false;
-  PackedConv head_, tail_, out_;
-  std::vector<PackedConv> blocks_;
-  Padded input_, head_out_, state_, temp_;
+  int64_t border_ = 1;
+  std::vector<PackedConv> convs_;
+  mutable std::map<std::pair<int64_t, int64_t>, Plan> plans_;
+  std::vector<float> arena_;
   tbb::enumerable_thread_specific<Scratch> scratch_;
 };
 
 }  // namespace
 
-std::unique_ptr<Backend> make_eigen_backend(const Network& network) {
-  return std::make_unique<EigenBackend>(network);
-}
+std::unique_ptr<Backend> make_eigen_backend(const Graph& graph) { return std::make_unique<EigenBackend>(graph); }
 
 }  // namespace residue::nn

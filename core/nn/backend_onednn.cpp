@@ -1,20 +1,22 @@
-// The oneDNN backend: every 3x3 conv is one oneDNN convolution primitive (brgemm/JIT kernels for the CPU's
-// ISA), fp32 or bf16 (bf16 weights and activations, fp32 accumulation and bias, fp32 output).
+// The oneDNN backend: runs a Graph (graph.h) with one oneDNN primitive per op: convolutions (brgemm/JIT
+// kernels for the CPU's ISA), max pooling, nearest resampling and binary add, fp32 or bf16 (bf16 weights and
+// activations, fp32 accumulation and bias, fp32 output).
 //
-// Layout: the activation layout is the one oneDNN picks (format_tag::any) for a W -> W conv, chosen once
-// and kept through the network (channels-last nhwc on AVX-512), so no reorder runs between layers; only
-// the input (f32 nhwc -> the head's source layout / bf16) and the output are reordered, and only when they
-// differ. Fused into the convs: the bias, the residual add (a `sum` post-op: the conv accumulates into the
-// block state in place) and the network-wide skip (the tail accumulates into the head's output).
-// PReLU: oneDNN 2.6 has a prelu post-op, but no optimised convolution accepts it (it falls back to the
-// reference kernel), so a per-channel PReLU runs as a separate in-place prelu primitive (JIT, one memory
-// pass) after its conv; on the paper network at 256 x 256 that costs no measurable time against the fused
-// form, which is used when a layer's slopes are all equal (an eltwise leaky-ReLU post-op).
+// Layout: each conv's output takes the layout oneDNN picks for it (format_tag::any: nChw16c or nhwc on
+// AVX-512) and its readers take that layout as is, so no reorder runs between layers; only the input (f32
+// nhwc -> the first conv's source layout / bf16) and the output are reordered, and only when they differ.
+// Fused into the convs: the bias, ReLU and uniform PReLU (eltwise post-op), the residual add (a `sum` post-op
+// after the activation: the conv accumulates into the value it overwrites in place, e.g. the ResNet's block
+// state; a residual still needed later is copied into the output first). A concat conv runs one primitive per
+// input, the later ones accumulating (sum post-op) into the first one's output, the activation on the last.
+// PReLU with per-channel slopes: oneDNN 2.6 has a prelu post-op, but no optimised convolution accepts it (it
+// falls back to the reference kernel), so it runs as a separate in-place prelu primitive (JIT, one memory
+// pass) after its conv; on the paper network at 256 x 256 that costs no measurable time against the fused form.
 //
 // Primitives depend on the tile size and on the thread count (oneDNN splits the work when a primitive is
-// created), so one plan is cached per (height, width, threads); weights are reordered once into each
-// layout a plan asks for (normally one). Activation buffers and the scratchpad are owned by the backend,
-// shared by every plan and grown to the largest tile seen.
+// created), so one plan is made per (height, width, threads): every value placed in one arena (arena.h).
+// Weights are reordered once into each layout a plan asks for (normally one). The arena and the scratchpad
+// are owned by the backend, shared by every plan and grown to the largest tile seen.
 //
 // Threads: oneDNN runs on OpenMP here. run() gives OpenMP the caller's oneTBB limit
 // (tbb::this_task_arena::max_concurrency()). OpenMP's wait policy is set at load time; residue-cli makes it
@@ -31,6 +33,7 @@
 #include <dnnl.hpp>
 #include <tbb/task_arena.h>
 
+#include "core/nn/arena.h"
 #include "core/nn/backend.h"
 #include "core/util/error.h"
 
@@ -77,65 +80,68 @@ bool has_native_bf16(dnnl::cpu_isa isa) {
   return (bits & bf16) == bf16;
 }
 
-// One conv layer with what oneDNN needs besides the primitive.
-struct Layer {
-  int in = 0, out = 0;
-  std::vector<float> weight;  // OIHW, kept to reorder into another layout should a plan ask for one
-  dnnl::memory bias;          // f32 {out}
-  dnnl::memory slopes;        // f32 {1, out, 1, 1}; empty: no PReLU or a fused uniform one
-  bool prelu = false;         // PReLU after the conv (+ bias)
-  bool uniform_prelu = false; // all slopes equal: fused as eltwise_relu(alpha)
-  float alpha = 0.0f;
-  bool accumulate = false;    // dst += conv(src) + bias (sum post-op)
-  int dilation = 1;           // taps this many pixels apart (oneDNN counts the gaps: dilation - 1)
-  std::vector<std::pair<dnnl::memory::desc, dnnl::memory>> packed;  // weights per layout
+// One input of a conv: its slice of the weights (OIHW), reordered on first use into each layout asked for.
+struct ConvPart {
+  int value = 0;
+  int in = 0;
+  std::vector<float> weight;
+  std::vector<std::pair<dnnl::memory::desc, dnnl::memory>> packed;
 };
 
-// Where a primitive reads or writes: a buffer of the backend, the caller's input or output.
-enum class Buffer { Input, Output, In, Out, Head, State, Temp };
+struct ConvLayer {
+  std::vector<ConvPart> parts;
+  dnnl::memory bias;    // f32 {out}
+  dnnl::memory zeros;   // f32 {out}: the later parts' bias
+  dnnl::memory slopes;  // f32 {1, out, 1, 1}: per-channel PReLU (a separate primitive); empty otherwise
+  bool fused_act = false;       // ReLU or uniform PReLU as an eltwise post-op
+  bool separate_prelu = false;  // per-channel PReLU: `slopes` set
+  float alpha = 0.0f;
+};
+
+// Where a primitive reads or writes: a value of the graph (its place in the arena), or the caller's buffers.
+struct Binding {
+  int arg = 0;
+  int value = -1;     // op index; -1 with the flags below
+  bool user_input = false, user_output = false;
+};
 
 struct Step {
   dnnl::primitive primitive;
-  std::vector<std::pair<int, Buffer>> buffers;    // DNNL_ARG_* -> buffer, bound at run time
-  std::unordered_map<int, dnnl::memory> fixed;    // weights, bias, slopes
+  std::vector<Binding> bindings;
+  std::unordered_map<int, dnnl::memory> fixed;  // weights, bias, slopes
   dnnl::memory::desc scratchpad;
-};
-
-struct Descs {
-  dnnl::memory::desc user_in, user_out, in, act, out;
-  std::vector<dnnl::convolution_forward::primitive_desc> convs;
-  size_t scratchpad = 0;
+  int residual_copy_for = -1;  // a copy of conv N's residual into its output, dropped when N runs in place
 };
 
 struct Plan {
-  Descs d;
+  std::vector<dnnl::memory::desc> values;  // per op: the layout of its output
+  dnnl::memory::desc user_in, user_out;
+  bool input_direct = false;   // the input value is the caller's buffer (no reorder)
+  bool output_direct = false;  // the output value is the caller's buffer
+  ArenaPlan arena;
+  size_t scratchpad = 0;
   std::vector<Step> steps;
+  std::string impl;  // the implementation of the costliest conv
 };
 
 dnnl::memory::dims nchw(int64_t c, int64_t h, int64_t w) { return {1, c, h, w}; }
 
 class OneDnnBackend final : public Backend {
  public:
-  OneDnnBackend(const Network& n, Precision precision)
-      : arch_(n.arch), precision_(precision), engine_(dnnl::engine::kind::cpu, 0), stream_(engine_) {
+  OneDnnBackend(const Graph& g, Precision precision)
+      : graph_(g), precision_(precision), engine_(dnnl::engine::kind::cpu, 0), stream_(engine_) {
     const dnnl::cpu_isa isa = dnnl::get_effective_cpu_isa();
     if (precision_ == Precision::BF16 && !has_native_bf16(isa))
       throw Error(ErrorKind::Usage, std::string("bf16 inference needs a CPU with AVX512_BF16 or AMX; oneDNN finds ") +
                                         isa_name(isa) + " here. Use fp32.");
-    add_layer(n.head, n.head_prelu, false, 1);
-    for (size_t b = 0; b < n.blocks.size(); ++b) {
-      const int d = arch_.dilation(static_cast<int>(b));
-      add_layer(n.blocks[b].conv1, n.blocks[b].prelu, false, d);
-      add_layer(n.blocks[b].conv2, {}, true, d);
-    }
-    add_layer(n.tail, {}, true, 1);
-    add_layer(n.out, {}, false, 1);
+    layers_.resize(static_cast<size_t>(g.size()));
+    for (int i = 0; i < g.size(); ++i)
+      if (g.op(i).kind == OpKind::Conv) layers_[static_cast<size_t>(i)] = make_layer(g.op(i));
 
-    // What runs, from a representative W -> W layer on a 256 x 256 tile.
-    const int threads = tbb::this_task_arena::max_concurrency();
-    set_openmp_threads(threads);
-    const Descs d = make_descs(256, 256);
-    const std::string impl = d.convs.size() > 2 ? d.convs[1].impl_info_str() : d.convs[0].impl_info_str();
+    // What runs, from a 256 x 256 tile (rounded to the alignment).
+    set_openmp_threads(tbb::this_task_arena::max_concurrency());
+    const int64_t a = g.alignment(), side = (256 + a - 1) / a * a;
+    const std::string impl = plan_for(side, side, tbb::this_task_arena::max_concurrency()).impl;
     if (precision_ == Precision::BF16 && impl.rfind("ref", 0) == 0)
       throw Error(ErrorKind::Usage, "oneDNN offers no optimised bf16 convolution on this CPU (" +
                                         std::string(isa_name(isa)) + "); use fp32");
@@ -145,44 +151,48 @@ class OneDnnBackend final : public Backend {
   std::string description() const override { return description_; }
 
   size_t scratch_bytes(int64_t width, int64_t height) const override {
-    set_openmp_threads(tbb::this_task_arena::max_concurrency());
-    return bytes_for(make_descs(height, width));
+    const int threads = tbb::this_task_arena::max_concurrency();
+    set_openmp_threads(threads);
+    const Plan& p = const_cast<OneDnnBackend*>(this)->plan_for(height, width, threads);
+    return aligned(p.arena.bytes) + aligned(p.scratchpad);
   }
 
   void run(const Image& input, Image& output) override {
-    if (input.channels() != arch_.in_channels())
-      throw Error(ErrorKind::Input, "the network expects " + std::to_string(arch_.in_channels()) +
+    if (input.channels() != graph_.input_channels())
+      throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
                                         " input channels, the tile has " + std::to_string(input.channels()));
     const int64_t h = input.height(), w = input.width();
-    output = Image(w, h, 3);
+    if (h % graph_.alignment() != 0 || w % graph_.alignment() != 0)
+      throw Error(ErrorKind::Usage, "tile " + std::to_string(w) + "x" + std::to_string(h) +
+                                        " is not a multiple of the network's alignment " +
+                                        std::to_string(graph_.alignment()));
+    output = Image(w, h, graph_.output_channels());
     if (h == 0 || w == 0) return;
     const int threads = tbb::this_task_arena::max_concurrency();
     set_openmp_threads(threads);
     const Plan& plan = plan_for(h, w, threads);
-    reserve(plan.d);
+    grow(arena_, arena_size_, std::max<size_t>(plan.arena.bytes, 64));
+    grow(scratchpad_, scratchpad_size_, std::max<size_t>(plan.scratchpad, 64));
 
-    auto mem = [&](Buffer b) -> dnnl::memory {
-      const Descs& d = plan.d;
-      switch (b) {
-        case Buffer::Input: return {d.user_in, engine_, const_cast<float*>(input.data())};  // read only
-        case Buffer::Output: return {d.user_out, engine_, output.data()};
-        case Buffer::In: return {d.in, engine_, in_.get()};
-        case Buffer::Out: return {d.out, engine_, out_.get()};
-        case Buffer::Head: return {d.act, engine_, head_.get()};
-        case Buffer::State: return {d.act, engine_, state_.get()};
-        case Buffer::Temp: return {d.act, engine_, temp_.get()};
-      }
-      return {};
-    };
+    auto* base = static_cast<char*>(arena_.get());
+    std::vector<dnnl::memory> mem(static_cast<size_t>(graph_.size()));
+    for (int i = 0; i < graph_.size(); ++i) {
+      const auto u = static_cast<size_t>(i);
+      void* ptr = base + plan.arena.offset[u];
+      if (graph_.op(i).kind == OpKind::Input && plan.input_direct) ptr = const_cast<float*>(input.data());  // read only
+      if (i == graph_.output() && plan.output_direct) ptr = output.data();
+      mem[u] = dnnl::memory(plan.values[u], engine_, ptr);
+    }
+    const dnnl::memory user_in(plan.user_in, engine_, const_cast<float*>(input.data()));
+    const dnnl::memory user_out(plan.user_out, engine_, output.data());
     for (const Step& s : plan.steps) {
       std::unordered_map<int, dnnl::memory> args = s.fixed;
-      for (const auto& [arg, buffer] : s.buffers) args[arg] = mem(buffer);
-      if (s.scratchpad.get_size() > 0)
-        args[DNNL_ARG_SCRATCHPAD] = dnnl::memory(s.scratchpad, engine_, scratchpad_.get());
+      for (const Binding& b : s.bindings)
+        args[b.arg] = b.user_input ? user_in : b.user_output ? user_out : mem[static_cast<size_t>(b.value)];
+      if (s.scratchpad.get_size() > 0) args[DNNL_ARG_SCRATCHPAD] = dnnl::memory(s.scratchpad, engine_, scratchpad_.get());
       s.primitive.execute(stream_, args);
     }
     stream_.wait();
-    if (arch_.input_skip) add_input_skip(input, output);
   }
 
  private:
@@ -193,85 +203,66 @@ class OneDnnBackend final : public Backend {
 
   dt act_type() const { return precision_ == Precision::BF16 ? dt::bf16 : dt::f32; }
 
-  void add_layer(const Conv3x3& c, const std::vector<float>& prelu, bool accumulate, int dilation) {
-    Layer l;
-    l.dilation = dilation;
-    l.in = c.in;
-    l.out = c.out;
-    l.weight = c.weight;
-    l.accumulate = accumulate;
-    l.bias = dnnl::memory({{c.out}, dt::f32, tag::a}, engine_);
-    std::vector<float> bias = c.bias;
-    bias.resize(static_cast<size_t>(c.out), 0.0f);
-    std::memcpy(l.bias.get_data_handle(), bias.data(), bias.size() * sizeof(float));
-    if (!prelu.empty()) {
-      l.prelu = true;
-      l.uniform_prelu = std::all_of(prelu.begin(), prelu.end(), [&](float a) { return a == prelu.front(); });
-      l.alpha = prelu.front();
-      if (!l.uniform_prelu) {
-        l.slopes = dnnl::memory({nchw(c.out, 1, 1), dt::f32, tag::nchw}, engine_);
-        std::memcpy(l.slopes.get_data_handle(), prelu.data(), prelu.size() * sizeof(float));
+  ConvLayer make_layer(const GraphOp& op) {
+    ConvLayer l;
+    int first = 0;
+    const int k = op.kernel;
+    for (int v : op.inputs) {
+      ConvPart p;
+      p.value = v;
+      p.in = graph_.op(v).channels;
+      p.weight.resize(static_cast<size_t>(op.channels) * static_cast<size_t>(p.in * k * k));
+      for (int o = 0; o < op.channels; ++o)
+        for (int i = 0; i < p.in; ++i)
+          for (int t = 0; t < k * k; ++t)
+            p.weight[(static_cast<size_t>(o) * static_cast<size_t>(p.in) + static_cast<size_t>(i)) * static_cast<size_t>(k * k) +
+                     static_cast<size_t>(t)] = op.w(o, first + i, t / k, t % k);
+      first += p.in;
+      l.parts.push_back(std::move(p));
+    }
+    l.bias = dnnl::memory({{op.channels}, dt::f32, tag::a}, engine_);
+    std::memcpy(l.bias.get_data_handle(), op.bias.data(), op.bias.size() * sizeof(float));
+    l.zeros = dnnl::memory({{op.channels}, dt::f32, tag::a}, engine_);
+    std::memset(l.zeros.get_data_handle(), 0, op.bias.size() * sizeof(float));
+    if (op.activation == Activation::ReLU) {
+      l.fused_act = true;
+      l.alpha = 0.0f;
+    } else if (op.activation == Activation::PReLU) {
+      const bool uniform = std::all_of(op.slopes.begin(), op.slopes.end(), [&](float a) { return a == op.slopes.front(); });
+      if (uniform) {
+        l.fused_act = true;
+        l.alpha = op.slopes.front();
+      } else {
+        l.separate_prelu = true;
+        l.slopes = dnnl::memory({nchw(op.channels, 1, 1), dt::f32, tag::nchw}, engine_);
+        std::memcpy(l.slopes.get_data_handle(), op.slopes.data(), op.slopes.size() * sizeof(float));
       }
     }
-    layers_.push_back(std::move(l));
+    return l;
   }
 
-  dnnl::primitive_attr conv_attr(const Layer& l) const {
-    dnnl::post_ops ops;
-    if (l.accumulate) ops.append_sum(1.0f);
-    if (l.prelu && l.uniform_prelu) ops.append_eltwise(1.0f, dnnl::algorithm::eltwise_relu, l.alpha, 0.0f);
+  static dnnl::primitive_attr user_scratchpad(dnnl::post_ops ops = {}) {
     dnnl::primitive_attr attr;
     attr.set_post_ops(ops);
     attr.set_scratchpad_mode(dnnl::scratchpad_mode::user);
     return attr;
   }
 
-  dnnl::convolution_forward::primitive_desc conv_pd(const Layer& l, const dnnl::memory::desc& src,
-                                                    const dnnl::memory::desc& dst) const {
-    const dnnl::memory::desc weights(dims{l.out, l.in, 3, 3}, act_type(), tag::any);
-    const dnnl::memory::desc bias(dims{l.out}, dt::f32, tag::a);
-    const dnnl::convolution_forward::desc d(dnnl::prop_kind::forward_inference, dnnl::algorithm::convolution_direct,
-                                            src, weights, bias, dst, {1, 1}, {l.dilation - 1, l.dilation - 1},
-                                            {l.dilation, l.dilation}, {l.dilation, l.dilation});
-    return {d, conv_attr(l), engine_};
-  }
-
-  // The primitive descriptors for a tile, given the thread count already set for OpenMP.
-  Descs make_descs(int64_t h, int64_t w) const {
-    Descs d;
-    const dt t = act_type();
-    const int width = arch_.width;
-    d.user_in = dnnl::memory::desc(nchw(arch_.in_channels(), h, w), dt::f32, tag::nhwc);
-    d.user_out = dnnl::memory::desc(nchw(3, h, w), dt::f32, tag::nhwc);
-    // The activation layout: oneDNN's choice for a W -> W conv with the residual sum, the common case.
-    {
-      const dnnl::memory::desc any(nchw(width, h, w), t, tag::any);
-      Layer probe;
-      probe.in = probe.out = width;
-      probe.accumulate = true;
-      d.act = conv_pd(probe, any, any).dst_desc();
-    }
-    const size_t n = layers_.size();
-    for (size_t i = 0; i < n; ++i) {
-      const Layer& l = layers_[i];
-      const dnnl::memory::desc src = i == 0 ? dnnl::memory::desc(nchw(l.in, h, w), t, tag::any) : d.act;
-      const dnnl::memory::desc dst = i + 1 == n ? dnnl::memory::desc(nchw(l.out, h, w), dt::f32, tag::any) : d.act;
-      d.convs.push_back(conv_pd(l, src, dst));
-      d.scratchpad = std::max(d.scratchpad, d.convs.back().scratchpad_desc().get_size());
-    }
-    d.in = d.convs.front().src_desc();
-    d.out = d.convs.back().dst_desc();
-    return d;
-  }
-
-  static size_t aligned(size_t bytes) { return (bytes + 63) / 64 * 64; }
-
-  // The buffers run() holds for a tile (the convs' scratchpad; reorders and prelu need none on x64).
-  size_t bytes_for(const Descs& d) const {
-    size_t total = 3 * aligned(d.act.get_size()) + aligned(d.scratchpad);
-    if (d.in != d.user_in) total += aligned(d.in.get_size());
-    if (d.out != d.user_out) total += aligned(d.out.get_size());
-    return total;
+  // One part's conv: `accumulate` adds what dst holds (sum post-op) before the activation; `residual` adds it
+  // after; `act` applies the fused activation; `bias`: this part adds the bias.
+  dnnl::convolution_forward::primitive_desc conv_pd(const GraphOp& op, const ConvPart& part, const ConvLayer& l,
+                                                    const dnnl::memory::desc& src, const dnnl::memory::desc& dst,
+                                                    bool accumulate, bool act, bool residual) const {
+    dnnl::post_ops ops;
+    if (accumulate) ops.append_sum(1.0f);
+    if (act && l.fused_act) ops.append_eltwise(1.0f, dnnl::algorithm::eltwise_relu, l.alpha, 0.0f);
+    if (residual) ops.append_sum(1.0f);
+    const int k = op.kernel, d = op.dilation, pad = d * (k / 2);
+    const dnnl::memory::desc weights(dims{op.channels, part.in, k, k}, act_type(), tag::any);
+    const dnnl::memory::desc bias(dims{op.channels}, dt::f32, tag::a);
+    const dnnl::convolution_forward::desc desc(dnnl::prop_kind::forward_inference, dnnl::algorithm::convolution_direct,
+                                               src, weights, bias, dst, {1, 1}, {d - 1, d - 1}, {pad, pad}, {pad, pad});
+    return {desc, user_scratchpad(ops), engine_};
   }
 
   const Plan& plan_for(int64_t h, int64_t w, int threads) {
@@ -280,60 +271,163 @@ class OneDnnBackend final : public Backend {
     if (plans_.size() >= 16) plans_.clear();  // tile sizes are few; this only bounds a pathological caller
 
     Plan p;
-    p.d = make_descs(h, w);
-    auto reorder = [&](const dnnl::memory::desc& from, const dnnl::memory::desc& to, Buffer src, Buffer dst) {
-      dnnl::primitive_attr attr;
-      attr.set_scratchpad_mode(dnnl::scratchpad_mode::user);
-      const dnnl::reorder::primitive_desc pd(engine_, from, engine_, to, attr);
-      p.d.scratchpad = std::max(p.d.scratchpad, pd.scratchpad_desc().get_size());
-      p.steps.push_back({dnnl::reorder(pd), {{DNNL_ARG_FROM, src}, {DNNL_ARG_TO, dst}}, {}, pd.scratchpad_desc()});
+    const int n = graph_.size();
+    p.values.resize(static_cast<size_t>(n));
+    p.user_in = dnnl::memory::desc(nchw(graph_.input_channels(), h, w), dt::f32, tag::nhwc);
+    p.user_out = dnnl::memory::desc(nchw(graph_.output_channels(), h, w), dt::f32, tag::nhwc);
+    auto dims_of = [&](int i) {
+      const GraphOp& o = graph_.op(i);
+      return nchw(o.channels, h >> o.level, w >> o.level);
     };
-    auto conv = [&](size_t i, Buffer src, Buffer dst) {
-      const Layer& l = layers_[i];
-      const auto& pd = p.d.convs[i];
-      p.steps.push_back({dnnl::convolution_forward(pd),
-                         {{DNNL_ARG_SRC, src}, {DNNL_ARG_DST, dst}},
-                         {{DNNL_ARG_WEIGHTS, packed_weights(i, pd.weights_desc())}, {DNNL_ARG_BIAS, l.bias}},
-                         pd.scratchpad_desc()});
-      if (l.prelu && !l.uniform_prelu) {
-        const dnnl::prelu_forward::desc pdesc(dnnl::prop_kind::forward_inference, p.d.act, l.slopes.get_desc());
-        dnnl::primitive_attr attr;
-        attr.set_scratchpad_mode(dnnl::scratchpad_mode::user);
-        const dnnl::prelu_forward::primitive_desc prelu_pd(pdesc, attr, engine_);
-        p.d.scratchpad = std::max(p.d.scratchpad, prelu_pd.scratchpad_desc().get_size());
-        p.steps.push_back({dnnl::prelu_forward(prelu_pd), {{DNNL_ARG_SRC, dst}, {DNNL_ARG_DST, dst}},  // in place
-                           {{DNNL_ARG_WEIGHTS, l.slopes}}, prelu_pd.scratchpad_desc()});
+    auto out_type = [&](int i) { return i == graph_.output() ? dt::f32 : act_type(); };
+    // Steps are made in two passes: descriptors first (they fix every value's layout and size), then, once the
+    // arena is planned, nothing else is needed: bindings name values, resolved at run time.
+    double costliest = -1;
+    for (int i = 0; i < n; ++i) {
+      const GraphOp& op = graph_.op(i);
+      const auto u = static_cast<size_t>(i);
+      switch (op.kind) {
+        case OpKind::Input: {
+          // The layout the first conv reading the input prefers.
+          dnnl::memory::desc chosen = dnnl::memory::desc(dims_of(i), act_type(), tag::nhwc);
+          for (int j = i + 1; j < n; ++j) {
+            const GraphOp& c = graph_.op(j);
+            if (c.kind != OpKind::Conv || c.inputs.front() != i) continue;
+            const ConvLayer& l = layers_[static_cast<size_t>(j)];
+            chosen = conv_pd(c, l.parts.front(), l, dnnl::memory::desc(dims_of(i), act_type(), tag::any),
+                             dnnl::memory::desc(dims_of(j), out_type(j), tag::any), false, true, false)
+                         .src_desc();
+            break;
+          }
+          p.values[u] = chosen;
+          p.input_direct = chosen == p.user_in;
+          if (!p.input_direct) add_reorder(p, p.user_in, chosen, {DNNL_ARG_FROM, -1, true, false}, {DNNL_ARG_TO, i});
+          break;
+        }
+        case OpKind::Conv: {
+          const ConvLayer& l = layers_[u];
+          const bool residual = op.residual >= 0;
+          dnnl::memory::desc dst = residual ? p.values[static_cast<size_t>(op.residual)]
+                                            : dnnl::memory::desc(dims_of(i), out_type(i), tag::any);
+          if (residual && i == graph_.output() && dst.data_type() != dt::f32)
+            dst = dnnl::memory::desc(dims_of(i), dt::f32, tag::any);
+          const bool prelu_separate = l.separate_prelu;
+          if (prelu_separate && residual)
+            throw Error(ErrorKind::Usage, "conv " + op.name + ": per-channel PReLU followed by a residual add is not "
+                                          "supported by the onednn backend; use --backend eigen");
+          const bool sum_residual = residual && !prelu_separate;
+          for (size_t k = 0; k < l.parts.size(); ++k) {
+            const ConvPart& part = l.parts[k];
+            const bool first = k == 0, last = k + 1 == l.parts.size();
+            const auto pd = conv_pd(op, part, l, p.values[static_cast<size_t>(part.value)], dst, !first, last,
+                                    last && sum_residual);
+            if (first) {
+              dst = pd.dst_desc();
+              p.values[u] = dst;
+              // A residual read again later cannot be overwritten: it is copied into this op's output first
+              // (the copy is dropped below where the arena plan lets the conv run in place).
+              if (residual) {
+                add_reorder(p, p.values[static_cast<size_t>(op.residual)], dst, {DNNL_ARG_FROM, op.residual}, {DNNL_ARG_TO, i});
+                p.steps.back().residual_copy_for = i;
+              }
+            }
+            const double cost = static_cast<double>(op.channels) * part.in * op.kernel * op.kernel / (1 << (2 * op.level));
+            if (cost > costliest) {
+              costliest = cost;
+              p.impl = pd.impl_info_str();
+            }
+            p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+            p.steps.push_back({dnnl::convolution_forward(pd),
+                               {{DNNL_ARG_SRC, part.value}, {DNNL_ARG_DST, i}},
+                               {{DNNL_ARG_WEIGHTS, packed_weights(i, k, pd.weights_desc())},
+                                {DNNL_ARG_BIAS, first ? l.bias : l.zeros}},
+                               pd.scratchpad_desc()});
+          }
+          if (prelu_separate) {
+            const dnnl::prelu_forward::desc d(dnnl::prop_kind::forward_inference, dst, l.slopes.get_desc());
+            const dnnl::prelu_forward::primitive_desc pd(d, user_scratchpad(), engine_);
+            p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+            p.steps.push_back({dnnl::prelu_forward(pd), {{DNNL_ARG_SRC, i}, {DNNL_ARG_DST, i}},  // in place
+                               {{DNNL_ARG_WEIGHTS, l.slopes}}, pd.scratchpad_desc()});
+          }
+          break;
+        }
+        case OpKind::Pool: {
+          const int x = op.inputs[0];
+          const dnnl::pooling_forward::desc d(dnnl::prop_kind::forward_inference, dnnl::algorithm::pooling_max,
+                                              p.values[static_cast<size_t>(x)],
+                                              dnnl::memory::desc(dims_of(i), act_type(), tag::any), {2, 2}, {2, 2},
+                                              {0, 0}, {0, 0});
+          const dnnl::pooling_forward::primitive_desc pd(d, user_scratchpad(), engine_);
+          p.values[u] = pd.dst_desc();
+          p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+          p.steps.push_back({dnnl::pooling_forward(pd), {{DNNL_ARG_SRC, x}, {DNNL_ARG_DST, i}}, {}, pd.scratchpad_desc()});
+          break;
+        }
+        case OpKind::Upsample: {
+          const int x = op.inputs[0];
+          const dnnl::resampling_forward::desc d(dnnl::prop_kind::forward_inference, dnnl::algorithm::resampling_nearest,
+                                                 p.values[static_cast<size_t>(x)],
+                                                 dnnl::memory::desc(dims_of(i), out_type(i), tag::any));
+          const dnnl::resampling_forward::primitive_desc pd(d, user_scratchpad(), engine_);
+          p.values[u] = pd.dst_desc();
+          p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+          p.steps.push_back({dnnl::resampling_forward(pd), {{DNNL_ARG_SRC, x}, {DNNL_ARG_DST, i}}, {}, pd.scratchpad_desc()});
+          break;
+        }
+        case OpKind::Add:
+          add_binary(p, op.inputs[0], op.inputs[1], i, dnnl::memory::desc(dims_of(i), out_type(i), tag::any));
+          break;
       }
-    };
-
-    const bool direct_in = p.d.in == p.d.user_in, direct_out = p.d.out == p.d.user_out;
-    if (!direct_in) reorder(p.d.user_in, p.d.in, Buffer::Input, Buffer::In);
-    conv(0, direct_in ? Buffer::Input : Buffer::In, Buffer::Head);
-    reorder(p.d.act, p.d.act, Buffer::Head, Buffer::State);  // the block state starts as the head's output
-    const size_t n = layers_.size();
-    for (size_t i = 1; i + 2 < n; i += 2) {
-      conv(i, Buffer::State, Buffer::Temp);
-      conv(i + 1, Buffer::Temp, Buffer::State);  // State += conv2(Temp) + bias
     }
-    conv(n - 2, Buffer::State, Buffer::Head);  // Head += tail(State) + bias
-    conv(n - 1, Buffer::Head, direct_out ? Buffer::Output : Buffer::Out);
-    if (!direct_out) reorder(p.d.out, p.d.user_out, Buffer::Out, Buffer::Output);
+    const int out = graph_.output();
+    p.output_direct = p.values[static_cast<size_t>(out)] == p.user_out;
+    if (!p.output_direct) add_reorder(p, p.values[static_cast<size_t>(out)], p.user_out, {DNNL_ARG_FROM, out}, {DNNL_ARG_TO, -1, false, true});
+
+    std::vector<size_t> bytes(static_cast<size_t>(n), 0);
+    for (int i = 0; i < n; ++i) bytes[static_cast<size_t>(i)] = p.values[static_cast<size_t>(i)].get_size();
+    for (int i = 0; i < n; ++i)
+      if (graph_.op(i).kind == OpKind::Input && p.input_direct) bytes[static_cast<size_t>(i)] = 0;
+    if (p.output_direct) bytes[static_cast<size_t>(out)] = 0;
+    p.arena = plan_arena(graph_, bytes);
+    std::erase_if(p.steps, [&](const Step& s) {
+      return s.residual_copy_for >= 0 && p.arena.in_place[static_cast<size_t>(s.residual_copy_for)] >= 0;
+    });
     return plans_.emplace(key, std::move(p)).first->second;
   }
 
-  // The layer's weights in `desc`'s layout, reordered on first use.
-  dnnl::memory packed_weights(size_t i, const dnnl::memory::desc& desc) {
-    Layer& l = layers_[i];
-    for (const auto& [d, m] : l.packed)
+  void add_reorder(Plan& p, const dnnl::memory::desc& from, const dnnl::memory::desc& to, Binding src, Binding dst) const {
+    const dnnl::reorder::primitive_desc pd(engine_, from, engine_, to, user_scratchpad());
+    p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+    p.steps.push_back({dnnl::reorder(pd), {src, dst}, {}, pd.scratchpad_desc()});
+  }
+
+  void add_binary(Plan& p, int a, int b, int dst, const dnnl::memory::desc& dst_desc) const {
+    const dnnl::binary::desc d(dnnl::algorithm::binary_add, p.values[static_cast<size_t>(a)],
+                               p.values[static_cast<size_t>(b)], dst_desc);
+    const dnnl::binary::primitive_desc pd(d, user_scratchpad(), engine_);
+    p.values[static_cast<size_t>(dst)] = pd.dst_desc();
+    p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+    p.steps.push_back({dnnl::binary(pd), {{DNNL_ARG_SRC_0, a}, {DNNL_ARG_SRC_1, b}, {DNNL_ARG_DST, dst}}, {},
+                       pd.scratchpad_desc()});
+  }
+
+  // Part `k` of conv `op`'s weights in `desc`'s layout, reordered on first use.
+  dnnl::memory packed_weights(int op, size_t k, const dnnl::memory::desc& desc) {
+    ConvPart& part = layers_[static_cast<size_t>(op)].parts[k];
+    for (const auto& [d, m] : part.packed)
       if (d == desc) return m;
-    const dnnl::memory::desc user(dims{l.out, l.in, 3, 3}, dt::f32, tag::oihw);
-    dnnl::memory src(user, engine_, l.weight.data());
+    const GraphOp& o = graph_.op(op);
+    const dnnl::memory::desc user(dims{o.channels, part.in, o.kernel, o.kernel}, dt::f32, tag::oihw);
+    dnnl::memory src(user, engine_, part.weight.data());
     dnnl::memory dst(desc, engine_);
     dnnl::reorder(src, dst).execute(stream_, src, dst);
     stream_.wait();
-    l.packed.emplace_back(desc, dst);
+    part.packed.emplace_back(desc, dst);
     return dst;
   }
+
+  static size_t aligned(size_t bytes) { return (bytes + 63) / 64 * 64; }
 
   static void grow(Bytes& buffer, size_t& capacity, size_t bytes) {
     if (bytes <= capacity) return;
@@ -345,30 +439,21 @@ class OneDnnBackend final : public Backend {
     capacity = bytes;
   }
 
-  void reserve(const Descs& d) {
-    grow(head_, head_size_, d.act.get_size());
-    grow(state_, state_size_, d.act.get_size());
-    grow(temp_, temp_size_, d.act.get_size());
-    if (d.in != d.user_in) grow(in_, in_size_, d.in.get_size());
-    if (d.out != d.user_out) grow(out_, out_size_, d.out.get_size());
-    grow(scratchpad_, scratchpad_size_, std::max<size_t>(d.scratchpad, 64));
-  }
-
-  Architecture arch_;
+  Graph graph_;
   Precision precision_;
   dnnl::engine engine_;
   dnnl::stream stream_;
   std::string description_;
-  std::vector<Layer> layers_;
+  std::vector<ConvLayer> layers_;
   std::map<std::tuple<int64_t, int64_t, int>, Plan> plans_;
-  Bytes head_, state_, temp_, in_, out_, scratchpad_;
-  size_t head_size_ = 0, state_size_ = 0, temp_size_ = 0, in_size_ = 0, out_size_ = 0, scratchpad_size_ = 0;
+  Bytes arena_, scratchpad_;
+  size_t arena_size_ = 0, scratchpad_size_ = 0;
 };
 
 }  // namespace
 
-std::unique_ptr<Backend> make_onednn_backend(const Network& network, Precision precision) {
-  return std::make_unique<OneDnnBackend>(network, precision);
+std::unique_ptr<Backend> make_onednn_backend(const Graph& graph, Precision precision) {
+  return std::make_unique<OneDnnBackend>(graph, precision);
 }
 
 }  // namespace residue::nn

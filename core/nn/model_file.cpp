@@ -2,6 +2,8 @@
 
 #include <cstdlib>
 
+#include "core/nn/oidn_network.h"
+#include "core/nn/tza.h"
 #include "core/util/error.h"
 #include "core/util/resources.h"
 
@@ -75,9 +77,74 @@ int metadata_int(const std::map<std::string, std::string>& m, const std::string&
   throw Error(ErrorKind::Input, where + ": metadata \"" + key + "\" = \"" + it->second + "\" is not a positive integer");
 }
 
+// OIDN's networks are named rt_<hdr|ldr>[_alb|_calb][_nrm|_cnrm][_small|_large], or rt_alb / rt_nrm
+// [_large] for the auxiliary prefilters.
+OidnInputs oidn_inputs(const std::string& stem, const std::string& where) {
+  OidnInputs in;
+  auto has = [&](const std::string& part) { return ("_" + stem + "_").find("_" + part + "_") != std::string::npos; };
+  if (stem.rfind("rt_", 0) != 0) throw Error(ErrorKind::Input, where + ": not an OIDN RT network name (rt_...)");
+  if (has("hdr")) in.hdr = true;
+  else if (has("ldr")) in.hdr = false;
+  else if (has("alb") || has("nrm")) {  // a prefilter: that image alone
+    in.color = false;
+    in.hdr = false;
+    in.albedo = has("alb");
+    in.normal = has("nrm");
+    return in;
+  } else {
+    throw Error(ErrorKind::Input, where + ": cannot tell from the name which inputs this OIDN network takes");
+  }
+  in.albedo = has("alb") || has("calb");
+  in.normal = has("nrm") || has("cnrm");
+  in.clean_aux = has("calb") || has("cnrm");
+  return in;
+}
+
+Model load_oidn_model(const std::filesystem::path& path) {
+  const std::string where = "OIDN network '" + path.string() + "'";
+  Model m;
+  m.path = path.string();
+  m.name = path.stem().string();
+  m.method = Method::Oidn;
+  m.oidn = oidn_inputs(m.name, where);
+  const int channels = 3 * (int{m.oidn.color} + int{m.oidn.albedo} + int{m.oidn.normal});
+  m.graph = oidn_graph(read_tza(path), channels, where);
+  if (m.oidn.clean_aux) {
+    const auto dir = path.parent_path();
+    const std::string size = m.name.size() > 6 && m.name.substr(m.name.size() - 6) == "_large" ? "_large" : "";
+    for (const char* aux : {"alb", "nrm"}) {
+      const auto file = dir / (std::string("rt_") + aux + size + ".tza");
+      if (!std::filesystem::is_regular_file(file))
+        throw Error(ErrorKind::Input, where + " denoises with clean albedo and normal; its prefilter " + file.string() +
+                                          " is missing");
+      (aux[0] == 'a' ? m.albedo_prefilter : m.normal_prefilter) = std::make_shared<const Model>(load_oidn_model(file));
+    }
+  }
+  return m;
+}
+
 }  // namespace
 
+FeatureSet Model::features() const {
+  if (method == Method::Residue) return network.arch.features;
+  return oidn.albedo && oidn.normal ? FeatureSet::ColorAlbedoNormal : FeatureSet::ColorOnly;
+}
+
+std::string Model::architecture() const {
+  if (method == Method::Residue) return network.arch.to_string();
+  return std::string("OIDN ") + (graph.op(1).name == "enc_conv1a" ? "UNetLarge" : "UNet") + " (" + name + ")";
+}
+
+Model model_from_network(Network network, std::string name) {
+  Model m;
+  m.name = std::move(name);
+  m.graph = to_graph(network);
+  m.network = std::move(network);
+  return m;
+}
+
 Model load_model(const std::filesystem::path& path) {
+  if (path.extension() == ".tza") return load_oidn_model(path);
   const std::string where = "model file '" + path.string() + "'";
   SafetensorsFile file = read_safetensors(path);
   const auto& md = file.metadata;
@@ -125,6 +192,7 @@ Model load_model(const std::filesystem::path& path) {
   n.tail = fold_batch_norm(r.conv("tail.conv", w, w, false), r.bn("tail.bn", w, eps));
   n.out = r.conv("out.conv", w, 3, true);
   r.expect_empty();
+  m.graph = to_graph(n);
   return m;
 }
 
@@ -158,6 +226,22 @@ std::string model_variant_name(const std::string& family, FeatureSet set) {
 
 std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available) {
   if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
+  if (name_or_path == "oidn" || name_or_path == "oidn-cleanaux") {
+    const bool aux = feature_channels(available) >= feature_channels(FeatureSet::ColorAlbedoNormal);
+    std::string file = aux ? "rt_hdr_alb_nrm" : "rt_hdr";
+    if (name_or_path == "oidn-cleanaux") {
+      if (!aux)
+        throw Error(ErrorKind::Input, "model \"oidn-cleanaux\" needs albedo and normal AOVs, which this render lacks");
+      file = "rt_hdr_calb_cnrm_large";
+    }
+    std::string looked;
+    for (const auto& d : model_dirs()) {
+      if (std::filesystem::is_regular_file(d / "oidn" / (file + ".tza"))) return d / "oidn" / (file + ".tza");
+      looked += " " + (d / "oidn").string();
+    }
+    throw Error(ErrorKind::Input, "Open Image Denoise's network " + file + ".tza is not installed (looked in:" +
+                                      looked + "); tools/fetch_oidn_weights.sh --install fetches it");
+  }
   std::vector<FeatureSet> usable;
   for (FeatureSet s : {FeatureSet::FullVariance, FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly})
     if (feature_channels(s) <= feature_channels(available)) usable.push_back(s);  // the sets nest: 10 > 9 > 8 > 3

@@ -13,6 +13,7 @@
 
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -22,15 +23,38 @@
 
 namespace residue::nn {
 
+// How a model's network is fed and read: Residue's own models (log features in, log colour out, post-steps),
+// or Open Image Denoise's networks run as OIDN runs them (core/denoise/oidn_filter.h), for comparison.
+enum class Method { Residue, Oidn };
+
+// What an OIDN network takes, from its file name (rt_hdr_alb_nrm, rt_hdr_calb_cnrm_large, rt_alb_large, ...).
+struct OidnInputs {
+  bool color = true, albedo = false, normal = false;
+  bool hdr = true;
+  bool clean_aux = false;  // albedo and normal are expected noise-free (prefiltered)
+};
+
 struct Model {
   std::string name;   // metadata "name", else the file's stem
   std::string path;
   std::map<std::string, std::string> metadata;
-  Network network;    // batch norm folded
+  Method method = Method::Residue;
+  Network network;    // Residue models: the ResNet, batch norm folded
+  Graph graph;        // what the backends run (every model)
+  OidnInputs oidn;    // OIDN models
+  // OIDN's final-frame mode (clean_aux): the networks that denoise the albedo and the normal first.
+  std::shared_ptr<const Model> albedo_prefilter, normal_prefilter;
+
+  FeatureSet features() const;  // the AOVs a Residue model reads (OIDN: the nearest set)
+  std::string architecture() const;  // "8/32 full", "OIDN UNet (rt_hdr_alb_nrm)"
 };
 
+// A Residue model from a network in memory (tests, benchmarks): its graph made from it.
+Model model_from_network(Network network, std::string name = "in-memory");
+
 // Loads and checks a model: every tensor's name, shape and dtype; throws Error(Input) naming the file and the
-// tensor on any mismatch (missing, unexpected, wrong shape, truncated file).
+// tensor on any mismatch (missing, unexpected, wrong shape, truncated file). A .tza file is one of Open Image
+// Denoise's networks (its inputs read from the name; clean-aux ones load their prefilters from beside them).
 Model load_model(const std::filesystem::path& path);
 
 // `name_or_path`: an existing file, or a model name looked up in $RESIDUE_MODEL_PATH, the source tree's
@@ -42,6 +66,8 @@ std::vector<std::filesystem::path> model_dirs();
 // A model *name* names a family of variants, one per feature set: NAME (full), NAME-albedo-normal, NAME-color.
 // Returns the richest variant that exists and that a stack able to feed `available` can use, so a render
 // without depth (or without any AOV) gets the model trained for what it has instead of zeros.
+// "oidn" picks OIDN's rt_hdr_alb_nrm (with albedo and normal) or rt_hdr; "oidn-cleanaux" its final-frame
+// network rt_hdr_calb_cnrm_large (albedo and normal needed), both from <model dir>/oidn/.
 // A path is returned as is. Throws Error(Input) listing what was looked for.
 std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available);
 std::string model_variant_name(const std::string& family, FeatureSet set);

@@ -66,6 +66,34 @@ Conv3x3 fold_batch_norm(const Conv3x3& conv, const BatchNorm& bn) {
   return f;
 }
 
+Graph to_graph(const Network& n) {
+  Graph g;
+  auto conv = [&](const std::string& name, int x, const Conv3x3& c, const std::vector<float>& prelu, int dilation,
+                  int residual) {
+    return g.conv(name, {x}, c.out, 3, c.weight, c.bias, prelu.empty() ? Activation::None : Activation::PReLU, prelu,
+                  dilation, residual);
+  };
+  const int input = g.input(n.arch.in_channels());
+  const int head = conv("head", input, n.head, n.head_prelu, 1, -1);
+  int y = head;
+  for (size_t b = 0; b < n.blocks.size(); ++b) {
+    const std::string p = "blocks." + std::to_string(b);
+    const int d = n.arch.dilation(static_cast<int>(b));
+    const int t = conv(p + ".conv1", y, n.blocks[b].conv1, n.blocks[b].prelu, d, -1);
+    y = conv(p + ".conv2", t, n.blocks[b].conv2, {}, d, y);
+  }
+  y = conv("tail", y, n.tail, {}, 1, head);
+  int skip = -1;
+  if (n.arch.input_skip) {
+    const int c = n.arch.in_channels();
+    std::vector<float> select(static_cast<size_t>(3 * c), 0.0f);
+    for (int k = 0; k < 3; ++k) select[static_cast<size_t>(k * c + k)] = 1.0f;
+    skip = g.conv("input_skip", {input}, 3, 1, select, {}, Activation::None);
+  }
+  conv("out", y, n.out, {}, 1, skip);
+  return g;
+}
+
 namespace {
 
 Conv3x3 random_conv(int in, int out, std::mt19937& rng, bool bias) {

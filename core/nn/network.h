@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/features/feature_set.h"
+#include "core/nn/graph.h"
 
 namespace residue::nn {
 
@@ -83,6 +84,10 @@ struct Network {
   Conv3x3 tail;  // BN folded; the head's output is added after it
   Conv3x3 out;
 };
+
+// The network as a graph: head, blocks (conv1 -> PReLU -> conv2 + identity, in place), tail + head, out (+ the
+// input's colour planes through a 1x1 selection conv for the input-skip variant).
+Graph to_graph(const Network& network);
 
 // A network with He-initialised weights, random PReLU slopes and biases: for tests and benchmarks.
 Network random_network(const Architecture& arch, uint32_t seed);
