@@ -27,7 +27,10 @@ ArenaPlan plan_arena(const Graph& graph, const std::vector<size_t>& bytes) {
     end[u] = last[u] < 0 ? n : last[u];  // the output (and unused values) live to the end
     const GraphOp& o = graph.op(i);
     const int r = o.residual;
-    if (o.kind == OpKind::Conv && r >= 0 && last[static_cast<size_t>(r)] == i && bytes[static_cast<size_t>(r)] > 0 &&
+    // In place only over a residual that no one reads afterwards and that the conv does not also read as an input
+    // (it would overwrite rows that neighbouring output rows still read).
+    const bool also_input = std::find(o.inputs.begin(), o.inputs.end(), r) != o.inputs.end();
+    if (o.kind == OpKind::Conv && r >= 0 && !also_input && last[static_cast<size_t>(r)] == i && bytes[static_cast<size_t>(r)] > 0 &&
         bytes[static_cast<size_t>(r)] == bytes[u] && graph.output() != i) {
       plan.in_place[u] = r;
       owner[u] = owner[static_cast<size_t>(r)];

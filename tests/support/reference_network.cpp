@@ -67,4 +67,64 @@ double max_relative_error(const Image& a, const Tensor64& b, double floor) {
   return err / scale;
 }
 
+Tensor64 naive_graph(const nn::Graph& g, const Image& input) {
+  std::vector<Tensor64> v(static_cast<size_t>(g.size()));
+  for (int i = 0; i < g.size(); ++i) {
+    const nn::GraphOp& op = g.op(i);
+    Tensor64& out = v[static_cast<size_t>(i)];
+    switch (op.kind) {
+      case nn::OpKind::Input: out = to_tensor(input); break;
+      case nn::OpKind::Conv: {
+        const Tensor64& first = v[static_cast<size_t>(op.inputs[0])];
+        out = Tensor64{first.h, first.w, op.channels, std::vector<double>(static_cast<size_t>(first.h * first.w * op.channels))};
+        const int r = op.dilation * (op.kernel / 2);
+        for (int64_t y = 0; y < out.h; ++y)
+          for (int64_t x = 0; x < out.w; ++x)
+            for (int o = 0; o < op.channels; ++o) {
+              double sum = op.bias[static_cast<size_t>(o)];
+              int base = 0;  // the input's first channel in the concatenation
+              for (int src : op.inputs) {
+                const Tensor64& in = v[static_cast<size_t>(src)];
+                for (int ky = 0; ky < op.kernel; ++ky)
+                  for (int kx = 0; kx < op.kernel; ++kx) {
+                    const int64_t sy = y + ky * op.dilation - r, sx = x + kx * op.dilation - r;
+                    if (sy < 0 || sy >= in.h || sx < 0 || sx >= in.w) continue;
+                    for (int c = 0; c < in.c; ++c) sum += static_cast<double>(op.w(o, base + c, ky, kx)) * in.at(sy, sx, c);
+                  }
+                base += in.c;
+              }
+              if (op.activation == nn::Activation::ReLU) sum = std::max(sum, 0.0);
+              if (op.activation == nn::Activation::PReLU && sum < 0) sum *= op.slopes[static_cast<size_t>(o)];
+              if (op.residual >= 0) sum += v[static_cast<size_t>(op.residual)].at(y, x, o);
+              out.at(y, x, o) = sum;
+            }
+        break;
+      }
+      case nn::OpKind::Pool: {
+        const Tensor64& in = v[static_cast<size_t>(op.inputs[0])];
+        out = Tensor64{in.h / 2, in.w / 2, in.c, std::vector<double>(static_cast<size_t>(in.h / 2 * (in.w / 2) * in.c))};
+        for (int64_t y = 0; y < out.h; ++y)
+          for (int64_t x = 0; x < out.w; ++x)
+            for (int c = 0; c < in.c; ++c)
+              out.at(y, x, c) = std::max({in.at(2 * y, 2 * x, c), in.at(2 * y, 2 * x + 1, c), in.at(2 * y + 1, 2 * x, c),
+                                          in.at(2 * y + 1, 2 * x + 1, c)});
+        break;
+      }
+      case nn::OpKind::Upsample: {
+        const Tensor64& in = v[static_cast<size_t>(op.inputs[0])];
+        out = Tensor64{in.h * 2, in.w * 2, in.c, std::vector<double>(static_cast<size_t>(in.h * 2 * in.w * 2 * in.c))};
+        for (int64_t y = 0; y < out.h; ++y)
+          for (int64_t x = 0; x < out.w; ++x)
+            for (int c = 0; c < in.c; ++c) out.at(y, x, c) = in.at(y / 2, x / 2, c);
+        break;
+      }
+      case nn::OpKind::Add:
+        out = v[static_cast<size_t>(op.inputs[0])];
+        add(out, v[static_cast<size_t>(op.inputs[1])]);
+        break;
+    }
+  }
+  return v[static_cast<size_t>(g.output())];
+}
+
 }  // namespace residue::testing

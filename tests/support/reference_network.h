@@ -23,6 +23,11 @@ Tensor64 to_tensor(const Image& image);
 // 3x3 conv with zero 'same' padding and bias, taps `dilation` pixels apart, in float64.
 Tensor64 naive_conv3x3(const Tensor64& in, const nn::Conv3x3& conv, int dilation = 1);
 
+// Any graph (graph.h) in float64, op by op in the textbook way: a conv sums over the concatenation of its inputs
+// with zeros outside the image, then activation, then residual; pool takes the max of each 2x2 block; upsample
+// repeats each pixel 2x2. Returns the output op's value.
+Tensor64 naive_graph(const nn::Graph& graph, const Image& input);
+
 // The whole (folded) network in float64.
 Tensor64 naive_forward(const nn::Network& net, const Image& input);
 
