@@ -4,6 +4,7 @@
 #include <iostream>
 #include <memory>
 #include <random>
+#include <filesystem>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/denoise/denoiser.h"
+#include "core/nn/model_file.h"
 #include "core/util/cpu_peak.h"
 #include "core/util/error.h"
 
@@ -29,13 +31,17 @@ struct BenchOptions {
   bool json = false;
 };
 
-nn::Architecture parse_model(const std::string& text) {
+// BLOCKS/WIDTH: a random ResNet of that size; anything else: a model name or file (the full-AOV variant), e.g.
+// "small" or "oidn" (OIDN's rt_hdr_alb_nrm).
+nn::Model bench_model(const std::string& text) {
+  if (text.find('/') == std::string::npos || std::filesystem::is_regular_file(text))
+    return nn::load_model(nn::find_model_for(text, FeatureSet::Full));
   nn::Architecture a;
   char slash = 0;
   std::istringstream in(text);
   if (!(in >> a.blocks >> slash >> a.width) || slash != '/' || a.blocks <= 0 || a.width <= 0)
-    throw Error(ErrorKind::Usage, "--models: expected BLOCKS/WIDTH such as 16/128, got \"" + text + "\"");
-  return a;
+    throw Error(ErrorKind::Usage, "--models: expected BLOCKS/WIDTH such as 16/128 or a model name, got \"" + text + "\"");
+  return nn::model_from_network(nn::random_network(a, 1), text);
 }
 
 // A synthetic render with every AOV: smooth shapes plus noise, no empty tiles.
@@ -77,7 +83,7 @@ int run(const BenchOptions& o) {
     std::printf("|---|---|---|---|---|---|---|---|\n");
   }
   for (const auto& model_text : o.models) {
-    const nn::Model model = nn::model_from_network(nn::random_network(parse_model(model_text), 1), model_text);
+    const nn::Model model = bench_model(model_text);
     const double flops = model.graph.flops_per_pixel() * static_cast<double>(o.size * o.size);
     for (const auto& backend : backends)
       for (const auto& precision : o.precisions) {
@@ -129,7 +135,7 @@ int run(const BenchOptions& o) {
 Command add_bench_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("bench", "Measure seconds per megapixel for model sizes, backends, precisions, tiles");
   auto o = std::make_shared<BenchOptions>();
-  cmd->add_option("--models", o->models, "Model sizes BLOCKS/WIDTH")->capture_default_str()->delimiter(',');
+  cmd->add_option("--models", o->models, "Model sizes BLOCKS/WIDTH (random weights) or model names (small, oidn, ...)")->capture_default_str()->delimiter(',');
   cmd->add_option("--backends", o->backends, "Backends (default: all available)")->delimiter(',');
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
   cmd->add_option("--tiles", o->tiles, "Tile edges")->capture_default_str()->delimiter(',');
