@@ -28,6 +28,7 @@
 
 #include "core/nn/arena.h"
 #include "core/nn/backend.h"
+#include "core/util/arena_buffer.h"
 #include "core/util/error.h"
 
 namespace residue::nn {
@@ -291,8 +292,8 @@ class EigenBackend final : public Backend {
     output = Image(w, h, graph_.output_channels());
     if (h == 0 || w == 0) return;
     const Plan& plan = plan_for(h, w);
-    if (arena_.size() < plan.arena.bytes / sizeof(float) + 16) arena_.assign(plan.arena.bytes / sizeof(float) + 16, 0.0f);
-    float* base = arena_.data() + (16 - reinterpret_cast<uintptr_t>(arena_.data()) / sizeof(float) % 16) % 16;  // 64-byte aligned
+    arena_.grow(plan.arena.bytes);
+    auto* base = static_cast<float*>(arena_.data());
     std::vector<Value> values(static_cast<size_t>(graph_.size()));
     for (int i = 0; i < graph_.size(); ++i) {
       Value& v = values[static_cast<size_t>(i)];
@@ -446,7 +447,7 @@ class EigenBackend final : public Backend {
   int64_t border_ = 1;
   std::vector<PackedConv> convs_;
   mutable std::map<std::pair<int64_t, int64_t>, Plan> plans_;
-  std::vector<float> arena_;
+  ArenaBuffer arena_;
   tbb::enumerable_thread_specific<Scratch> scratch_;
 };
 

@@ -24,6 +24,8 @@
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <map>
@@ -35,6 +37,7 @@
 
 #include "core/nn/arena.h"
 #include "core/nn/backend.h"
+#include "core/util/arena_buffer.h"
 #include "core/util/error.h"
 
 namespace residue::nn {
@@ -111,6 +114,7 @@ struct Step {
   std::unordered_map<int, dnnl::memory> fixed;  // weights, bias, slopes
   dnnl::memory::desc scratchpad;
   int residual_copy_for = -1;  // a copy of conv N's residual into its output, dropped when N runs in place
+  std::string label, impl;     // the op and oneDNN's implementation (for RESIDUE_PROFILE)
 };
 
 struct Plan {
@@ -171,10 +175,10 @@ class OneDnnBackend final : public Backend {
     const int threads = tbb::this_task_arena::max_concurrency();
     set_openmp_threads(threads);
     const Plan& plan = plan_for(h, w, threads);
-    grow(arena_, arena_size_, std::max<size_t>(plan.arena.bytes, 64));
-    grow(scratchpad_, scratchpad_size_, std::max<size_t>(plan.scratchpad, 64));
+    arena_.grow(plan.arena.bytes);
+    scratchpad_.grow(plan.scratchpad);
 
-    auto* base = static_cast<char*>(arena_.get());
+    auto* base = static_cast<char*>(arena_.data());
     std::vector<dnnl::memory> mem(static_cast<size_t>(graph_.size()));
     for (int i = 0; i < graph_.size(); ++i) {
       const auto u = static_cast<size_t>(i);
@@ -189,18 +193,20 @@ class OneDnnBackend final : public Backend {
       std::unordered_map<int, dnnl::memory> args = s.fixed;
       for (const Binding& b : s.bindings)
         args[b.arg] = b.user_input ? user_in : b.user_output ? user_out : mem[static_cast<size_t>(b.value)];
-      if (s.scratchpad.get_size() > 0) args[DNNL_ARG_SCRATCHPAD] = dnnl::memory(s.scratchpad, engine_, scratchpad_.get());
+      if (s.scratchpad.get_size() > 0) args[DNNL_ARG_SCRATCHPAD] = dnnl::memory(s.scratchpad, engine_, scratchpad_.data());
+      const auto t0 = std::chrono::steady_clock::now();
       s.primitive.execute(stream_, args);
+      if (profile_) {  // RESIDUE_PROFILE=1: each primitive's time (waits for it, so only for measuring)
+        stream_.wait();
+        std::fprintf(stderr, "profile %lldx%lld %-12s %-34s %8.2f ms\n", static_cast<long long>(w),
+                     static_cast<long long>(h), s.label.c_str(), s.impl.c_str(),
+                     std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      }
     }
     stream_.wait();
   }
 
  private:
-  struct FreeDeleter {
-    void operator()(void* p) const { std::free(p); }
-  };
-  using Bytes = std::unique_ptr<void, FreeDeleter>;
-
   dt act_type() const { return precision_ == Precision::BF16 ? dt::bf16 : dt::f32; }
 
   ConvLayer make_layer(const GraphOp& op) {
@@ -342,6 +348,7 @@ class OneDnnBackend final : public Backend {
                                {{DNNL_ARG_WEIGHTS, packed_weights(i, k, pd.weights_desc())},
                                 {DNNL_ARG_BIAS, first ? l.bias : l.zeros}},
                                pd.scratchpad_desc()});
+            label(p.steps.back(), op.name);
           }
           if (prelu_separate) {
             const dnnl::prelu_forward::desc d(dnnl::prop_kind::forward_inference, dst, l.slopes.get_desc());
@@ -349,6 +356,7 @@ class OneDnnBackend final : public Backend {
             p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
             p.steps.push_back({dnnl::prelu_forward(pd), {{DNNL_ARG_SRC, i}, {DNNL_ARG_DST, i}},  // in place
                                {{DNNL_ARG_WEIGHTS, l.slopes}}, pd.scratchpad_desc()});
+            label(p.steps.back(), op.name + " prelu");
           }
           break;
         }
@@ -362,6 +370,7 @@ class OneDnnBackend final : public Backend {
           p.values[u] = pd.dst_desc();
           p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
           p.steps.push_back({dnnl::pooling_forward(pd), {{DNNL_ARG_SRC, x}, {DNNL_ARG_DST, i}}, {}, pd.scratchpad_desc()});
+          label(p.steps.back(), op.name);
           break;
         }
         case OpKind::Upsample: {
@@ -373,6 +382,7 @@ class OneDnnBackend final : public Backend {
           p.values[u] = pd.dst_desc();
           p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
           p.steps.push_back({dnnl::resampling_forward(pd), {{DNNL_ARG_SRC, x}, {DNNL_ARG_DST, i}}, {}, pd.scratchpad_desc()});
+          label(p.steps.back(), op.name);
           break;
         }
         case OpKind::Add:
@@ -400,6 +410,7 @@ class OneDnnBackend final : public Backend {
     const dnnl::reorder::primitive_desc pd(engine_, from, engine_, to, user_scratchpad());
     p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
     p.steps.push_back({dnnl::reorder(pd), {src, dst}, {}, pd.scratchpad_desc()});
+    label(p.steps.back(), "reorder");
   }
 
   void add_binary(Plan& p, int a, int b, int dst, const dnnl::memory::desc& dst_desc) const {
@@ -410,6 +421,7 @@ class OneDnnBackend final : public Backend {
     p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
     p.steps.push_back({dnnl::binary(pd), {{DNNL_ARG_SRC_0, a}, {DNNL_ARG_SRC_1, b}, {DNNL_ARG_DST, dst}}, {},
                        pd.scratchpad_desc()});
+    label(p.steps.back(), "add");
   }
 
   // Part `k` of conv `op`'s weights in `desc`'s layout, reordered on first use.
@@ -427,27 +439,24 @@ class OneDnnBackend final : public Backend {
     return dst;
   }
 
-  static size_t aligned(size_t bytes) { return (bytes + 63) / 64 * 64; }
-
-  static void grow(Bytes& buffer, size_t& capacity, size_t bytes) {
-    if (bytes <= capacity) return;
-    buffer.reset();
-    capacity = 0;
-    void* p = std::aligned_alloc(64, aligned(bytes));
-    if (!p) throw std::bad_alloc();
-    buffer.reset(p);
-    capacity = bytes;
+  static void label(Step& s, const std::string& name) {
+    s.label = name;
+    const char* impl = nullptr;
+    if (dnnl_primitive_desc_query(s.primitive.get_primitive_desc(), dnnl_query_impl_info_str, 0, &impl) == dnnl_success && impl)
+      s.impl = impl;
   }
 
+  static size_t aligned(size_t bytes) { return (bytes + 63) / 64 * 64; }
+
   Graph graph_;
+  bool profile_ = std::getenv("RESIDUE_PROFILE") != nullptr;
   Precision precision_;
   dnnl::engine engine_;
   dnnl::stream stream_;
   std::string description_;
   std::vector<ConvLayer> layers_;
   std::map<std::tuple<int64_t, int64_t, int>, Plan> plans_;
-  Bytes arena_, scratchpad_;
-  size_t arena_size_ = 0, scratchpad_size_ = 0;
+  ArenaBuffer arena_, scratchpad_;
 };
 
 }  // namespace
