@@ -403,3 +403,89 @@ TEST(OidnCli, DenoisesCyclesTungstenAndPlainRenders) {
 
 }  // namespace
 }  // namespace residue
+
+namespace residue {
+namespace {
+
+// --- multi-scale residual networks ----------------------------------------------------------------------------
+
+nn::Architecture multiscale_arch(FeatureSet set = FeatureSet::Full) {
+  nn::Architecture a;
+  a.features = set;
+  a.levels = {1, 1, 2};
+  a.widths = {8, 12, 16};
+  a.blocks = 1;
+  a.width = 8;
+  return a;
+}
+
+TEST(MultiScale, ArchitectureAgreesWithItsGraph) {
+  for (const nn::Architecture& a : {multiscale_arch(), nn::Architecture{1, 16, FeatureSet::ColorOnly, {}, false, {2, 3}, {16, 32}}}) {
+    const nn::Graph g = nn::to_graph(nn::random_network(a, 3));
+    EXPECT_EQ(g.alignment(), a.alignment()) << a.to_string();
+    EXPECT_EQ(g.halo(), a.halo()) << a.to_string();
+    EXPECT_DOUBLE_EQ(g.flops_per_pixel(), a.flops_per_pixel()) << a.to_string();
+    int convs = 0;
+    for (const auto& op : g.ops()) convs += op.kind == nn::OpKind::Conv;
+    EXPECT_EQ(convs, a.conv_layers()) << a.to_string();
+  }
+  EXPECT_EQ(multiscale_arch().to_string(), "ms 1,1,2/8,12,16 full");
+}
+
+// Written to a model file and read back (batch norm as identity), the network computes the same; on both
+// backends it matches the float64 graph.
+TEST(MultiScale, ModelFileRoundTripAndBackends) {
+  const nn::Network net = nn::random_network(multiscale_arch(), 4);
+  testing::TempDir tmp;
+  nn::write_safetensors(tmp / "ms.safetensors", nn::to_safetensors(net, {{"name", "ms"}}), false);
+  const nn::Model m = nn::load_model(tmp / "ms.safetensors");
+  EXPECT_EQ(m.network.arch.levels, (std::vector<int>{1, 1, 2}));
+  EXPECT_EQ(m.graph.alignment(), 4);
+  const Image x = testing::random_image(36, 20, 9, 8, -1.0f, 2.0f);
+  const testing::Tensor64 ref = testing::naive_graph(nn::to_graph(net), x);
+  for (const auto& b : nn::available_backends()) {
+    auto backend = nn::make_backend(b, m.graph, {});
+    Image y;
+    backend->run(x, y);
+    EXPECT_LT(testing::max_relative_error(y, ref), 2e-5) << b;
+  }
+}
+
+// Tiled equals untiled through the tile engine (tiles that do and do not divide the image, an ROI), both backends;
+// bf16 stays finite.
+TEST(MultiScale, TiledEqualsUntiled) {
+  const nn::Model m = nn::model_from_network(nn::random_network(multiscale_arch(), 5), "ms");
+  const AovStack s = testing::random_stack(90, 61, 2);
+  for (const auto& b : nn::available_backends()) {
+    DenoiseOptions o = options(b);
+    o.energy_correction = false;
+    const Image whole = denoise(s, m, o);
+    for (int64_t tile : {24, 40}) {
+      o.tile = tile;
+      EXPECT_LT(rel_mse(denoise(s, m, o), whole), 1e-11) << b << " tile " << tile;
+    }
+    o.roi = Rect{13, 7, 50, 41};
+    o.tile = 20;  // runs as 20 (a multiple of the alignment 4)
+    EXPECT_LT(rel_mse(crop(denoise(s, m, o), *o.roi), crop(whole, *o.roi)), 1e-11) << b << " roi";
+  }
+  if (nn::available_backends().back() == "onednn") {
+    EXPECT_EQ(count_non_finite(denoise(s, m, options("onednn", nn::Precision::BF16))).total(), 0);
+  }
+}
+
+TEST(MultiScale, BadMetadataIsRefused) {
+  testing::TempDir tmp;
+  nn::SafetensorsFile f = nn::to_safetensors(nn::random_network(multiscale_arch(), 4));
+  f.metadata["residue.widths"] = "8,12";  // one short
+  nn::write_safetensors(tmp / "bad.safetensors", f, false);
+  try {
+    nn::load_model(tmp / "bad.safetensors");
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find("residue.levels"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace residue

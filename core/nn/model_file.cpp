@@ -164,6 +164,19 @@ Model load_model(const std::filesystem::path& path) {
                                         "\" is not a list of dilations from 1 to 64 (\"1,2,4,8\")");
     arch.dilations = *d;
   }
+  if (md.count("residue.levels") || md.count("residue.widths")) {
+    const auto levels = md.count("residue.levels") ? parse_ints(md.at("residue.levels"), 1, 64) : std::nullopt;
+    const auto widths = md.count("residue.widths") ? parse_ints(md.at("residue.widths"), 1, 4096) : std::nullopt;
+    if (!levels || !widths || levels->size() != widths->size() || levels->size() < 2 || levels->size() > 6)
+      throw Error(ErrorKind::Input, where + ": metadata \"residue.levels\" and \"residue.widths\" must list, for 2 to 6 "
+                                    "levels, the ResBlocks (1-64) and the width (1-4096) of each (\"2,2,4\" and \"32,48,64\")");
+    if (!arch.dilations.empty())
+      throw Error(ErrorKind::Input, where + ": a multi-scale network has no dilations (metadata \"residue.dilations\")");
+    arch.levels = *levels;
+    arch.widths = *widths;
+    arch.blocks = arch.levels.front();
+    arch.width = arch.widths.front();
+  }
   if (md.count("residue.input_skip")) {
     const std::string v = md.at("residue.input_skip");
     if (v != "0" && v != "1") throw Error(ErrorKind::Input, where + ": metadata \"residue.input_skip\" must be 0 or 1, not \"" + v + "\"");
@@ -177,17 +190,37 @@ Model load_model(const std::filesystem::path& path) {
   m.name = md.count("name") ? md.at("name") : path.stem().string();
   Network& n = m.network;
   n.arch = arch;
-  const int w = arch.width;
+  const int w = arch.level_width(0);
   TensorReader r(file, where);
   n.head = r.conv("head.conv", arch.in_channels(), w, true);
   n.head_prelu = r.take("head.prelu.weight", {w});
-  for (int b = 0; b < arch.blocks; ++b) {
-    const std::string p = "blocks." + std::to_string(b);
+  auto block = [&](const std::string& p, int width) {
     ResBlock blk;
-    blk.conv1 = fold_batch_norm(r.conv(p + ".conv1", w, w, false), r.bn(p + ".bn1", w, eps));
-    blk.prelu = r.take(p + ".prelu.weight", {w});
-    blk.conv2 = fold_batch_norm(r.conv(p + ".conv2", w, w, false), r.bn(p + ".bn2", w, eps));
-    n.blocks.push_back(std::move(blk));
+    blk.conv1 = fold_batch_norm(r.conv(p + ".conv1", width, width, false), r.bn(p + ".bn1", width, eps));
+    blk.prelu = r.take(p + ".prelu.weight", {width});
+    blk.conv2 = fold_batch_norm(r.conv(p + ".conv2", width, width, false), r.bn(p + ".bn2", width, eps));
+    return blk;
+  };
+  // conv (no bias) -> BN -> PReLU: the multi-scale network's down and up steps.
+  auto conv_prelu = [&](const std::string& p, int in, int out) {
+    return ConvPRelu{fold_batch_norm(r.conv(p + ".conv", in, out, false), r.bn(p + ".bn", out, eps)),
+                     r.take(p + ".prelu.weight", {out})};
+  };
+  if (!arch.multiscale()) {
+    for (int b = 0; b < arch.blocks; ++b) n.blocks.push_back(block("blocks." + std::to_string(b), w));
+  } else {
+    const int L = static_cast<int>(arch.levels.size());
+    n.scales.resize(static_cast<size_t>(L));
+    for (int l = 0; l < L; ++l) {
+      const std::string p = "levels." + std::to_string(l);
+      const int lw = arch.level_width(l);
+      ScaleLevel& s = n.scales[static_cast<size_t>(l)];
+      for (int b = 0; b < arch.levels[static_cast<size_t>(l)]; ++b) s.enc.push_back(block(p + ".enc." + std::to_string(b), lw));
+      if (l + 1 == L) break;
+      s.down = conv_prelu(p + ".down", lw, arch.level_width(l + 1));
+      s.up = conv_prelu(p + ".up", arch.level_width(l + 1) + lw, lw);
+      for (int b = 0; b < arch.levels[static_cast<size_t>(l)]; ++b) s.dec.push_back(block(p + ".dec." + std::to_string(b), lw));
+    }
   }
   n.tail = fold_batch_norm(r.conv("tail.conv", w, w, false), r.bn("tail.bn", w, eps));
   n.out = r.conv("out.conv", w, 3, true);
@@ -267,8 +300,11 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   f.metadata["residue.features"] = to_string(n.arch.features);
   if (n.arch.max_dilation() > 1) f.metadata["residue.dilations"] = dilations_to_string(n.arch.dilations);
   if (n.arch.input_skip) f.metadata["residue.input_skip"] = "1";
+  if (n.arch.multiscale()) {
+    f.metadata["residue.levels"] = ints_to_string(n.arch.levels);
+    f.metadata["residue.widths"] = ints_to_string(n.arch.widths);
+  }
   f.metadata["residue.bn_eps"] = "0";
-  const int64_t w = n.arch.width;
   auto put = [&](const std::string& name, std::vector<int64_t> shape, const std::vector<float>& v) {
     f.tensors[name] = Tensor{"F32", std::move(shape), v};
   };
@@ -278,20 +314,35 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   };
   // The weights are folded already: batch norm becomes identity with the conv's bias as its beta (eps 0).
   auto bn = [&](const std::string& p, const Conv3x3& c) {
+    const int64_t w = c.out;
     put(p + ".weight", {w}, std::vector<float>(static_cast<size_t>(w), 1.0f));
     put(p + ".bias", {w}, c.bias);
     put(p + ".running_mean", {w}, std::vector<float>(static_cast<size_t>(w), 0.0f));
     put(p + ".running_var", {w}, std::vector<float>(static_cast<size_t>(w), 1.0f));
   };
+  auto block = [&](const std::string& p, const ResBlock& b) {
+    conv(p + ".conv1", b.conv1, false);
+    bn(p + ".bn1", b.conv1);
+    put(p + ".prelu.weight", {b.conv1.out}, b.prelu);
+    conv(p + ".conv2", b.conv2, false);
+    bn(p + ".bn2", b.conv2);
+  };
+  auto conv_prelu = [&](const std::string& p, const ConvPRelu& c) {
+    conv(p + ".conv", c.conv, false);
+    bn(p + ".bn", c.conv);
+    put(p + ".prelu.weight", {c.conv.out}, c.prelu);
+  };
   conv("head.conv", n.head, true);
-  put("head.prelu.weight", {w}, n.head_prelu);
-  for (size_t b = 0; b < n.blocks.size(); ++b) {
-    const std::string p = "blocks." + std::to_string(b);
-    conv(p + ".conv1", n.blocks[b].conv1, false);
-    bn(p + ".bn1", n.blocks[b].conv1);
-    put(p + ".prelu.weight", {w}, n.blocks[b].prelu);
-    conv(p + ".conv2", n.blocks[b].conv2, false);
-    bn(p + ".bn2", n.blocks[b].conv2);
+  put("head.prelu.weight", {n.head.out}, n.head_prelu);
+  for (size_t b = 0; b < n.blocks.size(); ++b) block("blocks." + std::to_string(b), n.blocks[b]);
+  for (size_t l = 0; l < n.scales.size(); ++l) {
+    const std::string p = "levels." + std::to_string(l);
+    const ScaleLevel& s = n.scales[l];
+    for (size_t b = 0; b < s.enc.size(); ++b) block(p + ".enc." + std::to_string(b), s.enc[b]);
+    if (l + 1 == n.scales.size()) break;
+    conv_prelu(p + ".down", s.down);
+    conv_prelu(p + ".up", s.up);
+    for (size_t b = 0; b < s.dec.size(); ++b) block(p + ".dec." + std::to_string(b), s.dec[b]);
   }
   conv("tail.conv", n.tail, false);
   bn("tail.bn", n.tail);

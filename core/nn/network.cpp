@@ -8,7 +8,26 @@ namespace residue::nn {
 
 double Architecture::flops_per_pixel() const {
   const double k = 9.0 * 2.0;  // 3x3 taps, multiply + add
-  return k * (in_channels() * width + (2.0 * blocks + 1.0) * width * width + width * 3.0);
+  if (!multiscale()) return k * (in_channels() * width + (2.0 * blocks + 1.0) * width * width + width * 3.0);
+  const int L = static_cast<int>(levels.size());
+  double f = in_channels() * level_width(0) + level_width(0) * level_width(0) + level_width(0) * 3.0;  // head, tail, out
+  for (int l = 0; l < L; ++l) {
+    const double w = level_width(l), area = 1.0 / static_cast<double>(1 << (2 * l));
+    const int blocks_here = l + 1 < L ? 2 * levels[static_cast<size_t>(l)] : levels[static_cast<size_t>(l)];
+    double level = 2.0 * blocks_here * w * w;
+    if (l + 1 < L) level += (level_width(l + 1) + w) * w;  // up (at level l)
+    if (l > 0) level += level_width(l - 1) * w;            // down into level l
+    f += level * area;
+  }
+  return k * f;
+}
+
+int Architecture::conv_layers() const {
+  if (!multiscale()) return 2 * blocks + 3;
+  int n = 3;
+  const int L = static_cast<int>(levels.size());
+  for (int l = 0; l < L; ++l) n += (l + 1 < L ? 4 : 2) * levels[static_cast<size_t>(l)] + (l + 1 < L ? 2 : 0);
+  return n;
 }
 
 int Architecture::max_dilation() const {
@@ -19,8 +38,21 @@ int Architecture::max_dilation() const {
 
 int Architecture::halo() const {
   int h = 3;  // head, tail, out
-  for (int b = 0; b < blocks; ++b) h += 2 * dilation(b);
-  return h;
+  if (!multiscale()) {
+    for (int b = 0; b < blocks; ++b) h += 2 * dilation(b);
+    return h;
+  }
+  // Along the deepest path (graph.h's reach): each conv at level l reaches 2^l px, each upsample into level l
+  // adds 2^l, ResBlocks run at each level on the way down and (above the bottom) up.
+  const int L = static_cast<int>(levels.size());
+  for (int l = 0; l < L; ++l) {
+    const int px = 1 << l;
+    h += (l + 1 < L ? 4 : 2) * levels[static_cast<size_t>(l)] * px;
+    if (l > 0) h += px;           // the down conv into level l
+    if (l + 1 < L) h += px + px;  // the upsample into level l and the up conv
+  }
+  const int a = alignment();
+  return (h + a - 1) / a * a;
 }
 
 std::string dilations_to_string(const std::vector<int>& d) {
@@ -44,7 +76,27 @@ std::optional<std::vector<int>> parse_dilations(const std::string& text) {
   return d;
 }
 
+std::string ints_to_string(const std::vector<int>& v) { return dilations_to_string(v); }
+
+std::optional<std::vector<int>> parse_ints(const std::string& text, int lo, int hi) {
+  std::vector<int> d;
+  size_t pos = 0;
+  while (pos <= text.size()) {
+    const size_t comma = std::min(text.find(',', pos), text.size());
+    const std::string item = text.substr(pos, comma - pos);
+    if (item.empty() || item.size() > 5 || item.find_first_not_of("0123456789") != std::string::npos) return std::nullopt;
+    const int v = std::stoi(item);
+    if (v < lo || v > hi) return std::nullopt;
+    d.push_back(v);
+    pos = comma + 1;
+  }
+  return d;
+}
+
 std::string Architecture::to_string() const {
+  if (multiscale())
+    return "ms " + ints_to_string(levels) + "/" + ints_to_string(widths) + " " + residue::to_string(features) +
+           (input_skip ? " input-skip" : "");
   std::string s = std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
   if (max_dilation() > 1) s += " dilated " + dilations_to_string(dilations);
   if (input_skip) s += " input-skip";
@@ -73,14 +125,38 @@ Graph to_graph(const Network& n) {
     return g.conv(name, {x}, c.out, 3, c.weight, c.bias, prelu.empty() ? Activation::None : Activation::PReLU, prelu,
                   dilation, residual);
   };
+  auto blocks = [&](const std::string& prefix, int y, const std::vector<ResBlock>& bs, bool dilate) {
+    for (size_t b = 0; b < bs.size(); ++b) {
+      const std::string p = prefix + std::to_string(b);
+      const int d = dilate ? n.arch.dilation(static_cast<int>(b)) : 1;
+      const int t = conv(p + ".conv1", y, bs[b].conv1, bs[b].prelu, d, -1);
+      y = conv(p + ".conv2", t, bs[b].conv2, {}, d, y);
+    }
+    return y;
+  };
   const int input = g.input(n.arch.in_channels());
   const int head = conv("head", input, n.head, n.head_prelu, 1, -1);
   int y = head;
-  for (size_t b = 0; b < n.blocks.size(); ++b) {
-    const std::string p = "blocks." + std::to_string(b);
-    const int d = n.arch.dilation(static_cast<int>(b));
-    const int t = conv(p + ".conv1", y, n.blocks[b].conv1, n.blocks[b].prelu, d, -1);
-    y = conv(p + ".conv2", t, n.blocks[b].conv2, {}, d, y);
+  if (!n.arch.multiscale()) {
+    y = blocks("blocks.", y, n.blocks, true);
+  } else {
+    const int L = static_cast<int>(n.scales.size());
+    std::vector<int> skips;
+    for (int l = 0; l < L; ++l) {
+      const ScaleLevel& s = n.scales[static_cast<size_t>(l)];
+      const std::string p = "levels." + std::to_string(l);
+      y = blocks(p + ".enc.", y, s.enc, false);
+      if (l + 1 == L) break;
+      skips.push_back(y);
+      y = conv(p + ".down", g.pool(y), s.down.conv, s.down.prelu, 1, -1);
+    }
+    for (int l = L - 2; l >= 0; --l) {
+      const ScaleLevel& s = n.scales[static_cast<size_t>(l)];
+      const std::string p = "levels." + std::to_string(l);
+      y = g.conv(p + ".up", {g.upsample(y), skips[static_cast<size_t>(l)]}, s.up.conv.out, 3, s.up.conv.weight,
+                 s.up.conv.bias, Activation::PReLU, s.up.prelu);
+      y = blocks(p + ".dec.", y, s.dec, false);
+    }
   }
   y = conv("tail", y, n.tail, {}, 1, head);
   int skip = -1;
@@ -123,19 +199,35 @@ Network random_network(const Architecture& arch, uint32_t seed) {
   std::mt19937 rng(seed);
   Network n;
   n.arch = arch;
-  n.head = random_conv(arch.in_channels(), arch.width, rng, true);
-  n.head_prelu = random_prelu(arch.width, rng);
-  for (int b = 0; b < arch.blocks; ++b) {
+  n.head = random_conv(arch.in_channels(), arch.level_width(0), rng, true);
+  n.head_prelu = random_prelu(arch.level_width(0), rng);
+  auto block = [&](int w) {
     ResBlock blk;
-    blk.conv1 = random_conv(arch.width, arch.width, rng, true);
-    blk.prelu = random_prelu(arch.width, rng);
-    blk.conv2 = random_conv(arch.width, arch.width, rng, true);
+    blk.conv1 = random_conv(w, w, rng, true);
+    blk.prelu = random_prelu(w, rng);
+    blk.conv2 = random_conv(w, w, rng, true);
     // Scale the residual branch down so activations stay O(1) through deep random networks.
     for (float& v : blk.conv2.weight) v *= 0.2f;
-    n.blocks.push_back(std::move(blk));
+    return blk;
+  };
+  if (!arch.multiscale()) {
+    for (int b = 0; b < arch.blocks; ++b) n.blocks.push_back(block(arch.width));
+  } else {
+    const int L = static_cast<int>(arch.levels.size());
+    n.scales.resize(static_cast<size_t>(L));
+    for (int l = 0; l < L; ++l) {
+      ScaleLevel& s = n.scales[static_cast<size_t>(l)];
+      const int w = arch.level_width(l);
+      for (int b = 0; b < arch.levels[static_cast<size_t>(l)]; ++b) s.enc.push_back(block(w));
+      if (l + 1 == L) break;
+      const int below = arch.level_width(l + 1);
+      s.down = {random_conv(w, below, rng, true), random_prelu(below, rng)};
+      s.up = {random_conv(below + w, w, rng, true), random_prelu(w, rng)};
+      for (int b = 0; b < arch.levels[static_cast<size_t>(l)]; ++b) s.dec.push_back(block(w));
+    }
   }
-  n.tail = random_conv(arch.width, arch.width, rng, true);
-  n.out = random_conv(arch.width, 3, rng, true);
+  n.tail = random_conv(arch.level_width(0), arch.level_width(0), rng, true);
+  n.out = random_conv(arch.level_width(0), 3, rng, true);
   return n;
 }
 

@@ -13,6 +13,13 @@
 // to the output ("input skip"): the network then learns the correction to the noisy colour, which is zero
 // where the input is already clean, instead of the whole image. Batch norm is folded into the convolutions when a
 // model is loaded: every layer below is a conv with bias.
+//
+// The multi-scale variant (not in the paper; `levels` set) keeps the paper's blocks, the network-wide skip and
+// the direct output, but spreads the ResBlocks over L resolution levels, U-Net fashion, for a receptive field
+// of hundreds of pixels at a fraction of the flat network's cost:
+//   h = PReLU(conv(x)) at level 0; per level l < L-1: n_l ResBlocks (kept as the skip s_l), then down:
+//   PReLU(BN(conv(pool(.)))) into level l+1 (width W_{l+1}); the bottom level: n_{L-1} ResBlocks; back up per
+//   level: PReLU(BN(conv(cat(upsample(.), s_l)))) to W_l, n_l ResBlocks; then tail + h and out as above.
 #pragma once
 
 #include <cstdint>
@@ -31,17 +38,25 @@ struct Architecture {
   FeatureSet features = FeatureSet::Full;
   std::vector<int> dilations;  // per ResBlock, repeated over the blocks; empty: all 1 (the paper)
   bool input_skip = false;     // variant: out += the input's log colour planes (the net predicts the correction)
+  // Multi-scale variant: ResBlocks per level (level 0 first; the encoder and the decoder each have that many
+  // at levels above the bottom) and each level's width. Empty: the paper's flat network (blocks, width).
+  std::vector<int> levels, widths;
+
+  bool multiscale() const { return !levels.empty(); }
+  int level_width(int l) const { return widths.empty() ? width : widths[static_cast<size_t>(l)]; }
 
   int in_channels() const { return feature_channels(features); }
-  int conv_layers() const { return 2 * blocks + 3; }
+  int conv_layers() const;
   int dilation(int block) const {
     return dilations.empty() ? 1 : dilations[static_cast<size_t>(block) % dilations.size()];
   }
   int max_dilation() const;
-  int halo() const;  // the receptive field's reach: d pixels per 3x3 conv of dilation d
+  int halo() const;  // the tiler's halo: the receptive field's reach (d px per 3x3 conv of dilation d at level 0),
+                     // rounded up to the alignment
+  int alignment() const { return 1 << (multiscale() ? static_cast<int>(levels.size()) - 1 : 0); }
   // Multiply-adds x 2 per output pixel.
   double flops_per_pixel() const;
-  std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip"
+  std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip", "ms 2,2,4/32,48,64 full"
 };
 
 // A 3x3 convolution with bias. Weights in OIHW order (as PyTorch stores them): weight[((o*in + i)*3 + ky)*3 + kx].
@@ -75,12 +90,31 @@ struct ResBlock {
   Conv3x3 conv2;              // BN folded
 };
 
+// "2,2,4": the metadata and command-line form of per-level counts; nullopt unless every entry is in [lo, hi].
+std::string ints_to_string(const std::vector<int>& v);
+std::optional<std::vector<int>> parse_ints(const std::string& text, int lo, int hi);
+
+// A conv (BN folded) followed by a PReLU: the multi-scale network's down and up steps.
+struct ConvPRelu {
+  Conv3x3 conv;
+  std::vector<float> prelu;
+};
+
+// One resolution level of a multi-scale network.
+struct ScaleLevel {
+  std::vector<ResBlock> enc;  // on the way down (the bottom level's only blocks)
+  ConvPRelu down;             // above the bottom: pool, then this conv into the next level's width
+  ConvPRelu up;               // above the bottom: upsample the level below, concat with enc's output, this conv
+  std::vector<ResBlock> dec;  // above the bottom: on the way up
+};
+
 // The network ready for inference (BN folded).
 struct Network {
   Architecture arch;
   Conv3x3 head;
   std::vector<float> head_prelu;
-  std::vector<ResBlock> blocks;
+  std::vector<ResBlock> blocks;    // the flat network's
+  std::vector<ScaleLevel> scales;  // the multi-scale network's, level 0 first
   Conv3x3 tail;  // BN folded; the head's output is added after it
   Conv3x3 out;
 };
