@@ -39,25 +39,27 @@ TEST_P(TrainParity, ExportedModelGivesTheSameOutputInCore) {
   nn::write_safetensors(tmp / "m.safetensors", train::export_model(net, {{"name", "parity"}}), false);
   const nn::Model model = nn::load_model(tmp / "m.safetensors");
 
-  const Image x = testing::random_image(21, 13, 9, 4, -0.5f, 1.5f);
+  // Odd sizes for the flat networks; whole multiples of the pooling for the multi-scale one (20 x 12 at 4 px).
+  const int64_t W = arch.multiscale() ? 20 : 21, H = arch.multiscale() ? 12 : 13;
+  const Image x = testing::random_image(W, H, 9, 4, -0.5f, 1.5f);
   // libtorch: NCHW.
-  torch::Tensor t = torch::empty({1, 9, 13, 21});
+  torch::Tensor t = torch::empty({1, 9, H, W});
   for (int c = 0; c < 9; ++c)
-    for (int64_t y = 0; y < 13; ++y)
-      for (int64_t xx = 0; xx < 21; ++xx) t[0][c][y][xx] = x.at(xx, y, c);
+    for (int64_t y = 0; y < H; ++y)
+      for (int64_t xx = 0; xx < W; ++xx) t[0][c][y][xx] = x.at(xx, y, c);
   torch::Tensor expect;
   {
     torch::NoGradGuard no_grad;
     expect = net->forward(t);
   }
   for (const auto& backend : nn::available_backends()) {
-    auto b = nn::make_backend(backend, model.network, {});
+    auto b = nn::make_backend(backend, model.graph, {});
     Image out;
     b->run(x, out);
     double scale = 1e-3, err = 0;
     for (int c = 0; c < 3; ++c)
-      for (int64_t y = 0; y < 13; ++y)
-        for (int64_t xx = 0; xx < 21; ++xx) {
+      for (int64_t y = 0; y < H; ++y)
+        for (int64_t xx = 0; xx < W; ++xx) {
           const double e = expect[0][c][y][xx].item<double>();
           scale = std::max(scale, std::abs(e));
           err = std::max(err, std::abs(e - out.at(xx, y, c)));
@@ -66,13 +68,15 @@ TEST_P(TrainParity, ExportedModelGivesTheSameOutputInCore) {
   }
 }
 
-// The paper's network, and one with dilated blocks (taps 3 px apart reach past the 13-px-high input).
+// The paper's network, one with dilated blocks (taps 3 px apart reach past the 13-px-high input), one with the
+// input skip, and a three-level multi-scale network.
 INSTANTIATE_TEST_SUITE_P(Architectures, TrainParity,
                          ::testing::Values(nn::Architecture{3, 16, FeatureSet::Full},
                                            nn::Architecture{3, 16, FeatureSet::Full, {1, 3}},
-                                           nn::Architecture{2, 16, FeatureSet::Full, {}, true}),
+                                           nn::Architecture{2, 16, FeatureSet::Full, {}, true},
+                                           nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {8, 16, 12}}),
                          [](const auto& info) {
-                           return std::string(info.param.max_dilation() > 1 ? "dilated" : "paper") +
+                           return std::string(info.param.multiscale() ? "multiscale" : info.param.max_dilation() > 1 ? "dilated" : "paper") +
                                   (info.param.input_skip ? "_input_skip" : "");
                          });
 

@@ -132,9 +132,21 @@ int run(const Options& o) {
   torch::set_num_threads(o.threads);
   torch::manual_seed(o.seed);
   nn::Architecture arch;
-  char slash = 0;
-  std::istringstream(o.arch) >> arch.blocks >> slash >> arch.width;
-  if (slash != '/' || arch.blocks <= 0 || arch.width <= 0) throw Error(ErrorKind::Usage, "--arch: expected N/W, e.g. 8/64");
+  const size_t slash = o.arch.find('/');
+  const auto blocks = nn::parse_ints(o.arch.substr(0, slash), 1, 64);
+  const auto widths = slash == std::string::npos ? std::nullopt : nn::parse_ints(o.arch.substr(slash + 1), 1, 4096);
+  if (!blocks || !widths || blocks->size() != widths->size() || blocks->size() > 6)
+    throw Error(ErrorKind::Usage, "--arch: expected BLOCKS/WIDTH (e.g. 8/64), or per level BLOCKS,.../WIDTH,... for a "
+                                  "multi-scale network of 2-6 levels (e.g. 2,2,4/32,48,64)");
+  arch.blocks = blocks->front();
+  arch.width = widths->front();
+  if (blocks->size() > 1) {
+    arch.levels = *blocks;
+    arch.widths = *widths;
+    if (o.patch % arch.alignment() != 0)
+      throw Error(ErrorKind::Usage, "--patch must be a multiple of " + std::to_string(arch.alignment()) + " for " +
+                                    std::to_string(blocks->size()) + " levels");
+  }
   arch.features = *feature_set_from_string(o.features);
   arch.input_skip = o.input_skip;
   if (!o.dilations.empty()) {
@@ -321,7 +333,7 @@ int main(int argc, char** argv) {
   Options o;
   app.add_option("--data", o.data, "Data set folders (s<seed>/noisy_a.exr, noisy_b.exr, reference.exr)")->required();
   app.add_option("--val", o.val, "Scenes held out per data folder without an index.json (the last by name)")->capture_default_str();
-  app.add_option("--arch", o.arch, "BLOCKS/WIDTH")->capture_default_str();
+  app.add_option("--arch", o.arch, "BLOCKS/WIDTH, or BLOCKS,.../WIDTH,... per level (multi-scale)")->capture_default_str();
   app.add_option("--dilations", o.dilations,
                  "Dilation per ResBlock, repeated over the blocks, e.g. 1,2,4,8 (default: none, as in the paper)");
   app.add_flag("--input-skip", o.input_skip,

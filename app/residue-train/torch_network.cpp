@@ -37,18 +37,61 @@ TailImpl::TailImpl(int width) {
 
 OutImpl::OutImpl(int width) { conv = register_module("conv", torch::nn::Conv2d(conv3x3(width, 3, true))); }
 
+ConvBnPReluImpl::ConvBnPReluImpl(int in, int out) {
+  conv = register_module("conv", torch::nn::Conv2d(conv3x3(in, out, false)));
+  bn = register_module("bn", torch::nn::BatchNorm2d(out));
+  prelu = register_module("prelu", torch::nn::PReLU(torch::nn::PReLUOptions().num_parameters(out)));
+}
+
+torch::Tensor ConvBnPReluImpl::forward(const torch::Tensor& x) { return prelu(bn(conv(x))); }
+
+ScaleLevelImpl::ScaleLevelImpl(const nn::Architecture& a, int l) {
+  const int w = a.level_width(l), n = a.levels[static_cast<size_t>(l)];
+  enc = register_module("enc", torch::nn::ModuleList());
+  for (int b = 0; b < n; ++b) enc->push_back(ResBlock(w, 1));
+  if (l + 1 == static_cast<int>(a.levels.size())) return;  // the bottom
+  down = register_module("down", ConvBnPRelu(w, a.level_width(l + 1)));
+  up = register_module("up", ConvBnPRelu(a.level_width(l + 1) + w, w));
+  dec = register_module("dec", torch::nn::ModuleList());
+  for (int b = 0; b < n; ++b) dec->push_back(ResBlock(w, 1));
+}
+
 ResidueNetImpl::ResidueNetImpl(const nn::Architecture& a) : arch(a) {
-  head = register_module("head", Head(a.in_channels(), a.width));
-  blocks = register_module("blocks", torch::nn::ModuleList());
-  for (int b = 0; b < a.blocks; ++b) blocks->push_back(ResBlock(a.width, a.dilation(b)));
-  tail = register_module("tail", Tail(a.width));
-  out = register_module("out", Out(a.width));
+  const int w = a.level_width(0);
+  head = register_module("head", Head(a.in_channels(), w));
+  if (!a.multiscale()) {
+    blocks = register_module("blocks", torch::nn::ModuleList());
+    for (int b = 0; b < a.blocks; ++b) blocks->push_back(ResBlock(a.width, a.dilation(b)));
+  } else {
+    levels = register_module("levels", torch::nn::ModuleList());
+    for (int l = 0; l < static_cast<int>(a.levels.size()); ++l) levels->push_back(ScaleLevel(a, l));
+  }
+  tail = register_module("tail", Tail(w));
+  out = register_module("out", Out(w));
 }
 
 torch::Tensor ResidueNetImpl::forward(const torch::Tensor& x) {
   const torch::Tensor h = head->prelu(head->conv(x));
   torch::Tensor y = h;
-  for (const auto& m : *blocks) y = m->as<ResBlock>()->forward(y);
+  if (!arch.multiscale()) {
+    for (const auto& m : *blocks) y = m->as<ResBlock>()->forward(y);
+  } else {
+    const auto L = levels->size();
+    std::vector<torch::Tensor> skips;
+    for (size_t l = 0; l < L; ++l) {
+      auto* level = levels[l]->as<ScaleLevel>();
+      for (const auto& m : *level->enc) y = m->as<ResBlock>()->forward(y);
+      if (l + 1 == L) break;
+      skips.push_back(y);
+      y = level->down->forward(torch::max_pool2d(y, 2, 2));
+    }
+    for (size_t l = L - 1; l-- > 0;) {
+      auto* level = levels[l]->as<ScaleLevel>();
+      const torch::Tensor up = torch::upsample_nearest2d(y, {y.size(2) * 2, y.size(3) * 2});
+      y = level->up->forward(torch::cat({up, skips[l]}, 1));
+      for (const auto& m : *level->dec) y = m->as<ResBlock>()->forward(y);
+    }
+  }
   y = tail->bn(tail->conv(y)) + h;
   if (arch.input_skip) return out->conv(y) + x.slice(1, 0, 3);  // the input's log colour planes
   return out->conv(y);
@@ -74,8 +117,10 @@ void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const s
   const auto source_features = feature_set_from_string(meta("residue.features", "full"));
   if (!source_features) throw Error(ErrorKind::Input, file + ": unknown feature set '" + meta("residue.features", "") + "'");
   const std::string dilations = net->arch.max_dilation() > 1 ? nn::dilations_to_string(net->arch.dilations) : "";
+  const std::string levels = net->arch.multiscale() ? nn::ints_to_string(net->arch.levels) : "";
+  const std::string widths = net->arch.multiscale() ? nn::ints_to_string(net->arch.widths) : "";
   if (meta("residue.blocks", "") != std::to_string(net->arch.blocks) || meta("residue.width", "") != std::to_string(net->arch.width) ||
-      meta("residue.dilations", "") != dilations)
+      meta("residue.dilations", "") != dilations || meta("residue.levels", "") != levels || meta("residue.widths", "") != widths)
     throw Error(ErrorKind::Input, file + ": a " + meta("residue.blocks", "?") + "/" + meta("residue.width", "?") +
                                       " network cannot initialise a " + std::to_string(net->arch.blocks) + "/" +
                                       std::to_string(net->arch.width) + " one (blocks, width and dilations must match)");
@@ -147,6 +192,10 @@ nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::str
   f.metadata["residue.features"] = to_string(net->arch.features);
   if (net->arch.max_dilation() > 1) f.metadata["residue.dilations"] = nn::dilations_to_string(net->arch.dilations);
   if (net->arch.input_skip) f.metadata["residue.input_skip"] = "1";
+  if (net->arch.multiscale()) {
+    f.metadata["residue.levels"] = nn::ints_to_string(net->arch.levels);
+    f.metadata["residue.widths"] = nn::ints_to_string(net->arch.widths);
+  }
   f.metadata["residue.bn_eps"] = "1e-05";
   auto put = [&](const std::string& name, const torch::Tensor& t) {
     if (name.find("num_batches_tracked") != std::string::npos) return;

@@ -1,4 +1,4 @@
-// The paper's network as a libtorch module, for training. Module and parameter names are exactly the model
+// The paper's network (and its multi-scale variant) as a libtorch module, for training. Module and parameter names are exactly the model
 // file's tensor names (core/nn/model_file.h), so the state dict exports as is.
 #pragma once
 
@@ -43,6 +43,25 @@ struct OutImpl : torch::nn::Module {
 };
 TORCH_MODULE(Out);
 
+// conv (no bias) -> BN -> PReLU: the multi-scale network's down and up steps.
+struct ConvBnPReluImpl : torch::nn::Module {
+  ConvBnPReluImpl(int in, int out);
+  torch::Tensor forward(const torch::Tensor& x);
+  torch::nn::Conv2d conv{nullptr};
+  torch::nn::BatchNorm2d bn{nullptr};
+  torch::nn::PReLU prelu{nullptr};
+};
+TORCH_MODULE(ConvBnPRelu);
+
+// One level of the multi-scale network (core/nn/network.h): ResBlocks down, the step to the level below, the
+// step back up (on the concatenation with `enc`'s output), ResBlocks up. The bottom level has `enc` only.
+struct ScaleLevelImpl : torch::nn::Module {
+  ScaleLevelImpl(const nn::Architecture& arch, int level);
+  torch::nn::ModuleList enc{nullptr}, dec{nullptr};
+  ConvBnPRelu down{nullptr}, up{nullptr};
+};
+TORCH_MODULE(ScaleLevel);
+
 struct ResidueNetImpl : torch::nn::Module {
   explicit ResidueNetImpl(const nn::Architecture& arch);
   // x: N x C_in x H x W feature planes -> N x 3 x H x W (log-compressed colour).
@@ -50,7 +69,8 @@ struct ResidueNetImpl : torch::nn::Module {
 
   nn::Architecture arch;
   Head head{nullptr};
-  torch::nn::ModuleList blocks{nullptr};
+  torch::nn::ModuleList blocks{nullptr};  // the flat network
+  torch::nn::ModuleList levels{nullptr};  // the multi-scale network
   Tail tail{nullptr};
   Out out{nullptr};
 };
