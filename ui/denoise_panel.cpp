@@ -157,7 +157,7 @@ void DenoisePanel::fillTable() {
     auto* name = new QTableWidgetItem(m.name);
     name->setToolTip(m.baseline() ? m.variants : tr("%1\nvariants: %2").arg(m.path, m.variants));
     table_->setItem(r, kName, name);
-    table_->setItem(r, kSize, new QTableWidgetItem(m.baseline() ? QString("-") : QString("%1/%2").arg(m.blocks).arg(m.width)));
+    table_->setItem(r, kSize, new QTableWidgetItem(m.baseline() ? QString("-") : m.architecture));
     table_->setItem(r, kCost, new QTableWidgetItem(m.baseline() ? QString("-") : QString::number(m.gflop_per_mp, 'f', 0)));
     auto* fp32 = new QTableWidgetItem(opt(m.s_per_mp_fp32, 3));
     auto* bf16 = new QTableWidgetItem(opt(m.s_per_mp_bf16, 3));

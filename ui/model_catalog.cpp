@@ -60,6 +60,7 @@ std::vector<ModelEntry> scan_models(QStringList* problems) {
         };
         e.blocks = std::atoi(get("residue.blocks").c_str());
         e.width = std::atoi(get("residue.width").c_str());
+        e.architecture = QString("%1/%2").arg(e.blocks).arg(e.width);
         nn::Architecture arch;
         arch.blocks = e.blocks;
         arch.width = e.width;
@@ -91,6 +92,25 @@ std::vector<ModelEntry> scan_models(QStringList* problems) {
   }
   std::sort(nets.begin(), nets.end(), [](const ModelEntry& a, const ModelEntry& b) { return a.gflop_per_mp < b.gflop_per_mp; });
   out.insert(out.end(), nets.begin(), nets.end());
+  // Intel's networks, for comparison: picked by core as for the CLI (rt_hdr_alb_nrm, or rt_hdr without AOVs).
+  for (const char* family : {"oidn", "oidn-cleanaux"}) {
+    try {
+      const auto path = nn::find_model_for(family, FeatureSet::Full);
+      const nn::Model m = nn::load_model(path);
+      ModelEntry e;
+      e.name = family;
+      e.path = QString::fromStdString(path.string());
+      e.architecture = m.graph.op(1).name == "enc_conv1a" ? "OIDN UNetLarge" : "OIDN UNet";
+      e.gflop_per_mp = m.graph.flops_per_pixel() * 1e6 / 1e9;
+      for (const auto& pre : {m.albedo_prefilter, m.normal_prefilter})
+        if (pre) e.gflop_per_mp += pre->graph.flops_per_pixel() * 1e6 / 1e9;
+      e.variants = m.oidn.clean_aux ? "Intel Open Image Denoise 2.4, albedo and normal denoised first"
+                                    : "Intel Open Image Denoise 2.4 (rt_hdr_alb_nrm; rt_hdr without AOVs)";
+      out.push_back(e);
+    } catch (const std::exception& ex) {
+      if (problems) *problems << QString::fromStdString(ex.what());
+    }
+  }
   return out;
 }
 

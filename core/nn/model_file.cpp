@@ -12,12 +12,6 @@ namespace {
 
 constexpr float kBnEps = 1e-5f;
 
-std::string shape_text(const std::vector<int64_t>& shape) {
-  std::string s = "[";
-  for (size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
-  return s + "]";
-}
-
 // Takes tensors out of the file, checking each one's shape; what is left at the end was not expected.
 class TensorReader {
  public:
@@ -26,10 +20,10 @@ class TensorReader {
   std::vector<float> take(const std::string& name, const std::vector<int64_t>& shape) {
     auto it = file_.tensors.find(name);
     if (it == file_.tensors.end())
-      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + "\" " + shape_text(shape) + " is missing");
+      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + "\" " + shape_to_string(shape) + " is missing");
     if (it->second.shape != shape)
-      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + "\" has shape " + shape_text(it->second.shape) +
-                                        "; expected " + shape_text(shape));
+      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + "\" has shape " + shape_to_string(it->second.shape) +
+                                        "; expected " + shape_to_string(shape));
     std::vector<float> v = std::move(it->second.values);
     file_.tensors.erase(it);
     return v;

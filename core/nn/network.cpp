@@ -61,20 +61,7 @@ std::string dilations_to_string(const std::vector<int>& d) {
   return s;
 }
 
-std::optional<std::vector<int>> parse_dilations(const std::string& text) {
-  std::vector<int> d;
-  size_t pos = 0;
-  while (pos <= text.size()) {
-    const size_t comma = std::min(text.find(',', pos), text.size());
-    const std::string item = text.substr(pos, comma - pos);
-    if (item.empty() || item.size() > 2 || item.find_first_not_of("0123456789") != std::string::npos) return std::nullopt;
-    const int v = std::stoi(item);
-    if (v < 1 || v > 64) return std::nullopt;
-    d.push_back(v);
-    pos = comma + 1;
-  }
-  return d;
-}
+std::optional<std::vector<int>> parse_dilations(const std::string& text) { return parse_ints(text, 1, 64); }
 
 std::string ints_to_string(const std::vector<int>& v) { return dilations_to_string(v); }
 

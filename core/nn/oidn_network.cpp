@@ -1,15 +1,10 @@
 #include "core/nn/oidn_network.h"
 
+#include "core/nn/safetensors.h"
 #include "core/util/error.h"
 
 namespace residue::nn {
 namespace {
-
-std::string shape_text(const std::vector<int64_t>& s) {
-  std::string t = "[";
-  for (size_t i = 0; i < s.size(); ++i) t += (i ? ", " : "") + std::to_string(s[i]);
-  return t + "]";
-}
 
 class Builder {
  public:
@@ -22,12 +17,12 @@ class Builder {
     for (int x : inputs) in += g.op(x).channels;
     const TzaTensor& wt = tensor(name + ".weight");
     if (wt.shape.size() != 4 || wt.shape[1] != in || wt.shape[2] != 3 || wt.shape[3] != 3 || wt.shape[0] <= 0)
-      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + ".weight\" has shape " + shape_text(wt.shape) +
+      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + ".weight\" has shape " + shape_to_string(wt.shape) +
                                         "; expected [out, " + std::to_string(in) + ", 3, 3]");
     const int out = static_cast<int>(wt.shape[0]);
     const TzaTensor& b = tensor(name + ".bias");
     if (b.shape != std::vector<int64_t>{out})
-      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + ".bias\" has shape " + shape_text(b.shape) +
+      throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + ".bias\" has shape " + shape_to_string(b.shape) +
                                         "; expected [" + std::to_string(out) + "]");
     return g.conv(name, std::move(inputs), out, 3, wt.values, b.values, Activation::ReLU);
   }

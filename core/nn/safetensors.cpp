@@ -112,4 +112,10 @@ void write_safetensors(const std::filesystem::path& path, const SafetensorsFile&
   });
 }
 
+std::string shape_to_string(const std::vector<int64_t>& shape) {
+  std::string s = "[";
+  for (size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  return s + "]";
+}
+
 }  // namespace residue::nn

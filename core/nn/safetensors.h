@@ -29,4 +29,7 @@ SafetensorsFile read_safetensors(const std::filesystem::path& path);
 // Writes F32 tensors atomically (never replacing an existing file unless `overwrite`).
 void write_safetensors(const std::filesystem::path& path, const SafetensorsFile& file, bool overwrite);
 
+// "[64, 9, 3, 3]": a tensor's shape in error messages.
+std::string shape_to_string(const std::vector<int64_t>& shape);
+
 }  // namespace residue::nn
