@@ -67,6 +67,10 @@ size_t whole_image_bytes(const AovStack& layout) {
   return static_cast<size_t>((layout.channel_count() + 3) * layout.data_window.area()) * sizeof(float);
 }
 
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
 int run(const DenoiseCliOptions& o) {
   if (std::filesystem::exists(o.output) && !o.force)
     throw Error(ErrorKind::Output, "output '" + o.output + "' exists; pass --force to replace it");
@@ -104,6 +108,7 @@ int run(const DenoiseCliOptions& o) {
     return !g_interrupted.load();
   };
   DenoiseStats stats;
+  double read_s = -1, write_s = -1;  // in-memory runs: reading the AOVs, writing the EXR
   std::string model_name = o.model, architecture = "cross-bilateral filter";
   // Renders that fit in --max-memory are denoised in memory; larger ones band by band from and to the files
   // (then the header cannot carry the time, which is known only at the end).
@@ -132,13 +137,17 @@ int run(const DenoiseCliOptions& o) {
       if (streamed) {  // the header, written first, says which post-steps run (core decides, as below)
         stats = denoise_to_exr(reader, model, d, o.output, w, on_tile);
       } else {
+        auto t0 = std::chrono::steady_clock::now();
         const AovStack stack = reader.read(whole);
+        read_s = seconds_since(t0);
         const Image out = denoise(stack, model, d, on_tile, &stats);
         w.residue_attributes.attribute("residue:backend", stats.backend);
         w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
         w.residue_attributes.attribute("residue:energy_correction", stats.energy_corrected ? 1 : 0);
         w.residue_attributes.attribute("residue:variance_blend", stats.variance_blended ? 1 : 0);
+        t0 = std::chrono::steady_clock::now();
         io::write_exr(o.output, out, w);
+        write_s = seconds_since(t0);
       }
     }
   } catch (const Cancelled&) {
@@ -154,6 +163,7 @@ int run(const DenoiseCliOptions& o) {
   std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
               stats.seconds / megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
               static_cast<long long>(stats.skipped));
+  if (read_s >= 0) std::printf("files      read %.3f s, written %.3f s\n", read_s, write_s);
   if (stats.guarded_values > 0)
     std::printf("guard      %lld output values clamped where the network overshot its input's range\n",
                 static_cast<long long>(stats.guarded_values));
