@@ -37,7 +37,9 @@ def main():
         for r in points:
             bf16 = r["precision"] == "bf16"
             c = colour[r["model"]]
-            marker = "s" if r["model"] == "bilateral" else ("^" if bf16 else "o")
+            # Baselines that are not Residue's networks stand apart: squares for the bilateral filter, diamonds
+            # for Open Image Denoise's networks.
+            marker = "s" if r["model"] == "bilateral" else "D" if r["model"].startswith("oidn") else ("^" if bf16 else "o")
             ax.scatter(r["seconds_per_megapixel"], r[key], marker=marker, s=60, label=r["label"],
                        facecolors="none" if bf16 else c, edgecolors=c, linewidths=1.5)
         # The noisy input is far off the models' range (25x their relMSE): named, not drawn, so that the
