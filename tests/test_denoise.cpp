@@ -267,6 +267,17 @@ TEST(ModelFile, ErrorsNameTheFileAndTheTensor) {
     EXPECT_NE(load_error(tmp / "features.safetensors").find("head.conv.weight"), std::string::npos);
   }
   {
+    // A shape whose element count overflows int64 (2^62 x 4): refused with the tensor named, no signed overflow.
+    const std::string header = R"({"x":{"dtype":"F32","shape":[4611686018427387904,4],"data_offsets":[0,16]}})";
+    std::ofstream out(tmp / "huge.safetensors", std::ios::binary);
+    const uint64_t n = header.size();
+    out.write(reinterpret_cast<const char*>(&n), 8);
+    out << header << std::string(16, '\0');
+    out.close();
+    const std::string e = load_error(tmp / "huge.safetensors");
+    EXPECT_NE(e.find("tensor \"x\" has shape [4611686018427387904, 4]"), std::string::npos) << e;
+  }
+  {
     nn::write_safetensors(tmp / "full.safetensors", nn::to_safetensors(net), false);
     const auto size = std::filesystem::file_size(tmp / "full.safetensors");
     std::filesystem::copy_file(tmp / "full.safetensors", tmp / "cut.safetensors");
@@ -400,9 +411,59 @@ TEST(Denoise, ExtremeInputsGiveFiniteOutputAndStayLocal) {
   AovStack black = random_stack(20, 20, 3);
   for (size_t i = 0; i < black.color.image.size(); ++i) black.color.image.data()[i] = 0;
   EXPECT_TRUE(all_finite_nonnegative(denoise(black, model, eigen_options(8))));
+  // A colour with no finite value at all is refused (it was once denoised to black and reported as success).
   AovStack nan = random_stack(20, 20, 3);
   for (size_t i = 0; i < nan.color.image.size(); ++i) nan.color.image.data()[i] = kNan;
-  EXPECT_TRUE(all_finite_nonnegative(denoise(nan, model, eigen_options(8))));
+  try {
+    denoise(nan, model, eigen_options(8));
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find("no finite value (1200 NaN"), std::string::npos) << e.what();
+  }
+}
+
+// A model file with a NaN weight is refused when loaded, naming the tensor; one whose weights overflow fp32
+// (1e30) stops the denoise with an error instead of writing Inf or black.
+TEST(Denoise, NonFiniteWeightsAndOutputsAreErrors) {
+  testing::TempDir tmp;
+  nn::Network n = nn::random_network({2, 8, FeatureSet::Full}, 3);
+  n.blocks[1].conv1.weight[5] = kNan;
+  nn::write_safetensors(tmp / "nan.safetensors", nn::to_safetensors(n), false);
+  try {
+    nn::load_model(tmp / "nan.safetensors");
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find("blocks.1.conv1.weight\" has 1 non-finite"), std::string::npos) << e.what();
+  }
+  // A batch-norm epsilon that is not a number is an input error naming the key, not "internal error: stof".
+  int k = 0;
+  for (const char* eps : {"abc", "1e999", "-1", ""}) {
+    nn::SafetensorsFile f = nn::to_safetensors(nn::random_network({2, 8, FeatureSet::Full}, 3));
+    f.metadata["residue.bn_eps"] = eps;
+    const auto file = tmp / ("eps" + std::to_string(k++) + ".safetensors");
+    nn::write_safetensors(file, f, true);
+    try {
+      nn::load_model(file);
+      ADD_FAILURE() << "no error for bn_eps " << eps;
+    } catch (const Error& e) {
+      EXPECT_EQ(e.kind(), ErrorKind::Input);
+      EXPECT_NE(std::string(e.what()).find("residue.bn_eps"), std::string::npos) << e.what();
+    }
+  }
+  nn::Network huge = nn::random_network({2, 8, FeatureSet::Full}, 3);
+  for (float& w : huge.head.weight) w = 1e30f;
+  for (float& w : huge.blocks[0].conv1.weight) w = 1e30f;
+  DenoiseOptions o = eigen_options(16);
+  o.output_guard = false;  // the guard would clamp +Inf (not NaN) back into range
+  try {
+    denoise(random_stack(24, 24, 5), nn::model_from_network(huge, "huge"), o);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.kind(), ErrorKind::Input);
+    EXPECT_NE(std::string(e.what()).find("non-finite output values"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Denoise, MemoryBoundChoosesTheTile) {

@@ -156,7 +156,8 @@ TEST(IoExr, HalfRoundTripMatchesHalfConversion) {
   const std::vector<float> exact = {0.5f,     1.0f,      -2.0f,           2048.0f,
                                     65504.0f, -65504.0f, smallest_normal, smallest_denormal,
                                     -0.0f,    kInf,      -kInf,           0.333251953125f};
-  // Not representable: compared with OpenImageIO's own float -> half conversion.
+  // Not representable: compared with OpenImageIO's own float -> half conversion, of the value clamped to the
+  // half range for finite values beyond it (written as +-65504, not Inf).
   const std::vector<float> inexact = {0.1f, 1e30f, -1e30f, 1e-10f, 3.14159f, 70000.0f};
   TempDir dir;
   for (const char* compression : {"none", "rle", "zips", "zip", "piz", "pxr24"})
@@ -173,11 +174,41 @@ TEST(IoExr, HalfRoundTripMatchesHalfConversion) {
           EXPECT_TRUE(std::isnan(r.pixels[i])) << "index " << i;
           continue;
         }
-        ASSERT_EQ(r.half_bits[i], oiio_half_bits(v)) << "index " << i << " value " << v;
+        const float fitted = std::isfinite(v) ? std::clamp(v, -65504.0f, 65504.0f) : v;
+        ASSERT_EQ(r.half_bits[i], oiio_half_bits(fitted)) << "index " << i << " value " << v;
       }
       for (size_t i = 0; i < exact.size() && i < img.size(); ++i)
         EXPECT_EQ(bits(r.pixels[img.size() - 1 - i]), bits(exact[i])) << exact[i];
     }
+}
+
+// Finite values beyond the half range become +-65504, never Inf, and are counted; float output keeps them;
+// NaN and Inf stay what they are (the denoiser is responsible for finite output).
+TEST(IoExr, HalfOutputClampsFiniteValuesBeyondItsRange) {
+  TempDir dir;
+  Image img(4, 2, 3);
+  const std::vector<float> v = {1e30f, -1e30f, 7e4f, 65504.0f, 1.5f, -3.0f, kInf, 0.0f, 1e5f, 2.0f, 3.0f, 4.0f,
+                                5.0f,  6.0f,   7.0f, 8.0f,     9.0f, 10.f,  11.f, 12.f, 13.f, 14.f, 15.f, -7e4f};
+  std::copy(v.begin(), v.end(), img.data());
+  io::ExrWriteOptions o;
+  const io::WriteReport half = io::write_exr(dir.path() / "h.exr", img, o);
+  EXPECT_EQ(half.clamped_to_half, 5);  // 1e30, -1e30, 7e4, 1e5, -7e4
+  const Image back = testing::read_exr_float(dir.path() / "h.exr");
+  EXPECT_EQ(back.data()[0], 65504.0f);
+  EXPECT_EQ(back.data()[1], -65504.0f);
+  EXPECT_EQ(back.data()[2], 65504.0f);
+  EXPECT_EQ(back.data()[23], -65504.0f);
+  EXPECT_TRUE(std::isinf(back.data()[6]));
+  o.pixel_type = io::PixelType::Float;
+  EXPECT_EQ(io::write_exr(dir.path() / "f.exr", img, o).clamped_to_half, 0);
+  EXPECT_EQ(testing::read_exr_float(dir.path() / "f.exr").data()[0], 1e30f);
+  // Band by band, the same.
+  o.pixel_type = io::PixelType::Half;
+  const io::WriteReport bands = io::write_exr_bands(dir.path() / "b.exr", 4, 2, 3, 1, o, [&](int64_t y0, int64_t rows) {
+    return crop(img, {0, y0, 4, rows});
+  });
+  EXPECT_EQ(bands.clamped_to_half, 5);
+  EXPECT_EQ(testing::read_exr_float(dir.path() / "b.exr").data()[1], -65504.0f);
 }
 
 TEST(IoExr, LossyCompressionsWriteTheRightSize) {

@@ -126,7 +126,7 @@ int run(const DenoiseCliOptions& o) {
       w.residue_attributes.attribute("residue:architecture", architecture);
       w.residue_attributes.attribute("residue:backend", stats.backend);
       w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
-      io::write_exr(o.output, out, w);
+      stats.clamped_to_half = io::write_exr(o.output, out, w).clamped_to_half;
     } else {
       // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
       const nn::Model model = nn::load_model(nn::find_model_for(o.model, feature_set_for(layout)));
@@ -146,7 +146,7 @@ int run(const DenoiseCliOptions& o) {
         w.residue_attributes.attribute("residue:energy_correction", stats.energy_corrected ? 1 : 0);
         w.residue_attributes.attribute("residue:variance_blend", stats.variance_blended ? 1 : 0);
         t0 = std::chrono::steady_clock::now();
-        io::write_exr(o.output, out, w);
+        stats.clamped_to_half = io::write_exr(o.output, out, w).clamped_to_half;
         write_s = seconds_since(t0);
       }
     }
@@ -164,6 +164,9 @@ int run(const DenoiseCliOptions& o) {
               stats.seconds / megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
               static_cast<long long>(stats.skipped));
   if (read_s >= 0) std::printf("files      read %.3f s, written %.3f s\n", read_s, write_s);
+  if (stats.clamped_to_half > 0)
+    std::fprintf(stderr, "warning: %lld output values exceed the half-float range and were written as +-65504; "
+                         "--float keeps them\n", static_cast<long long>(stats.clamped_to_half));
   if (stats.guarded_values > 0)
     std::printf("guard      %lld output values clamped where the network overshot its input's range\n",
                 static_cast<long long>(stats.guarded_values));

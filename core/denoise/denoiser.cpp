@@ -149,10 +149,20 @@ struct TileRunner {
     }
     backend.run(*net_in, result);
     if (residue && guard) guarded += guard_output(features, {tx - in.x, ty - in.y, t.width, t.height}, halo, result);
+    int64_t non_finite = 0;
     for (int64_t y = 0; y < t.height; ++y)
       for (int64_t x = 0; x < t.width; ++x)
-        for (int c = 0; c < oc; ++c)
-          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = io.output(result.at(tx - in.x + x, ty - in.y + y, c));
+        for (int c = 0; c < oc; ++c) {
+          const float raw = result.at(tx - in.x + x, ty - in.y + y, c);
+          non_finite += !std::isfinite(raw);
+          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = io.output(raw);
+        }
+    // Output is finite or the run fails: a network whose weights or inputs overflow does not get written as a
+    // black or saturated image with success (the output transforms would turn NaN into 0 and Inf into FLT_MAX).
+    if (non_finite > 0)
+      throw Error(ErrorKind::Input, "model " + model.name + " gave " + std::to_string(non_finite) +
+                                        " non-finite output values in the tile " + t.to_string() +
+                                        " (its weights or the render's values overflow fp32); nothing was written");
     if (blend_tau > 0 && src.variance) blend_by_variance(src, src_rect, bounds, t, out, out_x0, out_y0, blend_tau);
     return false;
   }
@@ -229,6 +239,13 @@ std::string backend_for(const DenoiseOptions& o) {
 Image denoise_stack(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
                     const TileCallback& on_tile, DenoiseStats& local) {
   check_inputs(stack, model);
+  const Image& source = source_image(stack, model);
+  if (const NonFiniteCount bad = count_non_finite(source);
+      source.size() > 0 && bad.total() == static_cast<int64_t>(source.size()))
+    throw Error(ErrorKind::Input, "'" + stack.color.source.file + "': the " +
+                                      (&source == &stack.color.image ? std::string("colour") : std::string("auxiliary")) +
+                                      " to denoise has no finite value (" + std::to_string(bad.nan) + " NaN, " +
+                                      std::to_string(bad.inf) + " Inf)");
   const Rect bounds{0, 0, stack.width(), stack.height()};
   const Rect region = checked_region(options, stack.width(), stack.height());
   Image output = source_image(stack, model);  // outside the region the input stays
@@ -405,14 +422,14 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       denoised.push_back({y0, std::move(out)});
       denoised_end = y0 + rows;
     };
-    io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
+    local.clamped_to_half = io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
       const int64_t needed = correct ? std::max(y0 + rows, correction.rows_required(y0 + rows)) : y0 + rows;
       while (denoised_end < needed) denoise_band(denoised_end);
       Band band = std::move(denoised.front());
       denoised.pop_front();
       if (correct) correction.apply(band.out, band.y0, y0, rows);
       return std::move(band.out);
-    });
+    }).clamped_to_half;
     local.guarded_values = runner.guarded;
   });
   local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

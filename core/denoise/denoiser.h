@@ -53,6 +53,7 @@ struct DenoiseStats {
   bool energy_corrected = false;
   bool variance_blended = false;  // the option was on and the render has variance
   int64_t guarded_values = 0;     // output values the guard clamped (channels, not pixels)
+  int64_t clamped_to_half = 0;    // denoise_to_exr into half: finite values beyond 65504 written as 65504
 };
 
 // Thrown when the tile callback asks to stop.

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <string_view>
@@ -123,21 +124,49 @@ OIIO::ImageSpec make_spec(const fs::path& path, int64_t width, int64_t height, i
 
 }  // namespace
 
-void write_exr(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
+namespace {
+
+// For half output: `image` itself when every finite value fits in half, else a copy with those beyond +-65504
+// clamped to it (counted in `report`).
+const Image& fit_to_half(const Image& image, const ExrWriteOptions& options, Image& copy, WriteReport& report) {
+  constexpr float kHalfMax = 65504.0f;
+  if (options.pixel_type != PixelType::Half) return image;
+  auto out_of_range = [&](float v) { return std::isfinite(v) && std::abs(v) > kHalfMax; };
+  const float* begin = image.data();
+  if (std::none_of(begin, begin + image.size(), out_of_range)) return image;
+  copy = image;
+  for (size_t i = 0; i < copy.size(); ++i) {
+    float& v = copy.data()[i];
+    if (out_of_range(v)) {
+      v = std::copysign(kHalfMax, v);
+      ++report.clamped_to_half;
+    }
+  }
+  return copy;
+}
+
+}  // namespace
+
+WriteReport write_exr(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
   check_compression(options.compression);
   const OIIO::ImageSpec spec = make_spec(path, image.width(), image.height(), image.channels(), options);
+  WriteReport report;
+  Image copy;
+  const Image& pixels = fit_to_half(image, options, copy, report);
   write_atomically(path, options.overwrite, [&](const fs::path& temp) {
     auto out = OIIO::ImageOutput::create("openexr");
     if (!out) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + OIIO::geterror());
-    if (!out->open(temp.string(), spec) || !out->write_image(OIIO::TypeFloat, image.data()) || !out->close())
+    if (!out->open(temp.string(), spec) || !out->write_image(OIIO::TypeFloat, pixels.data()) || !out->close())
       throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
   });
+  return report;
 }
 
-void write_exr_bands(const fs::path& path, int64_t width, int64_t height, int channels, int64_t band_rows,
-                     const ExrWriteOptions& options, const BandSource& band) {
+WriteReport write_exr_bands(const fs::path& path, int64_t width, int64_t height, int channels, int64_t band_rows,
+                            const ExrWriteOptions& options, const BandSource& band) {
   check_compression(options.compression);
   const OIIO::ImageSpec spec = make_spec(path, width, height, channels, options);
+  WriteReport report;
   write_atomically(path, options.overwrite, [&](const fs::path& temp) {
     auto out = OIIO::ImageOutput::create("openexr");
     if (!out) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + OIIO::geterror());
@@ -149,12 +178,15 @@ void write_exr_bands(const fs::path& path, int64_t width, int64_t height, int ch
       if (rows_image.width() != width || rows_image.height() != rows || rows_image.channels() != channels)
         throw Error(ErrorKind::Usage, "band of rows " + std::to_string(y0) + "+" + std::to_string(rows) +
                                           " has the wrong size for " + quoted(path));
+      Image copy;
+      const Image& pixels = fit_to_half(rows_image, options, copy, report);
       if (!out->write_scanlines(spec.y + static_cast<int>(y0), spec.y + static_cast<int>(y0 + rows), 0,
-                                OIIO::TypeFloat, rows_image.data()))
+                                OIIO::TypeFloat, pixels.data()))
         throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
     }
     if (!out->close()) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
   });
+  return report;
 }
 
 }  // namespace residue::io

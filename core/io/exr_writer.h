@@ -34,17 +34,23 @@ struct ExrWriteOptions {
   bool overwrite = false;
 };
 
+// What a write changed: half holds finite values up to 65504 only, so larger finite values are written as
+// +-65504 (not as Inf, which is what float-to-half conversion makes of them) and counted here; callers say so.
+struct WriteReport {
+  int64_t clamped_to_half = 0;
+};
+
 // Writes `image` atomically (atomic_file.h); values are written as they are (NaN and Inf included; float to half
-// rounds to nearest). Throws residue::Error(Usage) for an unknown compression (naming the allowed ones), a
+// rounds to nearest; finite values beyond the half range are clamped to it, see WriteReport). Throws residue::Error(Usage) for an unknown compression (naming the allowed ones), a
 // channel-name count or data window that does not match the image; residue::Error(Output), with the path and
 // OpenImageIO's message, on write failure or an existing file.
-void write_exr(const std::filesystem::path& path, const Image& image, const ExrWriteOptions& options);
+WriteReport write_exr(const std::filesystem::path& path, const Image& image, const ExrWriteOptions& options);
 
 // Writes a width x height image that `band(y0, rows)` produces band by band (an Image of width x rows x
 // channels, rows = band_rows except maybe the last), so memory stays one band whatever the image size.
 // Atomic like write_exr: an exception from `band` (a cancelled denoise, say) leaves no file behind.
 using BandSource = std::function<Image(int64_t y0, int64_t rows)>;
-void write_exr_bands(const std::filesystem::path& path, int64_t width, int64_t height, int channels,
-                     int64_t band_rows, const ExrWriteOptions& options, const BandSource& band);
+WriteReport write_exr_bands(const std::filesystem::path& path, int64_t width, int64_t height, int channels,
+                            int64_t band_rows, const ExrWriteOptions& options, const BandSource& band);
 
 }  // namespace residue::io

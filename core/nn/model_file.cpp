@@ -1,5 +1,6 @@
 #include "core/nn/model_file.h"
 
+#include <cmath>
 #include <cstdlib>
 
 #include "core/nn/oidn_network.h"
@@ -26,6 +27,7 @@ class TensorReader {
                                         "; expected " + shape_to_string(shape));
     std::vector<float> v = std::move(it->second.values);
     file_.tensors.erase(it);
+    check_finite(v, where_, name);
     return v;
   }
 
@@ -58,6 +60,17 @@ class TensorReader {
   SafetensorsFile& file_;
   std::string where_;
 };
+
+// Batch norm's epsilon: a finite number in [0, 1] ("abc" or "1e999" are refused, naming the key).
+float metadata_eps(const std::string& text, const std::string& where) {
+  try {
+    size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used == text.size() && std::isfinite(v) && v >= 0 && v <= 1) return static_cast<float>(v);
+  } catch (const std::exception&) {
+  }
+  throw Error(ErrorKind::Input, where + ": metadata \"residue.bn_eps\" = \"" + text + "\" is not a number in [0, 1]");
+}
 
 int metadata_int(const std::map<std::string, std::string>& m, const std::string& key, const std::string& where) {
   auto it = m.find(key);
@@ -176,7 +189,7 @@ Model load_model(const std::filesystem::path& path) {
     if (v != "0" && v != "1") throw Error(ErrorKind::Input, where + ": metadata \"residue.input_skip\" must be 0 or 1, not \"" + v + "\"");
     arch.input_skip = v == "1";
   }
-  const float eps = md.count("residue.bn_eps") ? std::stof(md.at("residue.bn_eps")) : kBnEps;
+  const float eps = md.count("residue.bn_eps") ? metadata_eps(md.at("residue.bn_eps"), where) : kBnEps;
 
   Model m;
   m.path = path.string();

@@ -24,6 +24,8 @@ class Builder {
     if (b.shape != std::vector<int64_t>{out})
       throw Error(ErrorKind::Input, where_ + ": tensor \"" + name + ".bias\" has shape " + shape_to_string(b.shape) +
                                         "; expected [" + std::to_string(out) + "]");
+    check_finite(wt.values, where_, name + ".weight");
+    check_finite(b.values, where_, name + ".bias");
     return g.conv(name, std::move(inputs), out, 3, wt.values, b.values, Activation::ReLU);
   }
 

@@ -1,5 +1,8 @@
 #include "core/nn/safetensors.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include <bit>
 #include <cstring>
 #include <fstream>
@@ -26,7 +29,8 @@ float bf16_to_float(uint16_t v) {
 
 int64_t Tensor::numel() const {
   int64_t n = 1;
-  for (int64_t d : shape) n *= d;
+  for (int64_t d : shape)
+    if (d < 0 || __builtin_mul_overflow(n, d, &n)) return -1;
   return n;
 }
 
@@ -65,6 +69,9 @@ SafetensorsFile read_safetensors(const std::filesystem::path& path) {
       if (elem == 0)
         throw Error(ErrorKind::Input, where + ": tensor \"" + it.key() + "\" has dtype " + t.dtype +
                                           "; expected F32, F16 or BF16");
+      if (t.numel() < 0 || static_cast<uint64_t>(t.numel()) > data_size / elem)
+        throw Error(ErrorKind::Input, where + ": tensor \"" + it.key() + "\" has shape " + shape_to_string(t.shape) +
+                                          ", more values than the file holds");
       const uint64_t n = static_cast<uint64_t>(t.numel());
       if (offsets.size() != 2 || offsets[1] < offsets[0] || offsets[1] - offsets[0] != n * elem)
         throw Error(ErrorKind::Input, where + ": tensor \"" + it.key() + "\" has a byte range that does not fit its shape");
@@ -116,6 +123,13 @@ std::string shape_to_string(const std::vector<int64_t>& shape) {
   std::string s = "[";
   for (size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
   return s + "]";
+}
+
+void check_finite(const std::vector<float>& values, const std::string& where, const std::string& name) {
+  const auto bad = std::count_if(values.begin(), values.end(), [](float v) { return !std::isfinite(v); });
+  if (bad > 0)
+    throw Error(ErrorKind::Input, where + ": tensor \"" + name + "\" has " + std::to_string(bad) +
+                                      " non-finite values (NaN or Inf); expected finite weights");
 }
 
 }  // namespace residue::nn

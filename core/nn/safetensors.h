@@ -15,7 +15,7 @@ struct Tensor {
   std::string dtype = "F32";   // as stored: F32, F16, BF16 (converted to float on load)
   std::vector<int64_t> shape;
   std::vector<float> values;   // always float in memory
-  int64_t numel() const;
+  int64_t numel() const;  // -1 for a negative dimension or a product beyond int64
 };
 
 struct SafetensorsFile {
@@ -31,5 +31,9 @@ void write_safetensors(const std::filesystem::path& path, const SafetensorsFile&
 
 // "[64, 9, 3, 3]": a tensor's shape in error messages.
 std::string shape_to_string(const std::vector<int64_t>& shape);
+
+// Throws Error(Input) "<where>: tensor "<name>" has N non-finite values (NaN or Inf); expected finite weights"
+// when any value is NaN or infinite: such a network would denoise every pixel to NaN (then black).
+void check_finite(const std::vector<float>& values, const std::string& where, const std::string& name);
 
 }  // namespace residue::nn
