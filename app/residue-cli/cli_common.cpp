@@ -23,8 +23,8 @@ void InputOptions::add_to(CLI::App& app, bool with_reference) {
   app.add_option("--normal-space", normal_space, "Override the normals' space")
       ->check(CLI::IsMember({"camera", "world", "unknown"}));
   if (with_reference)
-    app.add_option("-r,--reference", reference, "The reference (high-spp) image, when not found by convention")
-        ->check(CLI::ExistingFile);
+    // No CLI11 existence check: a missing reference is bad input (exit 3, from the loader), like a missing render.
+    app.add_option("-r,--reference", reference, "The reference (high-spp) image, when not found by convention");
 }
 
 LoadOptions InputOptions::load_options() const {

@@ -5,6 +5,8 @@
 #include <random>
 #include <sys/wait.h>
 
+#include <gtest/gtest.h>
+
 #include "core/aov/aov_loader.h"
 
 namespace residue::testing {
@@ -78,6 +80,17 @@ int run_program(const std::string& program, const std::vector<std::string>& args
   int status = pclose(pipe);
   if (output) *output = text;
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string error_message(const std::function<void()>& f, ErrorKind kind) {
+  try {
+    f();
+  } catch (const Error& e) {
+    EXPECT_EQ(static_cast<int>(e.kind()), static_cast<int>(kind)) << e.what();
+    return e.what();
+  }
+  ADD_FAILURE() << "no residue::Error thrown";
+  return "";
 }
 
 }  // namespace residue::testing

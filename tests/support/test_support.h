@@ -2,11 +2,13 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "core/aov/aov_stack.h"
 #include "core/image/image.h"
+#include "core/util/error.h"
 
 namespace residue::testing {
 
@@ -37,6 +39,10 @@ AovStack random_stack(int64_t width, int64_t height, unsigned seed);
 
 // The colour of an EXR as float (no reference search): for reading back what a test wrote.
 Image read_exr_float(const std::filesystem::path& p);
+
+// The message of the residue::Error that `f` throws; a test failure (and "") when it throws none or one of
+// another kind.
+std::string error_message(const std::function<void()>& f, ErrorKind kind);
 
 // Runs residue-cli with the given arguments; returns its exit code and captures stdout+stderr.
 int run_cli(const std::vector<std::string>& args, std::string* output = nullptr);
