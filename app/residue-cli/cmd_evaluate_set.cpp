@@ -45,6 +45,7 @@ struct Cell {
   double relmse = 0, ssim = 0, seconds = 0;
   double mean_ratio = 1;  // mean of the output over the mean of the reference (brightness bias)
   int64_t guarded = 0;    // output values the guard clamped
+  bool energy_corrected = false;  // the energy correction ran (Residue's networks, when on)
 };
 
 // Changes a scene's AOVs the way another renderer's conventions would, to measure what the models make of
@@ -172,6 +173,7 @@ int run(const EvalSetOptions& o) {
         out = denoise(stack, model, d, {}, &st);
         cell.seconds = st.seconds;
         cell.guarded = st.guarded_values;
+        cell.energy_corrected = st.energy_corrected;  // what ran: OIDN's networks take no post-steps
       }
       const auto s = metrics::compare(out, stack.reference->image);
       cell.relmse = s.relmse;
@@ -179,7 +181,7 @@ int run(const EvalSetOptions& o) {
       cell.mean_ratio = mean_ratio(out, stack.reference->image);
       js["results"][columns[ci].label] = {{"relmse", s.relmse}, {"ssim", s.ssim}, {"seconds", cell.seconds},
                                          {"mean_ratio", cell.mean_ratio}, {"model_file", model_file}, {"guarded_values", cell.guarded},
-                                         {"energy_correction", columns[ci].network() && columns[ci].energy_correction}};
+                                         {"energy_correction", cell.energy_corrected}};
     }
     json_scenes.push_back(js);
     std::fprintf(stderr, "evaluate-set: %zu/%zu %s\n", si + 1, scenes.size(), scenes[si].filename().string().c_str());
