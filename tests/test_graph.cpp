@@ -353,6 +353,13 @@ TEST(OidnModel, PickedByTheAovsTheRenderHas) {
   EXPECT_NE(testing::error_message([] { nn::find_model_for("oidn-cleanaux", FeatureSet::ColorOnly); }, ErrorKind::Input)
                 .find("albedo and normal"),
             std::string::npos);
+  // A family without the variant a render can feed names what the render has.
+  testing::TempDir models;
+  nn::write_safetensors(models / "fam.safetensors", nn::to_safetensors(nn::random_network({1, 4, FeatureSet::Full}, 1)), false);
+  setenv("RESIDUE_MODEL_PATH", models.path().c_str(), 1);
+  const std::string e = testing::error_message([] { nn::find_model_for("fam", FeatureSet::ColorOnly); }, ErrorKind::Input);
+  unsetenv("RESIDUE_MODEL_PATH");
+  EXPECT_NE(e.find("colour only (no complete albedo and normal); tried fam-color"), std::string::npos) << e;
   const nn::Model m = nn::load_model(kOidnDir / "rt_hdr.tza");
   EXPECT_EQ(m.method, nn::Method::Oidn);
   EXPECT_FALSE(m.oidn.albedo);

@@ -294,8 +294,17 @@ std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet
   }
   std::string looked;
   for (const auto& d : model_dirs()) looked += " " + d.string();
-  throw Error(ErrorKind::Input, "no model \"" + name_or_path + "\" for the AOVs this render has (tried " + tried +
-                                    ") in:" + looked);
+  auto has = [&](FeatureSet s) {
+    switch (s) {
+      case FeatureSet::FullVariance: return "colour, albedo, normal, depth and variance";
+      case FeatureSet::Full: return "colour, albedo, normal and depth";
+      case FeatureSet::ColorAlbedoNormal: return "colour, albedo and normal (no depth)";
+      case FeatureSet::ColorOnly: return "colour only (no complete albedo and normal)";
+    }
+    return "";
+  };
+  throw Error(ErrorKind::Input, "no model \"" + name_or_path + "\" for the AOVs this render has: " + has(available) +
+                                    "; tried " + tried + " in:" + looked);
 }
 
 SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::string> metadata) {
