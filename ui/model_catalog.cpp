@@ -8,6 +8,7 @@
 
 #include "core/nn/model_file.h"
 #include "core/nn/network.h"
+#include "core/nn/oidn_network.h"
 #include "core/nn/safetensors.h"
 
 namespace residue::ui {
@@ -100,7 +101,7 @@ std::vector<ModelEntry> scan_models(QStringList* problems) {
       ModelEntry e;
       e.name = family;
       e.path = QString::fromStdString(path.string());
-      e.architecture = m.graph.op(1).name == "enc_conv1a" ? "OIDN UNetLarge" : "OIDN UNet";
+      e.architecture = QString("OIDN ") + nn::oidn_network_name(m.graph);
       e.gflop_per_mp = m.graph.flops_per_pixel() * 1e6 / 1e9;
       for (const auto& pre : {m.albedo_prefilter, m.normal_prefilter})
         if (pre) e.gflop_per_mp += pre->graph.flops_per_pixel() * 1e6 / 1e9;

@@ -191,10 +191,16 @@ std::vector<Rect> make_tiles(const Rect& region, int64_t tile) {
   return tiles;
 }
 
+namespace {
+
+// A tile edge rounded down to the network's alignment (at least one alignment).
+int64_t align_tile(int64_t tile, int64_t align) { return std::max(align, tile / align * align); }
+
+}  // namespace
+
 int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget) {
-  const int64_t a = graph.alignment();
   for (int64_t t = kMaxAutoTile; t >= 16; t = t * 3 / 4) {
-    const int64_t aligned = std::max(a, t / a * a);
+    const int64_t aligned = align_tile(t, graph.alignment());
     if (tile_bytes(backend, graph, aligned) <= budget) return aligned;
   }
   return 0;
@@ -222,7 +228,7 @@ int64_t choose_tile(const DenoiseOptions& options, const nn::Backend& backend, c
                                         " MiB is too small even for 16-pixel tiles of this model");
     return tile;
   }
-  tile = std::max(a, tile / a * a);
+  tile = align_tile(tile, a);
   if (tile_bytes(backend, graph, tile) > budget)
     throw Error(ErrorKind::Usage, "tiles of " + std::to_string(tile) + " px need " +
                                       std::to_string(tile_bytes(backend, graph, tile) >> 20) +
@@ -248,7 +254,7 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
                                       std::to_string(bad.inf) + " Inf)");
   const Rect bounds{0, 0, stack.width(), stack.height()};
   const Rect region = checked_region(options, stack.width(), stack.height());
-  Image output = source_image(stack, model);  // outside the region the input stays
+  Image output = source;  // outside the region the input stays
 
   auto backend = nn::make_backend(backend_for(options), model.graph, {options.precision});
   const size_t output_bytes = output.size() * sizeof(float);
@@ -354,10 +360,10 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       return static_cast<size_t>(((tile + 2 * h) * stack_channels + (1 + bands_ahead(tile)) * tile * 3) * W) * sizeof(float) +
              tile_bytes(*backend, graph, tile) + correction_grid;
     };
-    int64_t tile = options.tile > 0 ? std::max(a, options.tile / a * a) : 0;
+    int64_t tile = options.tile > 0 ? align_tile(options.tile, a) : 0;
     if (tile <= 0)
       for (int64_t t = kMaxAutoTile; t >= 16 && tile <= 0; t = t * 3 / 4)
-        if (band_bytes(std::max(a, t / a * a)) <= options.max_memory) tile = std::max(a, t / a * a);
+        if (band_bytes(align_tile(t, a)) <= options.max_memory) tile = align_tile(t, a);
     if (tile <= 0 || band_bytes(tile) > options.max_memory)
       throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) + " MiB cannot hold a band of " +
                                         std::to_string(std::max<int64_t>(tile, 16)) + "-pixel tiles of this " +

@@ -139,7 +139,7 @@ FeatureSet Model::features() const {
 
 std::string Model::architecture() const {
   if (method == Method::Residue) return network.arch.to_string();
-  return std::string("OIDN ") + (graph.op(1).name == "enc_conv1a" ? "UNetLarge" : "UNet") + " (" + name + ")";
+  return std::string("OIDN ") + oidn_network_name(graph) + " (" + name + ")";
 }
 
 Model model_from_network(Network network, std::string name) {

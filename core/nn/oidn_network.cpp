@@ -45,6 +45,11 @@ class Builder {
 
 bool oidn_is_large(const TzaFile& weights) { return weights.tensors.count("enc_conv1b.weight") > 0; }
 
+const char* oidn_network_name(const Graph& graph) {
+  // The large variant's first conv is enc_conv1a (the base UNet's is enc_conv0); op 0 is the input.
+  return graph.size() > 1 && graph.op(1).name == "enc_conv1a" ? "UNetLarge" : "UNet";
+}
+
 Graph oidn_graph(const TzaFile& weights, int input_channels, const std::string& where) {
   Builder b(weights, where);
   const int in = b.g.input(input_channels);

@@ -19,5 +19,7 @@ Graph oidn_graph(const TzaFile& weights, int input_channels, const std::string& 
 
 // True for the large variant (UNetLarge).
 bool oidn_is_large(const TzaFile& weights);
+// "UNet" or "UNetLarge", for a graph oidn_graph built.
+const char* oidn_network_name(const Graph& graph);
 
 }  // namespace residue::nn
