@@ -22,6 +22,9 @@ packages=(
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
   # data generation: Blender (Cycles) for tools/datagen
   blender
+  # fuzzing (tools/fuzz.sh, the `fuzz` preset): clang 14 and its compiler-rt, which holds libFuzzer
+  # (libclang_rt.fuzzer-x86_64.a) and clang's ASan/UBSan runtimes; the `asan` preset uses gcc's (build-essential)
+  clang libclang-rt-14-dev
 )
 
 missing=()

@@ -136,7 +136,9 @@ Image apply_colormap(const Image& map, Colormap colormap, const ColorScale& scal
   if (map.channels() != 1)
     throw Error(ErrorKind::Usage, "a colormap applies to a one-channel map, not " +
                                       std::to_string(map.channels()) + " channels");
-  const auto [lo, hi] = resolve_range(map, scale);
+  // Named variables, not a structured binding: the lambda below captures them, which clang before 16 rejects.
+  const std::pair<double, double> range = resolve_range(map, scale);
+  const double lo = range.first, hi = range.second;
   Image out(map.width(), map.height(), 3);
   tbb::parallel_for(tbb::blocked_range<int64_t>(0, map.height()),
                     [&](const tbb::blocked_range<int64_t>& rows) {
