@@ -1,0 +1,145 @@
+// What each libFuzzer harness does with one input, shared by the harnesses (tests/fuzz/fuzz_*.cpp) and by the
+// regression tests (tests/test_fuzz_regressions.cpp), which replay the seed corpora and every crash the fuzzers
+// found through exactly the same code. residue::Error (and any std::exception) is an expected answer to bad
+// bytes; crashes, leaks and undefined behaviour (caught by ASan/UBSan in the fuzz and asan builds) are bugs.
+#pragma once
+
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "core/aov/aov_loader.h"
+#include "core/aov/channel_mapping.h"
+#include "core/nn/model_file.h"
+#include "core/nn/oidn_network.h"
+#include "core/nn/safetensors.h"
+#include "core/nn/tza.h"
+
+namespace residue::fuzz {
+
+// /dev/shm/residue-fuzz-<pid>/ (or the temp dir when /dev/shm is absent): one per process, so that parallel jobs
+// (-jobs=N) never share files and no loader finds a neighbour by a naming convention (reference.exr, ...).
+inline const std::filesystem::path& scratch_dir() {
+  static const std::filesystem::path dir = [] {
+    const std::filesystem::path base = std::filesystem::is_directory("/dev/shm") ? std::filesystem::path("/dev/shm")
+                                                                                  : std::filesystem::temp_directory_path();
+    auto d = base / ("residue-fuzz-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(d);
+    return d;
+  }();
+  return dir;
+}
+
+// The input as a file of the given name in scratch_dir(), for readers that take a path.
+inline std::filesystem::path write_input(const std::string& name, const uint8_t* data, size_t size) {
+  const auto path = scratch_dir() / name;
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));
+  return path;
+}
+
+// The loader has no size limit of its own (a 100000 x 100000 render is legitimate input); a fuzzed header may
+// declare one, and allocating it would only trip libFuzzer's RSS limit. Inputs with a subimage whose data or
+// display window holds more than this many channel values (64 MiB of floats), or with over 64 subimages, are
+// skipped.
+constexpr int64_t kMaxExrValues = int64_t{16} << 20;
+
+inline bool exr_small_enough(const std::string& path) {
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) {
+    (void)OIIO::geterror();  // clear OpenImageIO's per-thread error so that it does not pile up
+    return true;             // the loader reports the error itself
+  }
+  for (int sub = 0; in->seek_subimage(sub, 0); ++sub) {
+    if (sub >= 64) return false;
+    const OIIO::ImageSpec& s = in->spec();
+    const int64_t ch = std::max(1, s.nchannels);
+    const int64_t data = int64_t{std::max(0, s.width)} * std::max(0, s.height) * std::max(1, s.depth);
+    const int64_t full = int64_t{std::max(0, s.full_width)} * std::max(0, s.full_height);
+    if (data > kMaxExrValues / ch || full > kMaxExrValues / ch) return false;
+  }
+  (void)in->geterror();
+  return true;
+}
+
+// fuzz_exr_loader: the bytes as input.exr, through list_channels and load_aov_stack (OpenImageIO, channel
+// naming, multipart, data and display windows, normalisation).
+inline void exr_loader_one(const uint8_t* data, size_t size) {
+  const auto path = write_input("input.exr", data, size);
+  if (!exr_small_enough(path.string())) return;
+  try {
+    (void)list_channels(path);
+  } catch (const std::exception&) {
+  }
+  try {
+    (void)load_aov_stack({path}, LoadOptions{});
+  } catch (const std::exception&) {
+  }
+  (void)OIIO::geterror();
+}
+
+// fuzz_safetensors: read_safetensors, then (when that succeeds) load_model: metadata, tensor names and shapes,
+// batch-norm folding, the inference graph.
+inline void safetensors_one(const uint8_t* data, size_t size) {
+  const auto path = write_input("model.safetensors", data, size);
+  try {
+    (void)nn::read_safetensors(path);
+  } catch (const std::exception&) {
+    return;  // load_model reads the same way and would fail the same way
+  }
+  try {
+    (void)nn::load_model(path);
+  } catch (const std::exception&) {
+  }
+}
+
+// fuzz_tza: parse_tza on the bytes, then (when that succeeds) the OIDN UNet built from the tensors, with 9 input
+// channels (rt_hdr_alb_nrm) and 3 (rt_hdr), as load_model does.
+inline void tza_one(const uint8_t* data, size_t size) {
+  const std::vector<uint8_t> bytes(data, data + size);
+  nn::TzaFile file;
+  try {
+    file = nn::parse_tza(bytes, "fuzz input");
+  } catch (const std::exception&) {
+    return;
+  }
+  for (int channels : {9, 3}) {
+    try {
+      (void)nn::oidn_graph(file, channels, "fuzz input");
+    } catch (const std::exception&) {
+    }
+  }
+}
+
+// fuzz_channel_mapping: the input split at its first NUL byte: before it, a --map flag (ROLE=[FILE:]CHANNELS);
+// after it (or the whole input when there is no NUL), a JSON mapping file (--mapping FILE.json).
+inline void channel_mapping_one(const uint8_t* data, size_t size) {
+  const auto* nul = size ? static_cast<const uint8_t*>(std::memchr(data, 0, size)) : nullptr;
+  const size_t flag_size = nul ? static_cast<size_t>(nul - data) : 0;
+  const uint8_t* json = nul ? nul + 1 : data;
+  const size_t json_size = nul ? size - flag_size - 1 : size;
+  ChannelMapping from_flag;
+  if (nul) {
+    try {
+      from_flag.add_flag(std::string(reinterpret_cast<const char*>(data), flag_size));
+    } catch (const std::exception&) {
+    }
+  }
+  const auto path = write_input("mapping.json", json, json_size);
+  try {
+    auto m = ChannelMapping::from_json_file(path);
+    m.merge(from_flag);
+  } catch (const std::exception&) {
+  }
+}
+
+}  // namespace residue::fuzz
