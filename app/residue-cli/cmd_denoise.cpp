@@ -2,9 +2,7 @@
 // progress bar on a terminal, plain lines otherwise, and metrics when a reference is known.
 #include <unistd.h>
 
-#include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <memory>
 
@@ -16,12 +14,10 @@
 #include "core/io/exr_writer.h"
 #include "core/metrics/metrics.h"
 #include "core/util/error.h"
+#include "interrupt.h"
 
 namespace residue::cli {
 namespace {
-
-std::atomic<bool> g_interrupted{false};
-extern "C" void on_interrupt(int) { g_interrupted = true; }
 
 struct DenoiseCliOptions {
   InputOptions input;
@@ -71,12 +67,32 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// The files a render is read from (every AOV's, the reference's).
+std::vector<std::string> input_files(const AovStack& layout) {
+  std::vector<std::string> files = {layout.color.source.file};
+  for (const std::optional<Aov>* a : {&layout.albedo, &layout.normal, &layout.depth, &layout.variance, &layout.reference})
+    if (a->has_value()) files.push_back((*a)->source.file);
+  return files;
+}
+
+// Every check on the output, before any work: the output may not be one of the files read (even with --force:
+// the render's AOVs would be lost), then prepare_exr_output()'s (name, compression, folder, overwrite).
+void check_output(const std::string& output, const AovStack& layout, const io::ExrWriteOptions& w) {
+  std::error_code ec;
+  for (const std::string& f : input_files(layout))
+    if (std::filesystem::equivalent(output, f, ec))
+      throw Error(ErrorKind::Output, "output '" + output + "' is the input '" + f +
+                                         "': writing the denoised colour there would lose the render; choose another name");
+  for (const auto& removed : io::prepare_exr_output(output, w))
+    std::fprintf(stderr, "note: removed '%s', a partial output left by an earlier run that was killed\n",
+                 removed.c_str());
+}
+
 int run(const DenoiseCliOptions& o) {
-  if (std::filesystem::exists(o.output) && !o.force)
-    throw Error(ErrorKind::Output, "output '" + o.output + "' exists; pass --force to replace it");
   const std::vector<std::filesystem::path> inputs(o.input.inputs.begin(), o.input.inputs.end());
   const AovReader reader(inputs, o.input.load_options());
   const AovStack& layout = reader.layout();
+  for (const std::string& note : layout.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
   const Rect whole{0, 0, layout.data_window.width, layout.data_window.height};
   DenoiseOptions d;
   d.backend = o.backend;
@@ -99,13 +115,19 @@ int run(const DenoiseCliOptions& o) {
   w.overwrite = o.force;
   w.residue_attributes.attribute("residue:version", RESIDUE_VERSION);
   w.residue_attributes.attribute("residue:source", layout.color.source.file);
+  check_output(o.output, layout, w);
 
   ProgressReporter progress;
-  g_interrupted = false;
-  std::signal(SIGINT, on_interrupt);
+  const InterruptScope interrupt;
+  d.cancel = &interrupt.token();
   auto on_tile = [&](const TileEvent& e, const Image&) {
     progress.tile(e);
-    return !g_interrupted.load();
+    // Another process may create the output meanwhile: say so now rather than after the work.
+    std::error_code ec;
+    if (!o.force && std::filesystem::exists(std::filesystem::symlink_status(o.output, ec)))
+      throw Error(ErrorKind::Output, "output '" + o.output + "' was created by another program during the denoise; "
+                                     "nothing was replaced (pass --force to replace it)");
+    return !interrupt.interrupted();
   };
   DenoiseStats stats;
   double read_s = -1, write_s = -1;  // in-memory runs: reading the AOVs, writing the EXR
@@ -118,6 +140,7 @@ int run(const DenoiseCliOptions& o) {
       const AovStack stack = reader.read(whole);
       const auto t0 = std::chrono::steady_clock::now();
       const Image out = cross_bilateral(stack, {}, d.roi);
+      throw_if_cancelled(d.cancel);
       stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       stats.backend = "cross-bilateral (core)";
       stats.tiles = 1;
@@ -141,6 +164,7 @@ int run(const DenoiseCliOptions& o) {
         const AovStack stack = reader.read(whole);
         read_s = seconds_since(t0);
         const Image out = denoise(stack, model, d, on_tile, &stats);
+        throw_if_cancelled(d.cancel);
         w.residue_attributes.attribute("residue:backend", stats.backend);
         w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
         w.residue_attributes.attribute("residue:energy_correction", stats.energy_corrected ? 1 : 0);
@@ -152,9 +176,12 @@ int run(const DenoiseCliOptions& o) {
     }
   } catch (const Cancelled&) {
     std::fprintf(stderr, "\ndenoise: interrupted; nothing was written\n");
-    return 130;
+    return interrupt.interrupted() ? interrupt.exit_code() : 130;
   }
-  std::signal(SIGINT, SIG_DFL);
+  if (interrupt.interrupted()) {  // the signal came while the file was being written: it is complete
+    std::fprintf(stderr, "\ndenoise: interrupted after %s was written (complete; kept)\n", display_path(o.output).c_str());
+    return interrupt.exit_code();
+  }
 
   const double megapixels = static_cast<double>(d.roi ? d.roi->area() : whole.area()) / 1e6;
   std::printf("wrote      %s%s\n", display_path(o.output).c_str(), streamed ? " (streamed band by band)" : "");

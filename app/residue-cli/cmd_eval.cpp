@@ -50,7 +50,13 @@ void write_maps(const EvalOptions& o, const std::string& name, const Image& test
 }
 
 int run(const EvalOptions& o) {
+  // The outputs are checked before the (long) metrics; the maps are checked again as each is written.
+  if (!o.metrics_out.empty()) io::prepare_metrics_output(o.metrics_out, o.force);
+  if (!o.maps_dir.empty() && !std::filesystem::is_directory(o.maps_dir))
+    throw Error(ErrorKind::Output, "--maps-dir '" + o.maps_dir + "' is not an existing folder");
   AovStack stack = o.input.load();
+  if (!o.json)  // JSON carries them
+    for (const std::string& note : stack.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
   if (!stack.reference)
     throw Error(ErrorKind::Usage, "no reference: give --reference FILE (none was found beside '" +
                                       stack.color.source.file + "')");
@@ -64,6 +70,7 @@ int run(const EvalOptions& o) {
   report.width = stack.width();
   report.height = stack.height();
   report.options = mopts;
+  report.notes = stack.notes;
   const Image& reference = stack.reference->image;
   report.rows.push_back({"noisy", stack.color.source.file, metrics::compare(stack.color.image, reference, mopts)});
 
@@ -80,8 +87,6 @@ int run(const EvalOptions& o) {
   }
 
   if (!o.maps_dir.empty()) {
-    if (!std::filesystem::is_directory(o.maps_dir))
-      throw Error(ErrorKind::Output, "--maps-dir '" + o.maps_dir + "' is not an existing folder");
     write_maps(o, "noisy", stack.color.image, reference, mopts);
     if (denoised) write_maps(o, "denoised", denoised->image, reference, mopts);
   }

@@ -1,8 +1,11 @@
 #include "core/aov/aov_loader.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <limits>
 #include <map>
+#include <set>
 
 #include <OpenImageIO/imageio.h>
 #include <nlohmann/json.hpp>
@@ -33,6 +36,7 @@ struct ReadPlan {
 // An opened input: its channels and per-subimage windows.
 struct OpenedFile {
   std::string path;
+  std::string format;  // OpenImageIO's name for it: "openexr", "png", ...
   std::vector<ChannelRef> channels;
   std::vector<OIIO::ImageSpec> specs;
 };
@@ -42,8 +46,15 @@ OpenedFile open_file(const fs::path& path) {
   auto in = OIIO::ImageInput::open(path.string());
   if (!in)
     throw Error(ErrorKind::Input, "cannot read '" + path.string() + "': " + OIIO::geterror());
+  // The format is what the bytes say: a PNG renamed .exr would otherwise be read as linear values.
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (extension == ".exr" && std::string(in->format_name()) != "openexr")
+    throw Error(ErrorKind::Input, "'" + path.string() + "' is named .exr but is a " + in->format_name() +
+                                      " file, not OpenEXR (renamed?); AOVs are read from OpenEXR files");
   OpenedFile f;
   f.path = path.string();
+  f.format = in->format_name();
   for (int sub = 0; in->seek_subimage(sub, 0); ++sub) {
     const OIIO::ImageSpec& spec = in->spec();
     f.specs.push_back(spec);
@@ -189,7 +200,10 @@ void read_plans(const OpenedFile& file, const std::vector<const ReadPlan*>& plan
   std::map<int, std::vector<const ReadPlan*>> by_subimage;
   for (const ReadPlan* p : plans) {
     Aov& aov = out[p->role];
-    aov.image = Image(grid.width, grid.height, static_cast<int>(p->channels.size()));
+    // Pixels a file's data window does not cover are 0, except in the reference: there they are NaN, so that
+    // metrics exclude (and count) them instead of scoring against black.
+    const float uncovered = p->role == AovRole::Reference ? std::numeric_limits<float>::quiet_NaN() : 0.0f;
+    aov.image = Image(grid.width, grid.height, static_cast<int>(p->channels.size()), uncovered);
     aov.source = describe(*p);
     by_subimage[aov.source.subimage].push_back(p);
   }
@@ -366,6 +380,11 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
                                         std::to_string(cspec.full_width) + "x" + std::to_string(cspec.full_height));
   }
 
+  std::set<std::string> non_exr;
+  for (const auto& [role, plan] : plans)
+    if (const OpenedFile& f = open_cached(plan.file); f.format != "openexr" && non_exr.insert(f.path).second)
+      stack.notes.push_back("'" + f.path + "' is a " + f.format + " file: its values are used as stored (no "
+                            "conversion from a display encoding to linear light)");
   for (const auto& [role, plan] : plans) {
     if (role == AovRole::Normal) stack.normal_space = plan.normal_space;
     if (role == AovRole::Depth) stack.depth_kind = plan.depth_kind;
@@ -425,7 +444,8 @@ AovStack AovReader::read(const Rect& rect) const {
     aov.non_finite = count_non_finite(aov.image);
     if (aov.uncovered_pixels > 0)
       stack.notes.push_back(std::string("the ") + to_string(role) + " AOV does not cover " +
-                            std::to_string(aov.uncovered_pixels) + " pixels of the colour's data window (set to 0)");
+                            std::to_string(aov.uncovered_pixels) + " pixels of the colour's data window (" +
+                            (role == AovRole::Reference ? "not scored: metrics exclude them" : "set to 0") + ")");
   }
 
   stack.color = std::move(loaded.at(AovRole::Color));

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <map>
+#include <tuple>
 
 namespace residue {
 namespace {
@@ -175,6 +176,20 @@ std::string stored_layer(const std::string& channel, bool root) {
   return channel.substr(0, last);
 }
 
+// Said when a pass a rule looks for is there but lacks channels (e.g. albedo.R and albedo.G without albedo.B),
+// so that a render silently falling back to a colour-only model says why.
+std::string incomplete_pass_note(AovRole role, const std::map<std::string, ChannelRef>& comps, int count) {
+  std::vector<const ChannelRef*> refs;
+  for (const auto& entry : comps) refs.push_back(&entry.second);
+  std::sort(refs.begin(), refs.end(), [](const ChannelRef* a, const ChannelRef* b) {
+    return std::tie(a->subimage, a->index) < std::tie(b->subimage, b->index);
+  });
+  std::string found;
+  for (const ChannelRef* ref : refs) found += (found.empty() ? "" : ", ") + ref->name;
+  return std::string("the ") + to_string(role) + " pass has only " + found + " (expected " + std::to_string(count) +
+         " channels: R,G,B or X,Y,Z); it is not used";
+}
+
 bool has_root_rgb(const LayerIndex& idx) {
   auto it = idx.find({"", ""});
   return it != idx.end() && it->second.count("r") && it->second.count("g") && it->second.count("b");
@@ -226,7 +241,11 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
           const std::string& p = layer.empty() ? std::string() : prefix;
           std::vector<ChannelRef> found = take(idx, p, layer, count);
           if (found.empty() && rule.role == AovRole::Variance) found = take(idx, p, layer, 1);
-          if (found.empty()) continue;
+          if (found.empty()) {
+            if (auto it = idx.find({p, layer}); count == 3 && !layer.empty() && it != idx.end())
+              rec.notes.push_back(incomplete_pass_note(rule.role, it->second, count));
+            continue;
+          }
           RecognisedAov aov;
           aov.role = rule.role;
           aov.layer = stored_layer(found.front().name, layer.empty());

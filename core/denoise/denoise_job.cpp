@@ -14,6 +14,7 @@ DenoiseJob::~DenoiseJob() {
 void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<const nn::Model> model,
                       DenoiseOptions options, TileReady on_tile) {
   Status end = Status::Done;
+  options.cancel = &cancel_;
   try {
     DenoiseStats stats;
     Image out = denoise(
@@ -23,7 +24,7 @@ void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<con
           total_ = e.total;
           if (e.skipped) ++skipped_;
           if (on_tile) on_tile(e.rect, crop(output, e.rect));
-          return !cancel_.load();
+          return !cancel_.requested();
         },
         &stats);
     std::lock_guard lock(mutex_);
@@ -52,7 +53,7 @@ DenoiseJob::Progress DenoiseJob::progress() const { return {done_.load(), total_
 
 DenoiseJob::Status DenoiseJob::status() const { return status_.load(); }
 
-void DenoiseJob::cancel() { cancel_ = true; }
+void DenoiseJob::cancel() { cancel_.request(); }
 
 bool DenoiseJob::wait_for(std::chrono::milliseconds timeout) {
   std::unique_lock lock(mutex_);

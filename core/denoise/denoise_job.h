@@ -40,7 +40,7 @@ class DenoiseJob {
 
   Progress progress() const;
   Status status() const;
-  // Asks the worker to stop; it does so after the tile in flight. Returns at once.
+  // Asks the worker to stop; it does so within one network layer. Returns at once.
   void cancel();
   // Waits until the job ends or `timeout` passes; true when it has ended.
   bool wait_for(std::chrono::milliseconds timeout);
@@ -56,7 +56,7 @@ class DenoiseJob {
   void work(std::shared_ptr<const AovStack> stack, std::shared_ptr<const nn::Model> model, DenoiseOptions options,
             TileReady on_tile);
 
-  std::atomic<bool> cancel_{false};
+  CancelToken cancel_;
   std::atomic<int64_t> done_{0}, total_{0}, skipped_{0};
   std::atomic<Status> status_{Status::Running};
   mutable std::mutex mutex_;

@@ -119,11 +119,13 @@ struct TileRunner {
   bool skip_empty;
   bool guard;       // clamp overshoots to the receptive field's brightest input (output_guard.h)
   float blend_tau;  // variance blend (when the stack has variance); 0: off
+  const CancelToken* cancel;
   int64_t guarded = 0;  // values the guard clamped so far
   Image features, padded, result;
 
   bool run(const AovStack& src, const Rect& src_rect, const Rect& bounds, const Rect& t, Image& out, int64_t out_x0,
            int64_t out_y0) {
+    throw_if_cancelled(cancel);
     const nn::Graph& g = model.graph;
     const int64_t halo = g.halo(), align = g.alignment();
     const bool residue = model.method == nn::Method::Residue;
@@ -147,7 +149,7 @@ struct TileRunner {
         std::memcpy(&padded.at(0, y, 0), features.row(y).data(), static_cast<size_t>(in.width * features.channels()) * sizeof(float));
       net_in = &padded;
     }
-    backend.run(*net_in, result);
+    backend.run(*net_in, result, cancel);
     if (residue && guard) guarded += guard_output(features, {tx - in.x, ty - in.y, t.width, t.height}, halo, result);
     int64_t non_finite = 0;
     for (int64_t y = 0; y < t.height; ++y)
@@ -273,7 +275,7 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
   const float tau = tau_for(options, model);
   local.variance_blended = tau > 0 && stack.variance.has_value();
 
-  TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}, {}};
+  TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, options.cancel, 0, {}, {}, {}};
   for (size_t i = 0; i < tiles.size(); ++i) {
     const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
     if (skip) ++local.skipped;
@@ -387,6 +389,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       const int64_t stride = depth_sample_stride(W * H);
       std::vector<float> samples;
       for (int64_t y0 = 0; y0 < H; y0 += tile) {
+        throw_if_cancelled(options.cancel);
         const AovStack band = reader.read({0, y0, W, std::min(tile, H - y0)});
         if (exposure) autoexposure.add(band.color.image, y0);
         if (!residue) continue;
@@ -402,7 +405,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     // on the image's grid (so each lies in one band), cut to the region.
     const std::vector<Rect> tiles = grid_tiles(bounds, region, tile);
     local.tiles = static_cast<int64_t>(tiles.size());
-    TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, 0, {}, {}, {}};
+    TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, options.cancel, 0, {}, {}, {}};
     EnergyCorrection correction(region);
     int64_t done = 0;
     struct Band {

@@ -19,6 +19,7 @@
 #include "core/io/exr_writer.h"
 #include "core/nn/backend.h"
 #include "core/nn/model_file.h"
+#include "core/util/cancel.h"
 
 namespace residue {
 
@@ -34,6 +35,7 @@ struct DenoiseOptions {
   bool energy_correction = true;                // rescale to the noisy input's local mean (energy_correction.h)
   bool variance_blend = true;                   // with a variance AOV: keep clean input pixels (variance_blend.h)
   float blend_tau = 0;                          // the blend's tau; 0: the model's (residue.blend_tau) or the default
+  const CancelToken* cancel = nullptr;          // raised: stop within one network layer, throwing Cancelled
 };
 
 struct TileEvent {
@@ -56,13 +58,8 @@ struct DenoiseStats {
   int64_t clamped_to_half = 0;    // denoise_to_exr into half: finite values beyond 65504 written as 65504
 };
 
-// Thrown when the tile callback asks to stop.
-class Cancelled : public std::runtime_error {
- public:
-  Cancelled() : std::runtime_error("denoise cancelled") {}
-};
-
-// Called after every tile with the output so far; return false to cancel.
+// Called after every tile with the output so far; return false to cancel (stops after that tile; a CancelToken in
+// the options stops sooner).
 using TileCallback = std::function<bool(const TileEvent&, const Image& output)>;
 
 // The denoised colour, the stack's size. Throws Error (Input when the stack lacks the model's AOVs, Usage for

@@ -4,18 +4,24 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <climits>
+#include <csignal>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <mutex>
 #include <random>
+#include <set>
 #include <string>
 
 #include "core/util/error.h"
 
 // The temporary file sits beside the destination, hidden, and keeps the destination's extension at the end so
 // that writers that pick the format from the name (OpenImageIO) write the right format:
-//   folder/out.exr  ->  folder/.out.exr.residue-tmp-XXXXXXXX.exr
+//   folder/out.exr  ->  folder/.out.exr.residue-tmp-HOST-PID-XXXXXX.exr
 // It is created with O_EXCL and mode 0666 (the umask applies), so the final file gets the usual permissions.
+// HOST and PID say who writes it: a later run on the same output removes it when that process is gone (killed
+// with SIGKILL, or the machine lost power); files of other machines (a shared folder on a farm) are left alone.
 
 namespace residue::io {
 namespace fs = std::filesystem;
@@ -32,24 +38,44 @@ std::string exists_message(const fs::path& destination) {
   return "output " + quoted(destination) + " exists; pass --force to replace it";
 }
 
+std::string host_name() {
+  char name[HOST_NAME_MAX + 1] = {};
+  if (::gethostname(name, sizeof(name) - 1) != 0 || name[0] == '\0') return "localhost";
+  std::string s = name;
+  for (char& c : s)
+    if (c == '/') c = '_';
+  return s;
+}
+
+std::string temp_prefix(const fs::path& destination) {
+  return "." + destination.filename().string() + ".residue-tmp-";
+}
+
+// The temporary files of writes in progress in this process (removed by remove_temp_files_in_progress()).
+std::mutex g_temps_mutex;
+std::set<std::string> g_temps;
+
 // Creates an empty, unique temporary file in `folder`; returns its path.
 fs::path create_temp_file(const fs::path& folder, const fs::path& destination) {
   static constexpr char kAlphabet[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789";
   thread_local std::mt19937_64 rng{std::random_device{}() ^
                                    static_cast<uint64_t>(reinterpret_cast<uintptr_t>(&rng))};
   std::uniform_int_distribution<size_t> pick(0, sizeof(kAlphabet) - 2);
-  const std::string name = destination.filename().string();
   const std::string extension = destination.extension().string();
+  const std::string owner = host_name() + "-" + std::to_string(::getpid()) + "-";
   int last_error = 0;
   for (int attempt = 0; attempt < 100; ++attempt) {
-    std::string unique(8, 'x');
+    std::string unique(6, 'x');
     for (char& c : unique) c = kAlphabet[pick(rng)];
-    fs::path temp = folder / ("." + name + ".residue-tmp-" + unique + extension);
+    fs::path temp = folder / (temp_prefix(destination) + owner + unique + extension);
+    std::lock_guard lock(g_temps_mutex);  // registered before it exists, so a signal's clean-up sees it
+    g_temps.insert(temp.string());
     int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd >= 0) {
       ::close(fd);
       return temp;
     }
+    g_temps.erase(temp.string());
     last_error = errno;
     if (last_error != EEXIST) break;
   }
@@ -98,34 +124,92 @@ void move_into_place(const fs::path& temp, const fs::path& destination, bool ove
   fail("cannot move the written file to " + quoted(destination) + ": " + errno_text(err));
 }
 
+void forget_temp(const fs::path& path) {
+  std::lock_guard lock(g_temps_mutex);
+  g_temps.erase(path.string());
+}
+
 // Removes the temporary file unless released.
 class TempGuard {
  public:
   explicit TempGuard(fs::path path) : path_(std::move(path)) {}
   ~TempGuard() {
-    if (!path_.empty()) ::unlink(path_.c_str());
+    if (path_.empty()) return;
+    ::unlink(path_.c_str());
+    forget_temp(path_);
   }
   TempGuard(const TempGuard&) = delete;
   TempGuard& operator=(const TempGuard&) = delete;
-  void release() { path_.clear(); }
+  void release() {
+    forget_temp(path_);
+    path_.clear();
+  }
 
  private:
   fs::path path_;
 };
 
+fs::path folder_of(const fs::path& destination) {
+  return destination.has_parent_path() ? destination.parent_path() : fs::path(".");
+}
+
+// A temporary file of `destination` whose writer, on this machine, no longer runs.
+bool is_abandoned_temp(const std::string& name, const fs::path& destination, const std::string& host) {
+  const std::string prefix = temp_prefix(destination), extension = destination.extension().string();
+  if (name.size() <= prefix.size() + extension.size() || name.compare(0, prefix.size(), prefix) != 0 ||
+      name.compare(name.size() - extension.size(), extension.size(), extension) != 0)
+    return false;
+  // HOST-PID-XXXXXX, the host possibly holding dashes itself: split from the right.
+  const std::string owner = name.substr(prefix.size(), name.size() - prefix.size() - extension.size());
+  const auto random_dash = owner.rfind('-');
+  if (random_dash == std::string::npos || random_dash == 0) return false;
+  const auto pid_dash = owner.rfind('-', random_dash - 1);
+  if (pid_dash == std::string::npos || owner.substr(0, pid_dash) != host) return false;
+  const std::string pid_text = owner.substr(pid_dash + 1, random_dash - pid_dash - 1);
+  if (pid_text.empty() || pid_text.size() > 9 || pid_text.find_first_not_of("0123456789") != std::string::npos)
+    return false;
+  const auto pid = static_cast<pid_t>(std::stol(pid_text));
+  return pid != ::getpid() && ::kill(pid, 0) != 0 && errno == ESRCH;
+}
+
 }  // namespace
 
-void write_atomically(const fs::path& destination, bool overwrite,
-                      const std::function<void(const fs::path& temp_path)>& write) {
-  if (destination.filename().empty() || destination.filename() == "." || destination.filename() == "..")
+std::vector<fs::path> prepare_output(const fs::path& destination, bool overwrite) {
+  const std::string text = destination.string();
+  if (destination.filename().empty() || destination.filename() == "." || destination.filename() == ".." ||
+      (!text.empty() && text.back() == '/'))
     fail("output " + quoted(destination) + " is not a file name");
-  const fs::path folder = destination.has_parent_path() ? destination.parent_path() : fs::path(".");
+  const fs::path folder = folder_of(destination);
   std::error_code ec;
   if (!fs::is_directory(folder, ec))
     fail("cannot write " + quoted(destination) + ": the folder " + quoted(folder) + " does not exist");
-  // Fail fast, before any work; a dangling symbolic link counts as existing.
+  if (fs::is_directory(destination, ec)) fail("output " + quoted(destination) + " is a folder, not a file");
+  if (::access(folder.c_str(), W_OK | X_OK) != 0)
+    fail("cannot write " + quoted(destination) + ": the folder " + quoted(folder) + " is not writable (" +
+         errno_text(errno) + ")");
+  // A dangling symbolic link counts as existing.
   if (!overwrite && fs::exists(fs::symlink_status(destination, ec))) fail(exists_message(destination));
 
+  std::vector<fs::path> removed;
+  const std::string host = host_name();
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (is_abandoned_temp(name, destination, host) && ::unlink(it->path().c_str()) == 0) removed.push_back(it->path());
+  }
+  return removed;
+}
+
+void remove_temp_files_in_progress() {
+  std::lock_guard lock(g_temps_mutex);
+  for (const std::string& path : g_temps) ::unlink(path.c_str());
+  g_temps.clear();
+}
+
+void write_atomically(const fs::path& destination, bool overwrite,
+                      const std::function<void(const fs::path& temp_path)>& write) {
+  prepare_output(destination, overwrite);
+  const fs::path folder = folder_of(destination);
+  std::error_code ec;
   const fs::path temp = create_temp_file(folder, destination);
   TempGuard guard(temp);
   write(temp);

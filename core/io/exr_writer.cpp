@@ -147,8 +147,18 @@ const Image& fit_to_half(const Image& image, const ExrWriteOptions& options, Ima
 
 }  // namespace
 
-WriteReport write_exr(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
+std::vector<fs::path> prepare_exr_output(const fs::path& path, const ExrWriteOptions& options) {
   check_compression(options.compression);
+  std::vector<fs::path> removed = prepare_output(path, options.overwrite);
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (extension != ".exr")
+    throw Error(ErrorKind::Output, "output " + quoted(path) + ": the file written is OpenEXR; give it a name ending in .exr");
+  return removed;
+}
+
+WriteReport write_exr(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
+  prepare_exr_output(path, options);
   const OIIO::ImageSpec spec = make_spec(path, image.width(), image.height(), image.channels(), options);
   WriteReport report;
   Image copy;
@@ -164,7 +174,7 @@ WriteReport write_exr(const fs::path& path, const Image& image, const ExrWriteOp
 
 WriteReport write_exr_bands(const fs::path& path, int64_t width, int64_t height, int channels, int64_t band_rows,
                             const ExrWriteOptions& options, const BandSource& band) {
-  check_compression(options.compression);
+  prepare_exr_output(path, options);
   const OIIO::ImageSpec spec = make_spec(path, width, height, channels, options);
   WriteReport report;
   write_atomically(path, options.overwrite, [&](const fs::path& temp) {

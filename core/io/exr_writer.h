@@ -40,6 +40,12 @@ struct WriteReport {
   int64_t clamped_to_half = 0;
 };
 
+// Every check write_exr and write_exr_bands make before writing, for a caller to run before long work: a known
+// compression (else Error(Usage), naming the allowed ones), a name ending in .exr (OpenEXR is what is written),
+// and prepare_output()'s checks (atomic_file.h: the folder exists and is writable, the file may be replaced).
+// Returns the abandoned temporary files of `path` it removed.
+std::vector<std::filesystem::path> prepare_exr_output(const std::filesystem::path& path, const ExrWriteOptions& options);
+
 // Writes `image` atomically (atomic_file.h); values are written as they are (NaN and Inf included; float to half
 // rounds to nearest; finite values beyond the half range are clamped to it, see WriteReport). Throws residue::Error(Usage) for an unknown compression (naming the allowed ones), a
 // channel-name count or data window that does not match the image; residue::Error(Output), with the path and

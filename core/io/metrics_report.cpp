@@ -84,6 +84,7 @@ std::string to_json(const MetricsReport& report) {
   doc["options"] = std::move(options);
   doc["formula"] = metrics::formula_text(report.options);
   doc["rows"] = std::move(rows);
+  doc["notes"] = report.notes;
   // Replace invalid UTF-8 in file names rather than throwing.
   return doc.dump(2, ' ', false, ordered_json::error_handler_t::replace) + "\n";
 }
@@ -100,17 +101,27 @@ std::string to_csv(const MetricsReport& report) {
   return out;
 }
 
-void write_metrics(const fs::path& path, const MetricsReport& report, bool overwrite) {
+namespace {
+
+// ".json" or ".csv" (lower case); Error(Usage) for any other name.
+std::string metrics_extension(const fs::path& path) {
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  std::string text;
-  if (extension == ".json")
-    text = to_json(report);
-  else if (extension == ".csv")
-    text = to_csv(report);
-  else
+  if (extension != ".json" && extension != ".csv")
     throw Error(ErrorKind::Usage, "metrics file '" + path.string() + "' must end in .json or .csv");
+  return extension;
+}
+
+}  // namespace
+
+void prepare_metrics_output(const fs::path& path, bool overwrite) {
+  metrics_extension(path);
+  prepare_output(path, overwrite);
+}
+
+void write_metrics(const fs::path& path, const MetricsReport& report, bool overwrite) {
+  const std::string text = metrics_extension(path) == ".json" ? to_json(report) : to_csv(report);
 
   write_atomically(path, overwrite, [&](const fs::path& temp) {
     std::ofstream file(temp, std::ios::binary | std::ios::trunc);

@@ -21,16 +21,21 @@ struct MetricsReport {
   int64_t width = 0, height = 0;
   metrics::Options options;
   std::vector<MetricsRow> rows;
+  std::vector<std::string> notes;  // what the loader assumed or left out (e.g. pixels the reference lacks)
 };
 
 // Pretty-printed: reference_file, width, height, options {eps, ssim_space, roi (null or {x,y,width,height})},
-// formula (metrics::formula_text) and rows. Finite numbers parse back to the same double. JSON has no infinity
+// formula (metrics::formula_text), rows and notes. Finite numbers parse back to the same double. JSON has no infinity
 // or NaN: a non-finite score (PSNR of identical images is +inf) is written as the string "inf", "-inf" or "nan".
 std::string to_json(const MetricsReport& report);
 // Header `name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference`, one line per row;
 // doubles as the shortest text that parses back to the same value (inf, -inf, nan when not finite); fields with
 // a comma, quote or line break are quoted ("" for a quote).
 std::string to_csv(const MetricsReport& report);
+
+// write_metrics()'s checks, for a caller to run before long work: a .json or .csv name (else Error(Usage)) and
+// prepare_output()'s (atomic_file.h).
+void prepare_metrics_output(const std::filesystem::path& path, bool overwrite);
 
 // Writes the report atomically; the format follows the extension (.json or .csv, any case), else
 // residue::Error(Usage).

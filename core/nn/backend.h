@@ -12,6 +12,7 @@
 #include "core/image/image.h"
 #include "core/nn/graph.h"
 #include "core/nn/network.h"
+#include "core/util/cancel.h"
 
 namespace residue::nn {
 
@@ -31,9 +32,14 @@ class Backend {
   // graph's alignment), `output` gets H x W x C_out (the network's raw output). Convolutions pad with zeros at
   // the tile's borders.
   // Threads: whatever oneTBB's current arena allows (the caller limits it).
-  virtual void run(const Image& input, Image& output) = 0;
+  // `cancel`, when raised, stops the run between layers (and between rows of a layer where the backend can),
+  // throwing Cancelled.
+  void run(const Image& input, Image& output, const CancelToken* cancel = nullptr) { execute(input, output, cancel); }
   // Scratch memory run() allocates for a tile of this size, in bytes (for memory-bounded tiling).
   virtual size_t scratch_bytes(int64_t width, int64_t height) const = 0;
+
+ private:
+  virtual void execute(const Image& input, Image& output, const CancelToken* cancel) = 0;
 };
 
 // Throws residue::Error(Usage) for an unknown or unavailable backend / precision, saying what is available.

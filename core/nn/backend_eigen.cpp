@@ -280,7 +280,7 @@ class EigenBackend final : public Backend {
     return bytes;
   }
 
-  void run(const Image& input, Image& output) override {
+  void execute(const Image& input, Image& output, const CancelToken* cancel) override {
     const int64_t h = input.height(), w = input.width();
     if (input.channels() != graph_.input_channels())
       throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
@@ -304,6 +304,7 @@ class EigenBackend final : public Backend {
     out.base = output.data();  // the output value is the caller's image (no border: nothing reads it)
 
     for (int i = 0; i < graph_.size(); ++i) {
+      throw_if_cancelled(cancel);
       const GraphOp& op = graph_.op(i);
       const Value& dst = values[static_cast<size_t>(i)];
       if (plan.arena.in_place[static_cast<size_t>(i)] < 0) dst.zero_border();
@@ -316,7 +317,7 @@ class EigenBackend final : public Backend {
           const Value* add = op.residual >= 0 ? &values[static_cast<size_t>(op.residual)] : nullptr;
           std::vector<const Value*> srcs;
           for (int x : op.inputs) srcs.push_back(&values[static_cast<size_t>(x)]);
-          conv(convs_[static_cast<size_t>(i)], srcs, dst, add);
+          conv(convs_[static_cast<size_t>(i)], srcs, dst, add, cancel);
           break;
         }
         case OpKind::Pool: pool(values[static_cast<size_t>(op.inputs[0])], dst); break;
@@ -324,6 +325,7 @@ class EigenBackend final : public Backend {
         case OpKind::Add: add(values[static_cast<size_t>(op.inputs[0])], values[static_cast<size_t>(op.inputs[1])], dst); break;
       }
     }
+    throw_if_cancelled(cancel);  // a conv stopped part-way leaves rows unwritten
   }
 
  private:
@@ -352,30 +354,36 @@ class EigenBackend final : public Backend {
     return plans_.emplace(key, std::move(p)).first->second;
   }
 
-  // dst = act(conv(cat(srcs)) + bias) (+ add). `dst` may alias `add` (the residual), never a source.
-  void conv(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add) {
+  // dst = act(conv(cat(srcs)) + bias) (+ add). `dst` may alias `add` (the residual), never a source. Once
+  // `cancel` is raised the remaining rows are left undone (the caller throws).
+  void conv(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add,
+            const CancelToken* cancel) {
 #ifdef RESIDUE_HAVE_AVX512_KERNEL
     if (avx512_) {
       const int r = c.dilation * (c.kernel / 2);
       tbb::parallel_for(tbb::blocked_range<int64_t>(0, dst.h), [&](const tbb::blocked_range<int64_t>& rows) {
-        for (int64_t y = rows.begin(); y < rows.end(); ++y)
+        for (int64_t y = rows.begin(); y < rows.end(); ++y) {
+          if (cancel != nullptr && cancel->requested()) return;
           for (size_t p = 0; p < srcs.size(); ++p)
             conv_row_avx512(c, p, srcs[p]->at(y - r, -r), srcs[p]->row(), dst.w, dst.at(y, 0), dst.c,
                             add ? add->at(y, 0) : nullptr, add ? add->c : 0);
+        }
       });
       return;
     }
 #endif
-    conv_eigen(c, srcs, dst, add);
+    conv_eigen(c, srcs, dst, add, cancel);
   }
 
-  void conv_eigen(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add) {
+  void conv_eigen(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add,
+                  const CancelToken* cancel) {
     const int64_t h = dst.h, w = dst.w;
     const int k = c.kernel, r = c.dilation * (k / 2);
     const auto cols = static_cast<int64_t>(c.weights.rows());
     const int64_t rows_per_strip = std::max<int64_t>(1, kStripPixels / std::max<int64_t>(w, 1));
     const int64_t strips = (h + rows_per_strip - 1) / rows_per_strip;
     tbb::parallel_for(int64_t{0}, strips, [&](int64_t s) {
+      if (cancel != nullptr && cancel->requested()) return;
       const int64_t y0 = s * rows_per_strip, y1 = std::min(h, y0 + rows_per_strip);
       const int64_t pixels = (y1 - y0) * w;
       Scratch& scratch = scratch_.local();

@@ -161,7 +161,7 @@ class OneDnnBackend final : public Backend {
     return aligned(p.arena.bytes) + aligned(p.scratchpad);
   }
 
-  void run(const Image& input, Image& output) override {
+  void execute(const Image& input, Image& output, const CancelToken* cancel) override {
     if (input.channels() != graph_.input_channels())
       throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
                                         " input channels, the tile has " + std::to_string(input.channels()));
@@ -190,6 +190,7 @@ class OneDnnBackend final : public Backend {
     const dnnl::memory user_in(plan.user_in, engine_, const_cast<float*>(input.data()));
     const dnnl::memory user_out(plan.user_out, engine_, output.data());
     for (const Step& s : plan.steps) {
+      throw_if_cancelled(cancel);  // between primitives: oneDNN cannot stop one part-way
       std::unordered_map<int, dnnl::memory> args = s.fixed;
       for (const Binding& b : s.bindings)
         args[b.arg] = b.user_input ? user_in : b.user_output ? user_out : mem[static_cast<size_t>(b.value)];
