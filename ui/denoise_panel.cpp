@@ -8,6 +8,7 @@
 #include <QLabel>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QSlider>
 #include <QTableWidget>
 #include <QTimer>
 #include <QVBoxLayout>
@@ -94,6 +95,25 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
                         "relative variance over 7x7 pixels), keep more of it than of the network's output"));
   row->addWidget(blend_);
   layout->addLayout(row);
+
+  // Strength re-blends the kept result with the noisy colour at once (core/denoise/strength.h): no new run.
+  auto* strength_row = new QHBoxLayout;
+  strength_label_ = new QLabel(tr("Strength 100 %"), this);
+  strength_label_->setObjectName("strengthLabel");
+  strength_ = new QSlider(Qt::Horizontal, this);
+  strength_->setObjectName("strength");
+  strength_->setRange(0, 100);
+  strength_->setValue(100);
+  strength_->setToolTip(tr("Denoising strength: 100 % shows the denoised result, 0 % the noisy input, between a "
+                           "linear blend of the two (which keeps the brightness). Metrics, heatmaps and exports "
+                           "follow it."));
+  strength_row->addWidget(strength_label_);
+  strength_row->addWidget(strength_, 1);
+  layout->addLayout(strength_row);
+  connect(strength_, &QSlider::valueChanged, this, [this](int v) {
+    strength_label_->setText(tr("Strength %1 %").arg(v));
+    session_->setStrength(static_cast<float>(v) / 100.0f);
+  });
 
   auto* buttons = new QHBoxLayout;
   denoise_ = new QPushButton(tr("Denoise"), this);

@@ -20,6 +20,7 @@ class QComboBox;
 class QLabel;
 class QProgressBar;
 class QPushButton;
+class QSlider;
 class QTableWidget;
 class QTimer;
 
@@ -86,6 +87,8 @@ class DenoisePanel : public QWidget {
   QCheckBox* roi_only_ = nullptr;
   QCheckBox* energy_ = nullptr;
   QCheckBox* blend_ = nullptr;
+  QSlider* strength_ = nullptr;
+  QLabel* strength_label_ = nullptr;
   QPushButton* denoise_ = nullptr;
   QPushButton* cancel_ = nullptr;
   QProgressBar* progress_ = nullptr;

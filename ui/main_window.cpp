@@ -727,6 +727,7 @@ QFuture<QString> MainWindow::exportDenoisedExr(const QString& path, bool overwri
   const auto denoised = session_->denoisedShared();
   const auto stack = session_->stack();
   const QString description = session_->denoisedDescription();
+  const float strength = session_->strength();
   return QtConcurrent::run([=]() -> QString {
     if (!denoised || !stack) return tr("Nothing to export: no denoised image.");
     try {
@@ -739,6 +740,7 @@ QFuture<QString> MainWindow::exportDenoisedExr(const QString& path, bool overwri
       o.display_height = stack->display_height;
       o.residue_attributes.attribute("residue:model", description.toStdString());
       o.residue_attributes.attribute("residue:source", stack->color.source.file);
+      o.residue_attributes.attribute("residue:strength", strength);
       o.residue_attributes.attribute("residue:version", std::string(RESIDUE_VERSION));
       o.residue_attributes.attribute("residue:written_by", std::string("residue viewer"));
       o.overwrite = overwrite;

@@ -3,6 +3,7 @@
 #include <QtConcurrent/QtConcurrentRun>
 #include <algorithm>
 
+#include "core/denoise/strength.h"
 #include "core/util/error.h"
 
 namespace residue::ui {
@@ -107,6 +108,7 @@ void Session::finishLoad() {
     return;
   }
   denoised_.reset();
+  blended_.reset();
   denoised_description_.clear();
   emit loaded();
 }
@@ -156,6 +158,7 @@ void Session::beginDenoised() {
   }
   denoised_ = std::move(img);
   denoised_description_.clear();
+  reblend();
   emit denoisedChanged();
 }
 
@@ -166,19 +169,53 @@ void Session::setDenoisedTile(const Rect& rect, const Image& pixels) {
   for (int64_t y = 0; y < rect.height; ++y)
     for (int64_t x = 0; x < rect.width; ++x)
       for (int c = 0; c < 3; ++c) denoised_->at(rect.x + x, rect.y + y, c) = pixels.at(x, y, c);
+  reblend(rect);
   emit denoisedTileChanged(rect);
 }
 
 void Session::adoptDenoised(std::shared_ptr<Image> image, QString description) {
   denoised_ = std::move(image);
   denoised_description_ = std::move(description);
+  reblend();
   emit denoisedChanged();
 }
 
 void Session::clearDenoised() {
   denoised_.reset();
+  blended_.reset();
   denoised_description_.clear();
   emit denoisedChanged();
+}
+
+void Session::setStrength(float strength) {
+  check_strength(strength);
+  if (strength == strength_) return;
+  strength_ = strength;
+  reblend();
+  emit denoisedChanged();
+}
+
+QString Session::denoisedDescription() const {
+  if (strength_ >= 1.0f || denoised_description_.isEmpty()) return denoised_description_;
+  return denoised_description_ + QString(", strength %1").arg(static_cast<double>(strength_), 0, 'f', 2);
+}
+
+// Re-makes the shown image from the result at strength 1: all of it, or one rectangle (a tile just written).
+void Session::reblend(const std::optional<Rect>& rect) {
+  if (strength_ >= 1.0f || !denoised_ || !stack_) {
+    blended_.reset();
+    return;
+  }
+  const Image& noisy = stack_->color.image;
+  if (!rect || !blended_) {
+    blended_ = std::make_shared<Image>(with_strength(noisy, *denoised_, strength_));
+    return;
+  }
+  if (blended_.use_count() > 1) blended_ = std::make_shared<Image>(*blended_);  // copy on write, as above
+  for (int64_t y = rect->y; y < rect->y + rect->height; ++y)
+    for (int64_t x = rect->x; x < rect->x + rect->width; ++x)
+      for (int c = 0; c < 3; ++c) blended_->at(x, y, c) = denoised_->at(x, y, c);
+  apply_strength(noisy, 0, *blended_, 0, *rect, rect->y, rect->height, strength_);
 }
 
 }  // namespace residue::ui

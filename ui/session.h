@@ -48,10 +48,15 @@ class Session : public QObject {
 
   // The reference colour, when known (from the stack or from another file).
   const Image* reference() const;
-  // The denoised colour; empty until a denoise ran. Tiles of a running denoise are written into it.
-  const Image* denoised() const { return denoised_ ? denoised_.get() : nullptr; }
+  // The denoised colour as shown, at the current strength; empty until a denoise ran. Tiles of a running
+  // denoise are written into it.
+  const Image* denoised() const { return denoisedShared().get(); }
   // A snapshot for a worker thread: tiles that arrive later go to a copy, never into this one.
-  std::shared_ptr<const Image> denoisedShared() const { return denoised_; }
+  std::shared_ptr<const Image> denoisedShared() const { return strength_ < 1.0f && blended_ ? blended_ : denoised_; }
+  // Denoising strength (core/denoise/strength.h): 1 shows the result, 0 the noisy colour, between a blend,
+  // re-made from the kept result at once (no network run). Emits denoisedChanged().
+  void setStrength(float strength);
+  float strength() const { return strength_; }
   const Image* image(Source s, AovView aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
   bool hasAov(AovView v) const;
 
@@ -62,8 +67,8 @@ class Session : public QObject {
   // Shows `image` as the denoised colour without copying it; it is copied on the first tile written into it
   // while someone else (a cache) holds it too.
   void adoptDenoised(std::shared_ptr<Image> image, QString description);
-  std::shared_ptr<Image> denoisedForCache() const { return denoised_; }
-  QString denoisedDescription() const { return denoised_description_; }
+  std::shared_ptr<Image> denoisedForCache() const { return denoised_; }  // at strength 1
+  QString denoisedDescription() const;  // with the strength when below 1
   void clearDenoised();
 
  signals:
@@ -82,7 +87,11 @@ class Session : public QObject {
   std::shared_ptr<const AovStack> stack_;
   std::vector<std::filesystem::path> inputs_;
   LoadOptions options_;
-  std::shared_ptr<Image> denoised_;
+  void reblend(const std::optional<Rect>& rect = std::nullopt);
+
+  std::shared_ptr<Image> denoised_;  // the result at strength 1 (shared with the denoise panel's cache)
+  std::shared_ptr<Image> blended_;   // denoised_ at strength_, when below 1
+  float strength_ = 1.0f;
   QString denoised_description_;
   bool loading_ = false;
   int generation_ = 0;

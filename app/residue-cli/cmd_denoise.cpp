@@ -10,6 +10,7 @@
 #include "commands.h"
 #include "core/denoise/bilateral.h"
 #include "core/denoise/denoiser.h"
+#include "core/denoise/strength.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
 #include "core/metrics/metrics.h"
@@ -33,6 +34,7 @@ struct DenoiseCliOptions {
   bool no_energy_correction = false;
   bool no_variance_blend = false;
   bool float_output = false;
+  float strength = 1.0f;
   std::string compression = "zip";
   bool force = false;
 };
@@ -103,6 +105,7 @@ int run(const DenoiseCliOptions& o) {
   d.skip_empty_tiles = !o.no_skip;
   d.energy_correction = !o.no_energy_correction;
   d.variance_blend = !o.no_variance_blend;
+  d.strength = o.strength;
   if (!o.roi.empty()) d.roi = parse_roi(o.roi);
 
   io::ExrWriteOptions w;
@@ -139,7 +142,8 @@ int run(const DenoiseCliOptions& o) {
     if (o.model == "bilateral") {  // the baseline, also a fast preview
       const AovStack stack = reader.read(whole);
       const auto t0 = std::chrono::steady_clock::now();
-      const Image out = cross_bilateral(stack, {}, d.roi);
+      const Image out = with_strength(stack.color.image, cross_bilateral(stack, {}, d.roi), d.strength);
+      stats.strength = d.strength;
       throw_if_cancelled(d.cancel);
       stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       stats.backend = "cross-bilateral (core)";
@@ -149,6 +153,7 @@ int run(const DenoiseCliOptions& o) {
       w.residue_attributes.attribute("residue:architecture", architecture);
       w.residue_attributes.attribute("residue:backend", stats.backend);
       w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
+      w.residue_attributes.attribute("residue:strength", stats.strength);
       stats.clamped_to_half = io::write_exr(o.output, out, w).clamped_to_half;
     } else {
       // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color).
@@ -169,6 +174,7 @@ int run(const DenoiseCliOptions& o) {
         w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
         w.residue_attributes.attribute("residue:energy_correction", stats.energy_corrected ? 1 : 0);
         w.residue_attributes.attribute("residue:variance_blend", stats.variance_blended ? 1 : 0);
+        w.residue_attributes.attribute("residue:strength", stats.strength);
         t0 = std::chrono::steady_clock::now();
         stats.clamped_to_half = io::write_exr(o.output, out, w).clamped_to_half;
         write_s = seconds_since(t0);
@@ -185,7 +191,8 @@ int run(const DenoiseCliOptions& o) {
 
   const double megapixels = static_cast<double>(d.roi ? d.roi->area() : whole.area()) / 1e6;
   std::printf("wrote      %s%s\n", display_path(o.output).c_str(), streamed ? " (streamed band by band)" : "");
-  std::printf("model      %s (%s)\n", model_name.c_str(), architecture.c_str());
+  std::printf("model      %s (%s)%s\n", model_name.c_str(), architecture.c_str(),
+              stats.strength < 1.0f ? (", strength " + std::to_string(stats.strength).substr(0, 4)).c_str() : "");
   std::printf("backend    %s\n", stats.backend.c_str());
   std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
               stats.seconds / megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
@@ -241,6 +248,11 @@ Command add_denoise_command(CLI::App& app) {
   cmd->add_flag("--no-variance-blend", o->no_variance_blend,
                 "Keep the network's output where the input is already clean (by default, when the render has a "
                 "variance AOV, pixels with a small relative variance keep more of the noisy input)");
+  cmd->add_option("--strength", o->strength,
+                  "Denoising strength: 1 keeps the denoised output, 0 the noisy input, between a linear blend of the "
+                  "two (which keeps the image's brightness)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0f, 1.0f));
   cmd->add_flag("--float", o->float_output, "Write 32-bit float channels (default: half)");
   cmd->add_option("--compression", o->compression, "EXR compression (zip, piz, dwaa, none, ...)")->capture_default_str();
   cmd->add_flag("-f,--force", o->force, "Replace the output if it exists");

@@ -11,6 +11,7 @@
 #include "core/denoise/energy_correction.h"
 #include "core/denoise/oidn_filter.h"
 #include "core/denoise/output_guard.h"
+#include "core/denoise/strength.h"
 #include "core/denoise/variance_blend.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
@@ -288,6 +289,10 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
     correction.apply(output, 0, region.y, region.height);
     local.energy_corrected = true;
   }
+  if (&source == &stack.color.image) {  // an OIDN prefilter's albedo or normal is kept whole
+    apply_strength(source, 0, output, 0, region, region.y, region.height, options.strength);
+    local.strength = options.strength;
+  }
   return output;
 }
 
@@ -296,6 +301,7 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
 Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options, const TileCallback& on_tile,
               DenoiseStats* stats) {
   const auto start = std::chrono::steady_clock::now();
+  check_strength(options.strength);
   const int threads = options.threads > 0 ? options.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
   DenoiseStats local;
@@ -308,6 +314,7 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
       AovStack clean = stack;
       DenoiseOptions whole = options;
       whole.roi.reset();
+      whole.strength = 1.0f;
       DenoiseStats ignored;
       if (model.albedo_prefilter) clean.albedo->image = denoise_stack(stack, *model.albedo_prefilter, whole, {}, ignored);
       if (model.normal_prefilter) clean.normal->image = denoise_stack(stack, *model.normal_prefilter, whole, {}, ignored);
@@ -324,6 +331,7 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
 DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, const DenoiseOptions& options,
                             const std::filesystem::path& output, io::ExrWriteOptions exr, const TileCallback& on_tile) {
   const auto start = std::chrono::steady_clock::now();
+  check_strength(options.strength);
   const AovStack& layout = reader.layout();
   check_inputs(layout, model);
   if (model.albedo_prefilter || model.normal_prefilter)
@@ -379,6 +387,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     exr.residue_attributes.attribute("residue:backend", local.backend);
     exr.residue_attributes.attribute("residue:energy_correction", local.energy_corrected ? 1 : 0);
     exr.residue_attributes.attribute("residue:variance_blend", local.variance_blended ? 1 : 0);
+    exr.residue_attributes.attribute("residue:strength", options.strength);
 
     // Pass 1: the whole-image statistics the input needs: the depth scale (the same sample denoise() draws) or
     // OIDN's autoexposure.
@@ -408,9 +417,12 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, options.cancel, 0, {}, {}, {}};
     EnergyCorrection correction(region);
     int64_t done = 0;
+    const bool blend = options.strength < 1.0f;
+    local.strength = options.strength;
     struct Band {
       int64_t y0;
       Image out;
+      Image noisy;  // the band's noisy colour, kept for the strength blend
     };
     std::deque<Band> denoised;  // bands denoised but not yet written
     int64_t denoised_end = 0;   // rows denoised so far
@@ -420,6 +432,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       const Rect src_rect{0, in_y0, W, in_y1 - in_y0};
       const AovStack src = reader.read(src_rect);
       Image out = crop(src.color.image, {0, y0 - in_y0, W, rows});  // outside the region the noisy colour stays
+      Image noisy = blend ? out : Image();
       for (const Rect& t : tiles) {
         if (t.y < y0 || t.y >= y0 + rows) continue;
         const bool skip = runner.run(src, src_rect, bounds, t, out, 0, y0);
@@ -428,7 +441,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
         if (on_tile && !on_tile({t, skip, done, local.tiles}, out)) throw Cancelled();
       }
       if (correct) correction.accumulate(src.color.image, in_y0, out, y0, y0, rows);
-      denoised.push_back({y0, std::move(out)});
+      denoised.push_back({y0, std::move(out), std::move(noisy)});
       denoised_end = y0 + rows;
     };
     local.clamped_to_half = io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
@@ -437,6 +450,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       Band band = std::move(denoised.front());
       denoised.pop_front();
       if (correct) correction.apply(band.out, band.y0, y0, rows);
+      if (blend) apply_strength(band.noisy, band.y0, band.out, band.y0, region, y0, rows, options.strength);
       return std::move(band.out);
     }).clamped_to_half;
     local.guarded_values = runner.guarded;

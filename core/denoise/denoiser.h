@@ -5,7 +5,7 @@
 // output equals untiled output; the guard bounds it by the brightest input within that halo. Tiles run one
 // after another, each using every allowed thread; where the render has a variance AOV each tile is blended
 // back towards its clean input pixels. Then, unless turned off, the energy correction rescales the region to
-// the noisy input's local mean.
+// the noisy input's local mean, and a strength below 1 blends the result back towards the noisy colour.
 #pragma once
 
 #include <cstddef>
@@ -35,6 +35,7 @@ struct DenoiseOptions {
   bool energy_correction = true;                // rescale to the noisy input's local mean (energy_correction.h)
   bool variance_blend = true;                   // with a variance AOV: keep clean input pixels (variance_blend.h)
   float blend_tau = 0;                          // the blend's tau; 0: the model's (residue.blend_tau) or the default
+  float strength = 1.0f;                        // 1: the output; 0: the noisy input; between: blend (strength.h)
   const CancelToken* cancel = nullptr;          // raised: stop within one network layer, throwing Cancelled
 };
 
@@ -56,6 +57,7 @@ struct DenoiseStats {
   bool variance_blended = false;  // the option was on and the render has variance
   int64_t guarded_values = 0;     // output values the guard clamped (channels, not pixels)
   int64_t clamped_to_half = 0;    // denoise_to_exr into half: finite values beyond 65504 written as 65504
+  float strength = 1.0f;          // the blend towards the noisy colour applied last (strength.h)
 };
 
 // Called after every tile with the output so far; return false to cancel (stops after that tile; a CancelToken in

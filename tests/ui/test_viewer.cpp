@@ -6,6 +6,7 @@
 #include <QDoubleSpinBox>
 #include <QMenu>
 #include <QPushButton>
+#include <QSlider>
 #include <QSignalSpy>
 #include <QStandardPaths>
 #include <QTableWidget>
@@ -19,6 +20,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "core/denoise/denoiser.h"
+#include "core/denoise/strength.h"
 #include "core/features/features.h"
 #include "core/image/colormap.h"
 #include "core/metrics/metrics.h"
@@ -179,6 +181,46 @@ class TestViewer : public QObject {
     w.denoisePanel()->start();
     QCOMPARE(again.count(), 1);
     QVERIFY(!w.denoisePanel()->running());
+  }
+
+  void strengthReblendsWithoutARun() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    QVERIFY(w.denoisePanel()->selectModel("tiny"));
+    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+    w.denoisePanel()->start();
+    QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+    const auto stack = w.session()->stack();
+    const Image full = *w.session()->denoised();
+    auto* slider = w.denoisePanel()->findChild<QSlider*>("strength");
+    QVERIFY(slider);
+    slider->setValue(50);
+    QVERIFY(!w.denoisePanel()->running());
+    QCOMPARE(maxAbsDiff(*w.session()->denoised(), with_strength(stack->color.image, full, 0.5f), 3), 0.0);
+    QVERIFY(w.session()->denoisedDescription().endsWith("strength 0.50"));
+    // The metrics follow the shown image.
+    QVERIFY(settle(w, [&] {
+      const auto& rows = w.metricsPanel()->report().rows;
+      return rows.size() == 2 && rows[1].scores.relmse == metrics::compare(*w.session()->denoised(), stack->reference->image).relmse;
+    }));
+    slider->setValue(0);
+    QCOMPARE(maxAbsDiff(*w.session()->denoised(), stack->color.image, 3), 0.0);
+    // Back to 100 %: the kept result, untouched by the blends.
+    slider->setValue(100);
+    QCOMPARE(maxAbsDiff(*w.session()->denoised(), full, 3), 0.0);
+    // An export at 25 % writes what is shown and says so.
+    slider->setValue(25);
+    QTemporaryDir dir;
+    const QString path = dir.filePath("d.exr");
+    auto future = w.exportDenoisedExr(path, false, false, "zip");
+    future.waitForFinished();
+    QVERIFY2(future.result().isEmpty(), qPrintable(future.result()));
+    QCOMPARE(maxAbsDiff(readExr(path), with_strength(stack->color.image, full, 0.25f), 3), 0.0);
+    auto in = OIIO::ImageInput::open(path.toStdString());
+    QVERIFY(in);
+    QCOMPARE(in->spec().get_float_attribute("residue:strength", -1.0f), 0.25f);
   }
 
   void roiDenoiseRunsOnlyTheRoi() {
