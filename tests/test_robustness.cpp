@@ -50,7 +50,7 @@ std::string read_text(const fs::path& p) {
 // A plain multilayer render (R,G,B, albedo, normal, depth) of size x size with a noisy-looking colour.
 void write_render(const fs::path& path, int size) {
   auto hash = [](int x, int y, int c) {
-    uint32_t h = static_cast<uint32_t>(x * 73856093) ^ static_cast<uint32_t>(y * 19349663) ^ static_cast<uint32_t>(c * 83492791);
+    uint32_t h = (static_cast<uint32_t>(x) * 73856093u) ^ (static_cast<uint32_t>(y) * 19349663u) ^ (static_cast<uint32_t>(c) * 83492791u);
     h ^= h >> 13;
     h *= 0x5bd1e995u;
     h ^= h >> 15;
