@@ -2,7 +2,6 @@
 // model-file case (those live in test_aov / test_denoise / test_tza), end to end where the user meets it.
 #include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -24,8 +23,6 @@
 #include "core/nn/model_file.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
-
-extern char** environ;
 
 namespace residue {
 namespace {
@@ -67,44 +64,6 @@ void write_render(const fs::path& path, int size) {
   part.channels.push_back({"depth.Z", false, [](int x, int) { return 2.0f + 0.01f * static_cast<float>(x); }});
   testing::write_fixture_exr(path.string(), {part});
 }
-
-// residue-cli started in the background, its stdout and stderr going to `log`.
-struct Child {
-  pid_t pid = -1;
-  int wait_status = 0;
-  std::chrono::steady_clock::time_point signalled;
-
-  Child(const std::vector<std::string>& args, const fs::path& log) {
-    std::vector<std::string> argv_s = {RESIDUE_CLI_PATH};
-    argv_s.insert(argv_s.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (auto& a : argv_s) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&actions, 1, 2);
-    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-    EXPECT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
-    posix_spawn_file_actions_destroy(&actions);
-  }
-  void signal(int sig) {
-    signalled = std::chrono::steady_clock::now();
-    ::kill(pid, sig);
-  }
-  // Waits for the exit; returns the seconds since signal().
-  double wait() {
-    ::waitpid(pid, &wait_status, 0);
-    pid = -1;
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled).count();
-  }
-  ~Child() {
-    if (pid > 0) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, nullptr, 0);
-    }
-  }
-};
 
 // --- outputs: every check before any work -------------------------------------------------------------------
 
@@ -290,7 +249,7 @@ TEST_P(Signals, StopInsideTheTileAndLeaveNoFile) {
   args.insert(args.end(), {"--backend", c.backend});
   const auto before = files_in(dir.path());
   const fs::path log = fs::temp_directory_path() / ("residue-signal-" + std::to_string(::getpid()) + ".log");
-  Child child(args, log);
+  testing::ChildProcess child(args, log);
   // Streamed runs create their (temporary) output before the first tile: wait for it, then signal.
   for (int i = 0; i < 200 && c.streamed; ++i) {
     if (files_in(dir.path()).size() > before.size()) break;
@@ -303,8 +262,8 @@ TEST_P(Signals, StopInsideTheTileAndLeaveNoFile) {
   fs::remove(log);
   std::printf("[ measured ] %s on %s%s: stopped %.2f s after the signal\n", strsignal(c.signal), c.backend.c_str(),
               c.streamed ? " (streamed)" : "", seconds);
-  ASSERT_TRUE(WIFEXITED(child.wait_status)) << "ended by the signal itself, not by the handler: " << text;
-  EXPECT_EQ(WEXITSTATUS(child.wait_status), c.exit_code) << text;
+  ASSERT_TRUE(WIFEXITED(child.wait_status())) << "ended by the signal itself, not by the handler: " << text;
+  EXPECT_EQ(WEXITSTATUS(child.wait_status()), c.exit_code) << text;
   if (!c.streamed) {
     EXPECT_EQ(text.find("1/1 tiles"), std::string::npos) << "the only tile did not finish: " << text;
   }
@@ -328,7 +287,7 @@ TEST(SignalsKill, TheNextRunRemovesTheTemporaryFile) {
   const fs::path log = fs::temp_directory_path() / ("residue-kill-" + std::to_string(::getpid()) + ".log");
   std::string temp;
   {
-    Child child(args, log);
+    testing::ChildProcess child(args, log);
     for (int i = 0; i < 400 && temp.empty(); ++i) {
       for (const auto& n : files_in(dir.path()))
         if (n.rfind(".out.exr.residue-tmp-", 0) == 0) temp = n;
@@ -354,7 +313,7 @@ TEST(OutputRace, CreatedDuringTheDenoiseStopsItAtTheNextTile) {
   TempDir dir;
   const std::vector<std::string> args = long_denoise(dir, true);
   const fs::path log = fs::temp_directory_path() / ("residue-race-" + std::to_string(::getpid()) + ".log");
-  Child child(args, log);
+  testing::ChildProcess child(args, log);
   for (int i = 0; i < 400 && files_in(dir.path()).size() < 2; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
   child.signal(0);  // starts the clock
   std::ofstream(dir / "out.exr") << "theirs";
@@ -362,8 +321,8 @@ TEST(OutputRace, CreatedDuringTheDenoiseStopsItAtTheNextTile) {
   const std::string text = read_text(log);
   fs::remove(log);
   std::printf("[ measured ] stopped %.2f s after the output appeared\n", seconds);
-  ASSERT_TRUE(WIFEXITED(child.wait_status)) << text;
-  EXPECT_EQ(WEXITSTATUS(child.wait_status), 4) << text;
+  ASSERT_TRUE(WIFEXITED(child.wait_status())) << text;
+  EXPECT_EQ(WEXITSTATUS(child.wait_status()), 4) << text;
   EXPECT_NE(text.find("was created by another program during the denoise"), std::string::npos) << text;
   EXPECT_EQ(read_text(dir / "out.exr"), "theirs");
   EXPECT_EQ(files_in(dir.path()), (std::vector<std::string>{"out.exr", "render.exr"})) << "no temporary file left";

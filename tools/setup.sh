@@ -25,6 +25,8 @@ packages=(
   # fuzzing (tools/fuzz.sh, the `fuzz` preset): clang 14 and its compiler-rt, which holds libFuzzer
   # (libclang_rt.fuzzer-x86_64.a) and clang's ASan/UBSan runtimes; the `asan` preset uses gcc's (build-essential)
   clang libclang-rt-14-dev
+  # render farm: Slurm and munge, for `residue-cli farm slurm` and its end-to-end test on a one-node cluster
+  slurmctld slurmd slurm-client munge
 )
 
 missing=()

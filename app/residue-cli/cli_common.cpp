@@ -44,6 +44,16 @@ AovStack InputOptions::load() const {
   return load_aov_stack(paths, load_options());
 }
 
+int exit_code_for(ErrorKind kind) {
+  switch (kind) {
+    case ErrorKind::Input:
+    case ErrorKind::Mapping: return kInputError;
+    case ErrorKind::Output: return kOutputError;
+    case ErrorKind::Usage: return kUsageError;
+  }
+  return kInternalError;
+}
+
 Rect parse_roi(const std::string& text) {
   Rect r;
   char c1 = 0, c2 = 0, c3 = 0;

@@ -11,6 +11,7 @@
 #include "core/aov/aov_loader.h"
 #include "core/image/image.h"
 #include "core/io/metrics_report.h"
+#include "core/util/error.h"
 
 namespace residue::cli {
 
@@ -22,6 +23,9 @@ enum ExitCode : int {
   kInputError = 3,     // an input is missing, unreadable, or lacks what is needed
   kOutputError = 4,    // an output exists (no --force) or cannot be written
 };
+
+// The exit code for an error of this kind.
+int exit_code_for(ErrorKind kind);
 
 // Options that say how to read an AOV stack; added to every subcommand that reads one.
 struct InputOptions {

@@ -16,7 +16,7 @@ int main(int argc, char** argv) {
                "residue-cli"};
   app.set_version_flag("--version", std::string("residue-cli ") + RESIDUE_VERSION);
   app.require_subcommand(1);
-  const std::vector<Command> commands = {add_info_command(app), add_eval_command(app), add_denoise_command(app), add_bench_command(app), add_evaluate_set_command(app)};
+  const std::vector<Command> commands = {add_info_command(app), add_eval_command(app), add_denoise_command(app), add_bench_command(app), add_evaluate_set_command(app), add_farm_command(app)};
 
   try {
     app.parse(argc, argv);
@@ -33,13 +33,7 @@ int main(int argc, char** argv) {
     return kUsageError;
   } catch (const residue::Error& e) {
     std::fprintf(stderr, "residue-cli: error: %s\n", e.what());
-    switch (e.kind()) {
-      case residue::ErrorKind::Input:
-      case residue::ErrorKind::Mapping: return kInputError;
-      case residue::ErrorKind::Output: return kOutputError;
-      case residue::ErrorKind::Usage: return kUsageError;
-    }
-    return kInternalError;
+    return exit_code_for(e.kind());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "residue-cli: internal error: %s\n", e.what());
     return kInternalError;

@@ -186,6 +186,12 @@ std::vector<Rect> grid_tiles(const Rect& bounds, const Rect& region, int64_t til
 
 }  // namespace
 
+nn::Backend& BackendCache::get(const nn::Model& model, const std::string& backend, nn::Precision precision) {
+  auto& slot = backends_[{&model, backend, precision}];
+  if (!slot) slot = nn::make_backend(backend, model.graph, {precision});
+  return *slot;
+}
+
 std::vector<Rect> make_tiles(const Rect& region, int64_t tile) {
   std::vector<Rect> tiles;
   for (int64_t y = region.y; y < region.y + region.height; y += tile)
@@ -243,6 +249,13 @@ std::string backend_for(const DenoiseOptions& o) {
   return o.backend.empty() ? nn::available_backends().back() : o.backend;  // the last is the fastest
 }
 
+// The options' cached backend for `model`, or a fresh one held by `owned`.
+nn::Backend& backend_of(const DenoiseOptions& o, const nn::Model& model, std::unique_ptr<nn::Backend>& owned) {
+  if (o.backends) return o.backends->get(model, backend_for(o), o.precision);
+  owned = nn::make_backend(backend_for(o), model.graph, {o.precision});
+  return *owned;
+}
+
 // The whole denoise of a stack in memory with one model (an OIDN prefilter included: its output is the image it
 // cleans, albedo or normal).
 Image denoise_stack(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
@@ -259,7 +272,8 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
   const Rect region = checked_region(options, stack.width(), stack.height());
   Image output = source;  // outside the region the input stays
 
-  auto backend = nn::make_backend(backend_for(options), model.graph, {options.precision});
+  std::unique_ptr<nn::Backend> owned;
+  nn::Backend* backend = &backend_of(options, model, owned);
   const size_t output_bytes = output.size() * sizeof(float);
   const size_t budget = options.max_memory > output_bytes ? options.max_memory - output_bytes : 0;
   int64_t tile = choose_tile(options, *backend, model.graph, budget);
@@ -351,7 +365,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
   tbb::task_arena arena(threads);
   DenoiseStats local;
   arena.execute([&] {
-    auto backend = nn::make_backend(backend_for(options), model.graph, {options.precision});
+    std::unique_ptr<nn::Backend> owned;
+    nn::Backend* backend = &backend_of(options, model, owned);
     const nn::Graph& graph = model.graph;
     const int64_t h = graph.halo(), a = graph.alignment();
     const bool correct = options.energy_correction && residue;

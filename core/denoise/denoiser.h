@@ -10,9 +10,12 @@
 
 #include <cstddef>
 #include <functional>
+#include <map>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/aov_stack.h"
@@ -22,6 +25,17 @@
 #include "core/util/cancel.h"
 
 namespace residue {
+
+// Backends kept from one denoise to the next (the frames of a sequence, a viewer's runs): each keeps the tile
+// sizes it planned (oneDNN's primitives), so only the first frame pays for them. Keyed by the model object: keep
+// the models alive while the cache is used. One denoise at a time.
+class BackendCache {
+ public:
+  nn::Backend& get(const nn::Model& model, const std::string& backend, nn::Precision precision);
+
+ private:
+  std::map<std::tuple<const nn::Model*, std::string, nn::Precision>, std::unique_ptr<nn::Backend>> backends_;
+};
 
 struct DenoiseOptions {
   std::string backend;                          // empty: the fastest available
@@ -37,6 +51,7 @@ struct DenoiseOptions {
   float blend_tau = 0;                          // the blend's tau; 0: the model's (residue.blend_tau) or the default
   float strength = 1.0f;                        // 1: the output; 0: the noisy input; between: blend (strength.h)
   const CancelToken* cancel = nullptr;          // raised: stop within one network layer, throwing Cancelled
+  BackendCache* backends = nullptr;             // reuse backends across calls; null: made for this call
 };
 
 struct TileEvent {

@@ -1,13 +1,20 @@
 #include "support/test_support.h"
 
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <array>
 #include <cstdio>
 #include <random>
-#include <sys/wait.h>
 
 #include <gtest/gtest.h>
 
 #include "core/aov/aov_loader.h"
+
+extern char** environ;
 
 namespace residue::testing {
 
@@ -80,6 +87,42 @@ int run_program(const std::string& program, const std::vector<std::string>& args
   int status = pclose(pipe);
   if (output) *output = text;
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+ChildProcess::ChildProcess(const std::vector<std::string>& args, const std::filesystem::path& log) {
+  std::vector<std::string> argv_s = {RESIDUE_CLI_PATH};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+  pid_t pid = -1;
+  EXPECT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0);
+  pid_ = pid;
+  posix_spawn_file_actions_destroy(&actions);
+  signalled_ = std::chrono::steady_clock::now();
+}
+
+ChildProcess::~ChildProcess() {
+  if (pid_ > 0) {
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+  }
+}
+
+void ChildProcess::signal(int sig) {
+  signalled_ = std::chrono::steady_clock::now();
+  if (pid_ > 0) ::kill(pid_, sig);
+}
+
+double ChildProcess::wait() {
+  if (pid_ > 0) ::waitpid(pid_, &wait_status_, 0);
+  pid_ = -1;
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - signalled_).count();
 }
 
 std::string error_message(const std::function<void()>& f, ErrorKind kind) {

@@ -1,6 +1,7 @@
 // Helpers shared by the test suites: temporary folders, paths to real data, small image builders.
 #pragma once
 
+#include <chrono>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -48,6 +49,24 @@ std::string error_message(const std::function<void()>& f, ErrorKind kind);
 int run_cli(const std::vector<std::string>& args, std::string* output = nullptr);
 // The same for any program.
 int run_program(const std::string& program, const std::vector<std::string>& args, std::string* output = nullptr);
+
+// residue-cli started in the background (posix_spawn), stdout and stderr going to `log`; killed (SIGKILL) and
+// reaped if still running when the object goes away.
+class ChildProcess {
+ public:
+  ChildProcess(const std::vector<std::string>& args, const std::filesystem::path& log);
+  ~ChildProcess();
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+  void signal(int sig);  // kill(pid, sig); also starts the clock wait() reads (0 only starts it)
+  double wait();         // waits for the exit; the seconds since signal()
+  int wait_status() const { return wait_status_; }  // waitpid's status, after wait()
+
+ private:
+  int pid_ = -1;
+  int wait_status_ = 0;
+  std::chrono::steady_clock::time_point signalled_;
+};
 
 }  // namespace residue::testing
 

@@ -1,0 +1,196 @@
+#include "denoise_frame.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+
+#include "core/denoise/bilateral.h"
+#include "core/denoise/strength.h"
+#include "core/features/features.h"
+#include "core/metrics/metrics.h"
+#include "core/util/error.h"
+
+namespace residue::cli {
+namespace {
+
+// Draws "[#####.....] 12/40 tiles" on a terminal, or one line per ~10% otherwise.
+class ProgressReporter {
+ public:
+  ProgressReporter() : tty_(isatty(STDERR_FILENO) != 0) {}
+  void tile(const TileEvent& e) {
+    if (tty_) {
+      const int width = 30;
+      const int filled = static_cast<int>(width * e.done / std::max<int64_t>(1, e.total));
+      std::fprintf(stderr, "\r[%s%s] %lld/%lld tiles", std::string(static_cast<size_t>(filled), '#').c_str(),
+                   std::string(static_cast<size_t>(width - filled), '.').c_str(), static_cast<long long>(e.done),
+                   static_cast<long long>(e.total));
+      if (e.done == e.total) std::fprintf(stderr, "\n");
+    } else if (e.done == e.total || e.done * 10 / e.total != (e.done - 1) * 10 / e.total) {
+      std::fprintf(stderr, "denoise: %lld/%lld tiles\n", static_cast<long long>(e.done), static_cast<long long>(e.total));
+    }
+  }
+
+ private:
+  bool tty_;
+};
+
+// Bytes an in-memory denoise holds for the whole image: every AOV as float, plus the output.
+size_t whole_image_bytes(const AovStack& layout) {
+  return static_cast<size_t>((layout.channel_count() + 3) * layout.data_window.area()) * sizeof(float);
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The files a render is read from (every AOV's, the reference's).
+std::vector<std::string> input_files(const AovStack& layout) {
+  std::vector<std::string> files = {layout.color.source.file};
+  for (const std::optional<Aov>* a : {&layout.albedo, &layout.normal, &layout.depth, &layout.variance, &layout.reference})
+    if (a->has_value()) files.push_back((*a)->source.file);
+  return files;
+}
+
+// Every check on the output, before any work: the output may not be one of the files read (even with --force:
+// the render's AOVs would be lost), then prepare_exr_output()'s (name, compression, folder, overwrite).
+void check_output(const std::string& output, const AovStack& layout, const io::ExrWriteOptions& w) {
+  std::error_code ec;
+  for (const std::string& f : input_files(layout))
+    if (std::filesystem::equivalent(output, f, ec))
+      throw Error(ErrorKind::Output, "output '" + output + "' is the input '" + f +
+                                         "': writing the denoised colour there would lose the render; choose another name");
+  for (const auto& removed : io::prepare_exr_output(output, w))
+    std::fprintf(stderr, "note: removed '%s', a partial output left by an earlier run that was killed\n",
+                 removed.c_str());
+}
+
+}  // namespace
+
+DenoiseOptions DenoiseCliOptions::denoise_options() const {
+  DenoiseOptions d;
+  d.backend = backend;
+  d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+  d.tile = tile;
+  d.threads = threads;
+  d.max_memory = max_memory_mib << 20;
+  d.skip_empty_tiles = !no_skip;
+  d.energy_correction = !no_energy_correction;
+  d.variance_blend = !no_variance_blend;
+  d.strength = strength;
+  if (!roi.empty()) d.roi = parse_roi(roi);
+  return d;
+}
+
+io::ExrWriteOptions DenoiseCliOptions::write_options() const {
+  io::ExrWriteOptions w;
+  w.pixel_type = float_output ? io::PixelType::Float : io::PixelType::Half;
+  w.compression = compression;
+  w.overwrite = force;
+  return w;
+}
+
+FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
+                          const LoadOptions& load, const std::string& output) {
+  const DenoiseCliOptions& o = context.options;
+  const AovReader reader(inputs, load);
+  const AovStack& layout = reader.layout();
+  FrameResult result;
+  result.output = output;
+  result.notes = layout.notes;
+  if (context.show_progress)
+    for (const std::string& note : layout.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
+  const Rect whole{0, 0, layout.data_window.width, layout.data_window.height};
+  DenoiseOptions d = o.denoise_options();
+  d.cancel = &context.interrupt.token();
+  d.backends = &context.backends;
+
+  io::ExrWriteOptions w = o.write_options();
+  w.metadata = layout.metadata;
+  w.data_window = layout.data_window;
+  w.display_width = layout.display_width;
+  w.display_height = layout.display_height;
+  w.residue_attributes.attribute("residue:version", RESIDUE_VERSION);
+  w.residue_attributes.attribute("residue:source", layout.color.source.file);
+  check_output(output, layout, w);
+
+  ProgressReporter progress;
+  auto on_tile = [&](const TileEvent& e, const Image&) {
+    if (context.show_progress) progress.tile(e);
+    // Another process may create the output meanwhile: say so now rather than after the work.
+    std::error_code ec;
+    if (!o.force && std::filesystem::exists(std::filesystem::symlink_status(output, ec)))
+      throw Error(ErrorKind::Output, "output '" + output + "' was created by another program during the denoise; "
+                                     "nothing was replaced (pass --force to replace it)");
+    return !context.interrupt.interrupted();
+  };
+  DenoiseStats& stats = result.stats;
+  result.model = o.model;
+  result.architecture = "cross-bilateral filter";
+  // Renders that fit in --max-memory are denoised in memory; larger ones band by band from and to the files
+  // (then the header cannot carry the time, which is known only at the end).
+  result.streamed = o.model != "bilateral" && whole_image_bytes(layout) > d.max_memory;
+  if (o.model == "bilateral") {  // the baseline, also a fast preview
+    const AovStack stack = reader.read(whole);
+    const auto t0 = std::chrono::steady_clock::now();
+    const Image out = with_strength(stack.color.image, cross_bilateral(stack, {}, d.roi), d.strength);
+    throw_if_cancelled(d.cancel);
+    stats.strength = d.strength;
+    stats.seconds = seconds_since(t0);
+    stats.backend = "cross-bilateral (core)";
+    stats.tiles = 1;
+    stats.tile_size = std::max(stack.width(), stack.height());
+    w.residue_attributes.attribute("residue:model", result.model);
+    w.residue_attributes.attribute("residue:architecture", result.architecture);
+    w.residue_attributes.attribute("residue:backend", stats.backend);
+    w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
+    w.residue_attributes.attribute("residue:strength", stats.strength);
+    stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
+  } else {
+    // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color);
+    // each file is loaded once per process.
+    const std::filesystem::path file = nn::find_model_for(o.model, feature_set_for(layout));
+    auto it = context.models.find(file);
+    if (it == context.models.end()) it = context.models.emplace(file, nn::load_model(file)).first;
+    const nn::Model& model = it->second;
+    result.model = model.name;
+    result.architecture = model.architecture();
+    w.residue_attributes.attribute("residue:model", result.model);
+    w.residue_attributes.attribute("residue:architecture", result.architecture);
+    if (result.streamed) {  // the header, written first, says which post-steps run (core decides, as below)
+      stats = denoise_to_exr(reader, model, d, output, w, on_tile);
+    } else {
+      auto t0 = std::chrono::steady_clock::now();
+      const AovStack stack = reader.read(whole);
+      result.read_s = seconds_since(t0);
+      const Image out = denoise(stack, model, d, on_tile, &stats);
+      throw_if_cancelled(d.cancel);
+      w.residue_attributes.attribute("residue:backend", stats.backend);
+      w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
+      w.residue_attributes.attribute("residue:energy_correction", stats.energy_corrected ? 1 : 0);
+      w.residue_attributes.attribute("residue:variance_blend", stats.variance_blended ? 1 : 0);
+      w.residue_attributes.attribute("residue:strength", stats.strength);
+      t0 = std::chrono::steady_clock::now();
+      stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
+      result.write_s = seconds_since(t0);
+    }
+  }
+  result.megapixels = static_cast<double>(d.roi ? d.roi->area() : whole.area()) / 1e6;
+
+  if (layout.reference && !context.interrupt.interrupted()) {
+    // Scored from the file written, as the user will see it.
+    const AovStack stack = reader.read(whole);
+    LoadOptions lo;
+    lo.load_reference = false;
+    const Image denoised = load_aov_stack({output}, lo).color.image;
+    metrics::Options m;
+    m.roi = d.roi;
+    io::MetricsReport report{layout.reference->source.file, whole.width, whole.height, m, {}, layout.notes};
+    report.rows.push_back({"noisy", layout.color.source.file, metrics::compare(stack.color.image, stack.reference->image, m)});
+    report.rows.push_back({"denoised", output, metrics::compare(denoised, stack.reference->image, m)});
+    result.metrics = std::move(report);
+  }
+  return result;
+}
+
+}  // namespace residue::cli

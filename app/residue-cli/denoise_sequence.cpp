@@ -1,0 +1,189 @@
+#include "denoise_sequence.h"
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "core/io/atomic_file.h"
+#include "core/io/frame_sequence.h"
+#include "core/util/error.h"
+
+namespace residue::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using io::FramePattern;
+
+struct FrameRecord {
+  int64_t frame = 0;
+  fs::path input, output;
+  std::string status = "pending";  // done, skipped, failed, interrupted, pending (not reached)
+  std::string error;
+  int exit_code = kOk;
+  double seconds = 0, megapixels = 0;
+  std::string model;
+  std::optional<io::MetricsReport> metrics;
+};
+
+FramePattern pattern_of(const std::string& text, const char* what) {
+  std::optional<FramePattern> p = FramePattern::parse(text);
+  if (!p)
+    throw Error(ErrorKind::Usage, std::string(what) + " '" + text + "' names no frame: for a sequence give a pattern "
+                                  "such as out.####.exr or out.%04d.exr");
+  return *p;
+}
+
+// On a farm (a Slurm task) a rerun of a chunk must not redo or refuse finished frames.
+bool on_farm() { return std::getenv("SLURM_ARRAY_TASK_ID") != nullptr || std::getenv("SLURM_JOB_ID") != nullptr; }
+
+nlohmann::ordered_json to_json(const std::vector<FrameRecord>& records, const DenoiseCliOptions& o,
+                               const FramePattern& in, const FramePattern& out, double seconds, int exit_code) {
+  nlohmann::ordered_json frames = nlohmann::ordered_json::array();
+  int done = 0, skipped = 0, failed = 0;
+  double megapixels = 0, denoise_seconds = 0;
+  for (const FrameRecord& r : records) {
+    nlohmann::ordered_json j{{"frame", r.frame}, {"input", r.input.string()}, {"output", r.output.string()}, {"status", r.status}};
+    if (!r.error.empty()) j["error"] = r.error;
+    if (r.status == "done") {
+      j["model"] = r.model;
+      j["seconds"] = r.seconds;
+      j["megapixels"] = r.megapixels;
+      if (r.metrics) {
+        const auto& noisy = r.metrics->rows[0].scores;
+        const auto& denoised = r.metrics->rows[1].scores;
+        j["reference"] = r.metrics->reference_file;
+        j["relmse"] = denoised.relmse;
+        j["ssim"] = denoised.ssim;
+        j["noisy_relmse"] = noisy.relmse;
+        j["noisy_ssim"] = noisy.ssim;
+      }
+      ++done;
+      megapixels += r.megapixels;
+      denoise_seconds += r.seconds;
+    }
+    skipped += r.status == "skipped";
+    failed += r.status == "failed";
+    frames.push_back(std::move(j));
+  }
+  nlohmann::ordered_json doc;
+  doc["input"] = in.to_string();
+  doc["output"] = out.to_string();
+  doc["model"] = o.model;
+  doc["frames_requested"] = records.size();
+  doc["done"] = done;
+  doc["skipped"] = skipped;
+  doc["failed"] = failed;
+  doc["seconds"] = seconds;
+  doc["s_per_mp"] = megapixels > 0 ? denoise_seconds / megapixels : 0.0;
+  doc["exit_code"] = exit_code;
+  doc["frames"] = std::move(frames);
+  return doc;
+}
+
+}  // namespace
+
+bool is_sequence(const DenoiseCliOptions& o) {
+  return o.input.inputs.size() == 1 && FramePattern::parse(o.input.inputs.front()).has_value();
+}
+
+int run_sequence(const DenoiseCliOptions& o) {
+  const auto start = std::chrono::steady_clock::now();
+  const FramePattern in = pattern_of(o.input.inputs.front(), "input");
+  const FramePattern out = pattern_of(o.output, "output -o");
+  const std::optional<FramePattern> reference =
+      o.input.reference.empty() ? std::nullopt : std::optional(pattern_of(o.input.reference, "reference -r"));
+  const bool skip_existing = !o.force && (o.skip_existing || on_farm());
+
+  std::vector<int64_t> frames = o.frames.empty() ? io::find_frames(in) : io::parse_frame_spec(o.frames);
+  if (frames.empty())
+    throw Error(ErrorKind::Input, "no frame of '" + in.to_string() + "' exists (give --frames to name them)");
+
+  // Every check before the first frame: the summary file, then each output (a conflict lists them all).
+  if (!o.summary.empty()) io::prepare_output(o.summary, o.force || skip_existing);
+  std::vector<FrameRecord> records;
+  std::vector<std::string> existing;
+  const io::ExrWriteOptions w = o.write_options();
+  for (int64_t f : frames) {
+    FrameRecord r;
+    r.frame = f;
+    r.input = in.path(f);
+    r.output = out.path(f);
+    std::error_code ec;
+    if (fs::exists(fs::symlink_status(r.output, ec)) && !o.force) {
+      if (skip_existing) r.status = "skipped";
+      else existing.push_back(r.output.string());
+    }
+    records.push_back(std::move(r));
+  }
+  if (!existing.empty())
+    throw Error(ErrorKind::Output, std::to_string(existing.size()) + " of the " + std::to_string(frames.size()) +
+                                       " outputs exist (" + existing.front() + (existing.size() > 1 ? ", ..." : "") +
+                                       "); pass --skip-existing to resume, or --force to replace them");
+  for (FrameRecord& r : records)
+    if (r.status == "pending")
+      for (const auto& removed : io::prepare_exr_output(r.output, w))
+        std::fprintf(stderr, "note: removed '%s', a partial output left by an earlier run that was killed\n", removed.c_str());
+
+  const InterruptScope interrupt;
+  FrameContext context{o, interrupt, false};
+  int exit_code = kOk;
+  size_t index = 0;
+  for (FrameRecord& r : records) {
+    ++index;
+    if (r.status == "skipped") {
+      std::printf("frame %lld  skipped: %s exists\n", static_cast<long long>(r.frame), display_path(r.output.string()).c_str());
+      continue;
+    }
+    if (interrupt.interrupted()) break;
+    LoadOptions load = o.input.load_options();
+    if (reference) load.reference = reference->path(r.frame);
+    try {
+      if (!fs::exists(r.input)) throw Error(ErrorKind::Input, "input '" + r.input.string() + "' does not exist");
+      const FrameResult result = denoise_frame(context, {r.input}, load, r.output.string());
+      r.status = "done";
+      r.seconds = result.stats.seconds;
+      r.megapixels = result.megapixels;
+      r.model = result.model;
+      r.metrics = result.metrics;
+      std::printf("frame %lld  %s  %.2f s (%.2f s/MP)", static_cast<long long>(r.frame),
+                  display_path(r.output.string()).c_str(), r.seconds, r.seconds / std::max(r.megapixels, 1e-9));
+      if (r.metrics)
+        std::printf("  relMSE %.5f (noisy %.5f)  SSIM %.4f", r.metrics->rows[1].scores.relmse,
+                    r.metrics->rows[0].scores.relmse, r.metrics->rows[1].scores.ssim);
+      std::printf("  [%zu/%zu]\n", index, records.size());
+      std::fflush(stdout);
+    } catch (const Cancelled&) {
+      r.status = "interrupted";
+      break;
+    } catch (const Error& e) {
+      r.status = "failed";
+      r.error = e.what();
+      r.exit_code = exit_code_for(e.kind());
+      std::fprintf(stderr, "frame %lld  failed: %s\n", static_cast<long long>(r.frame), e.what());
+      if (exit_code == kOk) exit_code = r.exit_code;
+      if (o.fail_fast) break;
+    }
+  }
+  if (interrupt.interrupted()) exit_code = interrupt.exit_code();
+
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const nlohmann::ordered_json summary = to_json(records, o, in, out, seconds, exit_code);
+  std::printf("\nframes     %d done, %d skipped, %d failed of %zu%s in %.1f s (%.3f s per megapixel denoising)\n",
+              summary["done"].get<int>(), summary["skipped"].get<int>(), summary["failed"].get<int>(), records.size(),
+              interrupt.interrupted() ? ", interrupted" : "", seconds, summary["s_per_mp"].get<double>());
+  if (!o.summary.empty()) {
+    const std::string text = summary.dump(1, ' ', false, nlohmann::ordered_json::error_handler_t::replace) + "\n";
+    io::write_atomically(o.summary, true, [&](const fs::path& temp) {
+      std::ofstream file(temp, std::ios::binary);
+      file << text;
+      if (!file.flush()) throw Error(ErrorKind::Output, "cannot write '" + o.summary + "'");
+    });
+    std::printf("summary    %s\n", display_path(o.summary).c_str());
+  }
+  return exit_code;
+}
+
+}  // namespace residue::cli

@@ -1,0 +1,220 @@
+// Frame sequences (issue 19): frame patterns and specs, and `residue-cli denoise shot.####.exr -o out.####.exr`
+// end to end: every frame denoised with per-frame metrics, resumed after a kill without redoing finished frames,
+// a failed frame not stopping the others, outputs checked before the first frame.
+#include <signal.h>
+#include <sys/wait.h>
+
+#include <fstream>
+#include <thread>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "core/aov/aov_loader.h"
+#include "core/io/frame_sequence.h"
+#include "support/exr_fixture.h"
+#include "support/test_support.h"
+
+namespace residue {
+namespace {
+
+namespace fs = std::filesystem;
+using io::FramePattern;
+using io::parse_frame_spec;
+using testing::run_cli;
+using testing::TempDir;
+
+TEST(FramePattern, HashesAndPrintf) {
+  const auto p = FramePattern::parse("renders/shot.####.exr");
+  ASSERT_TRUE(p);
+  EXPECT_EQ(p->prefix, "renders/shot.");
+  EXPECT_EQ(p->suffix, ".exr");
+  EXPECT_EQ(p->path(42), "renders/shot.0042.exr");
+  EXPECT_EQ(p->path(12345), "renders/shot.12345.exr") << "wider numbers are written as they are";
+  EXPECT_EQ(p->frame_of("renders/shot.0042.exr"), 42);
+  EXPECT_EQ(p->frame_of("renders/shot.042.exr"), std::nullopt) << "not how the pattern writes frame 42";
+  EXPECT_EQ(p->frame_of("renders/shot.0042.exr.tmp"), std::nullopt);
+  EXPECT_EQ(FramePattern::parse("a_%04d.exr")->path(7), "a_0007.exr");
+  EXPECT_EQ(FramePattern::parse("a_%d.exr")->path(7), "a_7.exr");
+  EXPECT_EQ(FramePattern::parse("a_%04d.exr")->to_string(), "a_####.exr");
+  EXPECT_FALSE(FramePattern::parse("plain.exr"));
+  EXPECT_FALSE(FramePattern::parse("take#2/plain.exr")) << "a '#' in a folder name is not a frame field";
+  EXPECT_FALSE(FramePattern::parse("100%.exr"));
+  EXPECT_NE(testing::error_message([] { FramePattern::parse("a.##.b.%04d.exr"); }, ErrorKind::Usage).find("more than one"),
+            std::string::npos);
+}
+
+TEST(FrameSpec, RangesStepsAndLists) {
+  EXPECT_EQ(parse_frame_spec("1001-1004"), (std::vector<int64_t>{1001, 1002, 1003, 1004}));
+  EXPECT_EQ(parse_frame_spec("1001-1010x3"), (std::vector<int64_t>{1001, 1004, 1007, 1010}));
+  EXPECT_EQ(parse_frame_spec("1,5,7-13:2"), (std::vector<int64_t>{1, 5, 7, 9, 11, 13}));
+  EXPECT_EQ(parse_frame_spec("3,1-4"), (std::vector<int64_t>{3, 1, 2, 4})) << "in the order given, each once";
+  EXPECT_EQ(parse_frame_spec("0"), (std::vector<int64_t>{0}));
+  for (const char* bad : {"", "5-1", "1-5x0", "a", "1,,2", "-3", "1-", "1-5x", "1.5", "0-99999999"})
+    EXPECT_FALSE(testing::error_message([&] { parse_frame_spec(bad); }, ErrorKind::Usage).empty()) << bad;
+}
+
+// `n` frames of a small noisy render (and their references), different per frame.
+void write_frames(const fs::path& dir, int first, int n, int size) {
+  for (int f = first; f < first + n; ++f) {
+    auto value = [f](int x, int y, int c) {
+      uint32_t h = static_cast<uint32_t>(x * 73856093) ^ static_cast<uint32_t>(y * 19349663) ^
+                   static_cast<uint32_t>((c + 3 * f) * 83492791);
+      h ^= h >> 13;
+      h *= 0x5bd1e995u;
+      h ^= h >> 15;
+      return static_cast<float>(h & 0xffffu) / 65535.0f;
+    };
+    testing::FixturePart noisy, reference;
+    noisy.width = noisy.height = reference.width = reference.height = size;
+    const char* rgb[] = {"R", "G", "B"};
+    for (int c = 0; c < 3; ++c) {
+      noisy.channels.push_back({rgb[c], true, [=](int x, int y) { return 0.4f + 0.4f * (value(x, y, c) - 0.5f) + 0.002f * static_cast<float>(f); }});
+      reference.channels.push_back({rgb[c], true, [=](int, int) { return 0.4f + 0.002f * static_cast<float>(f); }});
+    }
+    char name[64];
+    std::snprintf(name, sizeof name, "shot.%04d.exr", f);
+    testing::write_fixture_exr((dir / name).string(), {noisy});
+    std::snprintf(name, sizeof name, "ref.%04d.exr", f);
+    testing::write_fixture_exr((dir / name).string(), {reference});
+  }
+}
+
+nlohmann::json read_json(const fs::path& p) {
+  std::ifstream in(p);
+  return nlohmann::json::parse(in);
+}
+
+std::vector<std::string> outputs_in(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+TEST(SequenceCli, FortyEightFramesWithMetricsInOneCommand) {
+  TempDir dir;
+  write_frames(dir.path(), 1001, 48, 32);
+  fs::create_directory(dir / "out");
+  std::string out;
+  ASSERT_EQ(run_cli({"denoise", (dir / "shot.####.exr").string(), "-r", (dir / "ref.%04d.exr").string(), "-m", "base",
+                     "-o", (dir / "out/den.####.exr").string(), "--summary", (dir / "summary.json").string()},
+                    &out),
+            0)
+      << out;
+  const auto j = read_json(dir / "summary.json");
+  EXPECT_EQ(j["done"], 48);
+  EXPECT_EQ(j["skipped"], 0);
+  EXPECT_EQ(j["failed"], 0);
+  EXPECT_EQ(j["exit_code"], 0);
+  ASSERT_EQ(j["frames"].size(), 48u);
+  for (const auto& f : j["frames"]) {
+    EXPECT_EQ(f["status"], "done");
+    EXPECT_LT(f["relmse"].get<double>(), f["noisy_relmse"].get<double>()) << f.dump();
+  }
+  EXPECT_EQ(j["frames"][7]["frame"], 1008);
+  EXPECT_EQ(j["frames"][7]["output"], (dir / "out/den.1008.exr").string());
+  // Each output is that frame's denoise, as a single-render run gives it.
+  ASSERT_EQ(run_cli({"denoise", (dir / "shot.1008.exr").string(), "-m", "base", "-o", (dir / "single.exr").string()}, &out), 0);
+  const Image a = testing::read_exr_float(dir / "out/den.1008.exr"), b = testing::read_exr_float(dir / "single.exr");
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_TRUE(std::equal(a.data(), a.data() + a.size(), b.data()));
+}
+
+TEST(SequenceCli, ExistingOutputsAreRefusedUpFrontSkippedOrReplaced) {
+  TempDir dir;
+  write_frames(dir.path(), 1, 4, 16);
+  std::ofstream(dir / "out.0003.exr") << "mine";
+  const std::vector<std::string> base = {"denoise", (dir / "shot.####.exr").string(), "-m", "base", "-o", (dir / "out.####.exr").string()};
+  std::string out;
+  EXPECT_EQ(run_cli(base, &out), 4) << out;
+  EXPECT_NE(out.find("1 of the 4 outputs exist"), std::string::npos) << out;
+  EXPECT_EQ(out.find("frame 1 "), std::string::npos) << "refused before the first frame: " << out;
+  auto args = base;
+  args.insert(args.end(), {"--skip-existing", "--summary", (dir / "s.json").string()});
+  ASSERT_EQ(run_cli(args, &out), 0) << out;
+  EXPECT_EQ(read_json(dir / "s.json")["skipped"], 1);
+  std::ifstream mine(dir / "out.0003.exr");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(mine), {}), "mine") << "a skipped frame's file is left alone";
+  args = base;
+  args.push_back("--force");
+  ASSERT_EQ(run_cli(args, &out), 0) << out;
+  EXPECT_EQ(load_aov_stack({dir / "out.0003.exr"}).width(), 16);
+  // A pattern in, a single file out is a usage error, and so is --frames for a single render.
+  EXPECT_EQ(run_cli({"denoise", (dir / "shot.####.exr").string(), "-m", "base", "-o", (dir / "one.exr").string()}, &out), 2);
+  EXPECT_NE(out.find("names no frame"), std::string::npos) << out;
+  EXPECT_EQ(run_cli({"denoise", (dir / "shot.0001.exr").string(), "-m", "base", "-o", (dir / "one.exr").string(), "--frames", "1-3"}, &out), 2);
+}
+
+TEST(SequenceCli, AFailedFrameDoesNotStopTheOthersUnlessAsked) {
+  TempDir dir;
+  write_frames(dir.path(), 1, 5, 16);
+  std::ofstream(dir / "shot.0003.exr", std::ios::trunc) << "not an EXR";
+  std::string out;
+  const std::vector<std::string> base = {"denoise", (dir / "shot.####.exr").string(), "-m", "base", "-o",
+                                         (dir / "out.####.exr").string(), "--frames", "1-6", "--summary", (dir / "s.json").string()};
+  EXPECT_EQ(run_cli(base, &out), 3) << out;
+  auto j = read_json(dir / "s.json");
+  EXPECT_EQ(j["done"], 4);
+  EXPECT_EQ(j["failed"], 2) << "frame 3 (unreadable) and frame 6 (missing)";
+  EXPECT_EQ(j["frames"][2]["status"], "failed");
+  EXPECT_NE(j["frames"][2]["error"].get<std::string>().find("shot.0003.exr"), std::string::npos);
+  EXPECT_NE(j["frames"][5]["error"].get<std::string>().find("does not exist"), std::string::npos);
+  for (const char* f : {"out.0001.exr", "out.0002.exr", "out.0004.exr", "out.0005.exr"}) EXPECT_TRUE(fs::exists(dir / f)) << f;
+  for (const char* f : {"out.0001.exr", "out.0002.exr", "out.0004.exr", "out.0005.exr"}) fs::remove(dir / f);
+  auto args = base;
+  args.push_back("--fail-fast");
+  args.push_back("--force");
+  EXPECT_EQ(run_cli(args, &out), 3) << out;
+  j = read_json(dir / "s.json");
+  EXPECT_EQ(j["done"], 2);
+  EXPECT_EQ(j["frames"][3]["status"], "pending") << "not reached";
+  EXPECT_FALSE(fs::exists(dir / "out.0004.exr"));
+}
+
+// A run killed (SIGKILL) part-way leaves only complete frames; the rerun with --skip-existing denoises the rest
+// and leaves the finished ones untouched.
+TEST(SequenceCli, ResumesAfterAKillWithoutRedoingFinishedFrames) {
+  TempDir dir;
+  write_frames(dir.path(), 1, 48, 96);
+  const fs::path log = fs::temp_directory_path() / ("residue-seq-" + std::to_string(::getpid()) + ".log");
+  std::vector<std::string> args = {"denoise", (dir / "shot.####.exr").string(), "-m", "base", "-o",
+                                   (dir / "out.####.exr").string(), "--backend", "eigen"};
+  {
+    testing::ChildProcess child(args, log);
+    auto finished = [&] {
+      int n = 0;
+      for (const auto& name : outputs_in(dir.path())) n += name.rfind("out.", 0) == 0;
+      return n;
+    };
+    for (int i = 0; i < 1200 && finished() < 5; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    child.signal(SIGKILL);
+    child.wait();
+  }
+  fs::remove(log);
+  std::map<std::string, fs::file_time_type> before;
+  for (const auto& name : outputs_in(dir.path()))
+    if (name.rfind("out.", 0) == 0) {
+      EXPECT_EQ(load_aov_stack({dir / name}).width(), 96) << name << " is complete";
+      before[name] = fs::last_write_time(dir / name);
+    }
+  ASSERT_GE(before.size(), 5u);
+  ASSERT_LT(before.size(), 48u) << "the kill came before the end";
+  args.insert(args.end(), {"--skip-existing", "--summary", (dir / "s.json").string()});
+  std::string out;
+  ASSERT_EQ(run_cli(args, &out), 0) << out;
+  const auto j = read_json(dir / "s.json");
+  EXPECT_EQ(j["skipped"].get<size_t>(), before.size());
+  EXPECT_EQ(j["done"].get<size_t>(), 48 - before.size());
+  for (const auto& [name, time] : before) EXPECT_EQ(fs::last_write_time(dir / name), time) << name << " was not redone";
+  size_t outputs = 0, hidden = 0;
+  for (const auto& name : outputs_in(dir.path())) {
+    outputs += name.rfind("out.", 0) == 0;
+    hidden += name.front() == '.';
+  }
+  EXPECT_EQ(outputs, 48u);
+  EXPECT_EQ(hidden, 0u) << "the killed run's temporary file was removed by the rerun";
+}
+
+}  // namespace
+}  // namespace residue
