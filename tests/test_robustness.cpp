@@ -255,7 +255,9 @@ TEST_P(Signals, StopInsideTheTileAndLeaveNoFile) {
     if (files_in(dir.path()).size() > before.size()) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  // Once the handler is in place (a loaded machine may take seconds to get there), a second into the work.
+  ASSERT_TRUE(child.wait_until_handling(c.signal, std::chrono::seconds(60)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
   child.signal(c.signal);
   const double seconds = child.wait();
   const std::string text = read_text(log);

@@ -58,8 +58,8 @@ TEST(FrameSpec, RangesStepsAndLists) {
 void write_frames(const fs::path& dir, int first, int n, int size) {
   for (int f = first; f < first + n; ++f) {
     auto value = [f](int x, int y, int c) {
-      uint32_t h = static_cast<uint32_t>(x * 73856093) ^ static_cast<uint32_t>(y * 19349663) ^
-                   static_cast<uint32_t>((c + 3 * f) * 83492791);
+      uint32_t h = (static_cast<uint32_t>(x) * 73856093u) ^ (static_cast<uint32_t>(y) * 19349663u) ^
+                   (static_cast<uint32_t>(c + 3 * f) * 83492791u);
       h ^= h >> 13;
       h *= 0x5bd1e995u;
       h ^= h >> 15;

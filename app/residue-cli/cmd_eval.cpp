@@ -7,6 +7,8 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "core/io/frame_sequence.h"
+#include "eval_sequence.h"
 #include "core/io/map_writer.h"
 #include "core/io/metrics_report.h"
 #include "core/metrics/metrics.h"
@@ -27,6 +29,7 @@ struct EvalOptions {
   std::string colormap = "viridis";
   std::string map_format = "png";
   bool force = false;
+  std::string frames;
 };
 
 void write_maps(const EvalOptions& o, const std::string& name, const Image& test, const Image& reference,
@@ -50,6 +53,14 @@ void write_maps(const EvalOptions& o, const std::string& name, const Image& test
 }
 
 int run(const EvalOptions& o) {
+  if (o.input.inputs.size() == 1 && io::FramePattern::parse(o.input.inputs.front())) {
+    if (!o.maps_dir.empty()) throw Error(ErrorKind::Usage, "--maps-dir is for single images, not sequences");
+    if (!o.metrics_out.empty() && std::filesystem::path(o.metrics_out).extension() != ".json")
+      throw Error(ErrorKind::Usage, "a sequence's --metrics-out is a .json file");
+    return run_eval_sequence({o.input, o.denoised, o.frames, o.eps, o.roi.empty() ? std::nullopt : std::optional(parse_roi(o.roi)),
+                              o.json, o.metrics_out, o.force});
+  }
+  if (!o.frames.empty()) throw Error(ErrorKind::Usage, "--frames is for sequences: give the input as a pattern (shot.####.exr)");
   // The outputs are checked before the (long) metrics; the maps are checked again as each is written.
   if (!o.metrics_out.empty()) io::prepare_metrics_output(o.metrics_out, o.force);
   if (!o.maps_dir.empty() && !std::filesystem::is_directory(o.maps_dir))
@@ -104,7 +115,9 @@ Command add_eval_command(CLI::App& app) {
                                          "PSNR, SSIM; optionally write per-pixel maps and a metrics file");
   auto o = std::make_shared<EvalOptions>();
   o->input.add_to(*cmd, true);
-  cmd->add_option("-d,--denoised", o->denoised, "A denoised image to score as well")->check(CLI::ExistingFile);
+  cmd->add_option("-d,--denoised", o->denoised, "A denoised image to score as well (for a sequence: a pattern)");
+  cmd->add_option("--frames", o->frames, "Sequences (input, -r and --denoised as patterns, shot.####.exr): the frames "
+                                         "to score, e.g. 1-24; also reports the flicker (temporal relMSE)");
   cmd->add_option("--roi", o->roi, "Score only the rectangle x,y,w,h (pixels of the data window)");
   cmd->add_option("--eps", o->eps, "relMSE denominator offset: (x-r)^2/(r^2+eps)")
       ->capture_default_str()

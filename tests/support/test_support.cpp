@@ -7,6 +7,8 @@
 #include <unistd.h>
 
 #include <array>
+#include <fstream>
+#include <thread>
 #include <cstdio>
 #include <random>
 
@@ -117,6 +119,17 @@ ChildProcess::~ChildProcess() {
 void ChildProcess::signal(int sig) {
   signalled_ = std::chrono::steady_clock::now();
   if (pid_ > 0) ::kill(pid_, sig);
+}
+
+bool ChildProcess::wait_until_handling(int sig, std::chrono::milliseconds timeout) const {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (pid_ > 0 && std::chrono::steady_clock::now() < deadline) {
+    std::ifstream status("/proc/" + std::to_string(pid_) + "/status");
+    for (std::string line; std::getline(status, line);)
+      if (line.rfind("SigCgt:", 0) == 0 && (std::stoull(line.substr(7), nullptr, 16) >> (sig - 1) & 1u) != 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
 }
 
 double ChildProcess::wait() {

@@ -59,6 +59,9 @@ class ChildProcess {
   ChildProcess(const ChildProcess&) = delete;
   ChildProcess& operator=(const ChildProcess&) = delete;
   void signal(int sig);  // kill(pid, sig); also starts the clock wait() reads (0 only starts it)
+  // Waits until the process has installed a handler for `sig` (its SigCgt mask in /proc), so that a signal sent
+  // next meets the program's handling and not the default action; false after `timeout`.
+  bool wait_until_handling(int sig, std::chrono::milliseconds timeout) const;
   double wait();         // waits for the exit; the seconds since signal()
   int wait_status() const { return wait_status_; }  // waitpid's status, after wait()
 

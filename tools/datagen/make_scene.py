@@ -50,6 +50,10 @@ def parse_args():
     p.add_argument("--probe-res", type=int, default=48, help="auto-exposure probe resolution (0 = no probe)")
     p.add_argument("--probe-spp", type=int, default=16)
     p.add_argument("--save-blend", action="store_true", help="also save DIR/scene.blend (debugging)")
+    p.add_argument("--camera-move", default=None,
+                   help="DX,DY,DZ,YAW: move the camera by (DX,DY,DZ) in its own axes (metres) and turn it by YAW "
+                        "degrees about the world's up axis, after the scene and its exposure are set (animations: "
+                        "tools/datagen/render_animation.py)")
     a = p.parse_args(argv)
     a.render_list = []
     for item in a.renders.split(","):
@@ -1670,6 +1674,13 @@ def main():
     configure(scene, args)
     build_s = time.time() - t
     probe_exposure(ctx, scene, args)
+    if args.camera_move:  # after the exposure probe, so every frame of an animation has the same exposure
+        dx, dy, dz, yaw = (float(v) for v in args.camera_move.split(","))
+        cam = scene.camera
+        cam.location = cam.location + cam.matrix_world.to_3x3() @ Vector((dx, dy, dz))
+        cam.rotation_euler.z += math.radians(yaw)
+        bpy.context.view_layer.update()
+        ctx.desc["camera_move"] = {"local_offset_m": [dx, dy, dz], "yaw_deg": yaw}
     if args.save_blend:
         bpy.ops.wm.save_as_mainfile(filepath=os.path.join(args.outdir, "scene.blend"))
 

@@ -1,0 +1,40 @@
+// Flicker: how much a denoised sequence changes from frame to frame beyond what the references change.
+//
+//   temporal relMSE = mean over frame pairs (t-1, t), pixels and RGB channels of
+//                     ((x_t - x_{t-1}) - (r_t - r_{t-1}))^2 / (r_t^2 + eps)
+//
+// the relMSE of the sequence's frame-to-frame differences against the references' own differences (eps as in
+// relMSE, 0.01). With a static camera and one reference for every frame it is the mean squared frame-to-frame
+// change, relative: pure flicker. Per-frame denoising that leaves residual noise or low-frequency blotches that
+// move with the sampling seed raises it; a temporally stable result has it far below the noisy input's. It is
+// the evaluation counterpart of the temporal term of Chaitanya et al. 2017 ("Interactive reconstruction of Monte
+// Carlo image sequences using a recurrent denoising autoencoder"), whose loss compares the temporal derivatives
+// of output and target. Pixels non-finite in any of the four images are excluded and counted; with an ROI only
+// the ROI is scored.
+#pragma once
+
+#include <optional>
+
+#include "core/image/image.h"
+
+namespace residue::metrics {
+
+class TemporalRelMse {
+ public:
+  explicit TemporalRelMse(double eps = 0.01, std::optional<Rect> roi = std::nullopt);
+  // The next frame of the sequence and its reference (the sizes of the first frame; Error(Usage) otherwise).
+  void add(const Image& frame, const Image& reference);
+  double value() const;  // NaN before two frames
+  int64_t pairs() const { return pairs_; }
+  int64_t pixels() const { return pixels_; }      // pixel x pair terms that entered
+  int64_t excluded() const { return excluded_; }  // ... left out as not finite
+
+ private:
+  double eps_;
+  std::optional<Rect> roi_;
+  Image prev_frame_, prev_reference_;
+  double sum_ = 0;
+  int64_t pairs_ = 0, pixels_ = 0, excluded_ = 0;
+};
+
+}  // namespace residue::metrics

@@ -1,0 +1,113 @@
+// Flicker (issue 19): the temporal relMSE against an independent float64 computation, its fixed points, and
+// `residue-cli eval` on a sequence.
+#include <cmath>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "core/metrics/temporal.h"
+#include "support/exr_fixture.h"
+#include "support/test_support.h"
+
+namespace residue {
+namespace {
+
+using testing::random_image;
+
+// The definition, written out in float64 over whole frames.
+double naive_temporal(const std::vector<Image>& x, const std::vector<Image>& r, double eps) {
+  double sum = 0;
+  int64_t n = 0;
+  for (size_t t = 1; t < x.size(); ++t)
+    for (int64_t py = 0; py < x[t].height(); ++py)
+      for (int64_t px = 0; px < x[t].width(); ++px) {
+        double term = 0;
+        bool ok = true;
+        for (int c = 0; c < 3; ++c) {
+          const double a = x[t].at(px, py, c), b = x[t - 1].at(px, py, c), p = r[t].at(px, py, c), q = r[t - 1].at(px, py, c);
+          ok = ok && std::isfinite(a) && std::isfinite(b) && std::isfinite(p) && std::isfinite(q);
+          term += std::pow((a - b) - (p - q), 2) / (p * p + eps);
+        }
+        if (ok) sum += term / 3, ++n;
+      }
+  return sum / static_cast<double>(n);
+}
+
+TEST(Temporal, MatchesTheDefinitionAndExcludesNonFinite) {
+  std::vector<Image> x, r;
+  for (unsigned t = 0; t < 4; ++t) {
+    x.push_back(random_image(23, 17, 3, 10 + t, 0.0f, 3.0f));
+    r.push_back(random_image(23, 17, 3, 20 + t, 0.0f, 2.0f));
+  }
+  x[2].at(5, 6, 1) = std::numeric_limits<float>::quiet_NaN();
+  metrics::TemporalRelMse m(0.01);
+  EXPECT_TRUE(std::isnan(m.value()));
+  for (size_t t = 0; t < x.size(); ++t) m.add(x[t], r[t]);
+  EXPECT_EQ(m.pairs(), 3);
+  EXPECT_EQ(m.excluded(), 2) << "the NaN pixel in frame 2 spoils the pairs (1,2) and (2,3)";
+  EXPECT_EQ(m.pixels(), 3 * 23 * 17 - 2);
+  EXPECT_NEAR(m.value(), naive_temporal(x, r, 0.01), 1e-12 * naive_temporal(x, r, 0.01));
+}
+
+TEST(Temporal, ZeroWhenTheSequenceChangesAsItsReferencesDo) {
+  const Image base = random_image(16, 16, 3, 1, 0.1f, 1.0f);
+  const Image shift = random_image(16, 16, 3, 2, 0.0f, 0.5f);
+  metrics::TemporalRelMse same(0.01), stable(0.01), flicker(0.01);
+  Image moved = base;
+  for (size_t i = 0; i < moved.size(); ++i) moved.data()[i] += shift.data()[i];
+  same.add(base, base);
+  same.add(moved, moved);  // the scene changes; the frames follow exactly
+  EXPECT_EQ(same.value(), 0.0);
+  stable.add(base, base);
+  stable.add(base, base);
+  EXPECT_EQ(stable.value(), 0.0);
+  flicker.add(base, base);
+  flicker.add(moved, base);  // the frame changes, the reference does not: all of it is flicker
+  EXPECT_GT(flicker.value(), 0.01);
+  EXPECT_FALSE(testing::error_message([&] { flicker.add(Image(8, 8, 3), Image(8, 8, 3)); }, ErrorKind::Usage).empty());
+}
+
+TEST(TemporalCli, EvalScoresASequenceAndItsFlicker) {
+  testing::TempDir dir;
+  // A static shot: one reference; the noisy frames carry frame-dependent noise, the "denoised" ones are the
+  // reference plus a small constant bias (stable: no flicker).
+  for (int f = 1; f <= 4; ++f) {
+    auto noise = [f](int x, int y) {
+      uint32_t h = (static_cast<uint32_t>(x) * 73856093u) ^ (static_cast<uint32_t>(y) * 19349663u) ^ (static_cast<uint32_t>(f) * 83492791u);
+      h ^= h >> 13;
+      h *= 0x5bd1e995u;
+      return static_cast<float>(h & 0xffu) / 255.0f - 0.5f;
+    };
+    testing::FixturePart noisy, ref, den;
+    noisy.width = noisy.height = ref.width = ref.height = den.width = den.height = 24;
+    for (const char* c : {"R", "G", "B"}) {
+      noisy.channels.push_back({c, false, [=](int x, int y) { return 0.5f + 0.3f * noise(x, y); }});
+      ref.channels.push_back({c, false, [](int, int) { return 0.5f; }});
+      den.channels.push_back({c, false, [](int, int) { return 0.52f; }});
+    }
+    char name[64];
+    std::snprintf(name, sizeof name, "noisy.%04d.exr", f);
+    testing::write_fixture_exr((dir / name).string(), {noisy});
+    std::snprintf(name, sizeof name, "ref.%04d.exr", f);
+    testing::write_fixture_exr((dir / name).string(), {ref});
+    std::snprintf(name, sizeof name, "den.%04d.exr", f);
+    testing::write_fixture_exr((dir / name).string(), {den});
+  }
+  std::string out;
+  ASSERT_EQ(testing::run_cli({"eval", "--json", (dir / "noisy.####.exr").string(), "-r", (dir / "ref.####.exr").string(),
+                              "--denoised", (dir / "den.####.exr").string()}, &out), 0) << out;
+  const auto j = nlohmann::json::parse(out);
+  EXPECT_EQ(j["frames"], 4);
+  EXPECT_EQ(j["per_frame"].size(), 4u);
+  EXPECT_GT(j["temporal_relmse"]["noisy"].get<double>(), 0.01);
+  EXPECT_EQ(j["temporal_relmse"]["denoised"].get<double>(), 0.0) << "a constant bias does not flicker";
+  EXPECT_GT(j["mean"]["denoised"]["relmse"].get<double>(), 0.0) << "but it is an error per frame";
+  EXPECT_EQ(j["flicker_ratio"].get<double>(), 0.0);
+  ASSERT_EQ(testing::run_cli({"eval", (dir / "noisy.####.exr").string(), "-r", (dir / "ref.####.exr").string(), "--frames", "1-3"}, &out), 0) << out;
+  EXPECT_NE(out.find("temporal relMSE (flicker): noisy"), std::string::npos) << out;
+  EXPECT_EQ(testing::run_cli({"eval", (dir / "noisy.####.exr").string()}, &out), 2) << "references are needed: " << out;
+}
+
+}  // namespace
+}  // namespace residue
