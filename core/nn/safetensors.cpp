@@ -55,6 +55,9 @@ SafetensorsFile read_safetensors(const std::filesystem::path& path) {
   in.read(data.data(), static_cast<std::streamsize>(data_size));
 
   SafetensorsFile f;
+  // Bytes claimed by the tensors so far: the format lays them out apart, so together they fit in the data; tensors
+  // sharing one range would otherwise let a small file expand to count x its size in floats.
+  uint64_t claimed = 0;
   try {
     for (auto it = j.begin(); it != j.end(); ++it) {
       if (it.key() == "__metadata__") {
@@ -78,6 +81,11 @@ SafetensorsFile read_safetensors(const std::filesystem::path& path) {
       if (offsets[1] > data_size)
         throw Error(ErrorKind::Input, where + " is truncated: tensor \"" + it.key() + "\" ends at byte " +
                                           std::to_string(offsets[1]) + " of " + std::to_string(data_size));
+      if (n * elem > data_size - claimed)
+        throw Error(ErrorKind::Input, where + ": tensor \"" + it.key() + "\" brings the tensors' data to more than the " +
+                                          std::to_string(data_size) + " bytes the file holds; expected each tensor's "
+                                          "byte range apart");
+      claimed += n * elem;
       const char* src = data.data() + offsets[0];
       t.values.resize(n);
       for (uint64_t i = 0; i < n; ++i) {
