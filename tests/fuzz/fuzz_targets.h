@@ -29,15 +29,23 @@ namespace residue::fuzz {
 
 // /dev/shm/residue-fuzz-<pid>/ (or the temp dir when /dev/shm is absent): one per process, so that parallel jobs
 // (-jobs=N) never share files and no loader finds a neighbour by a naming convention (reference.exr, ...).
+// Removed at exit (a crashed run leaves it behind).
 inline const std::filesystem::path& scratch_dir() {
-  static const std::filesystem::path dir = [] {
-    const std::filesystem::path base = std::filesystem::is_directory("/dev/shm") ? std::filesystem::path("/dev/shm")
-                                                                                  : std::filesystem::temp_directory_path();
-    auto d = base / ("residue-fuzz-" + std::to_string(::getpid()));
-    std::filesystem::create_directories(d);
-    return d;
-  }();
-  return dir;
+  struct Scratch {
+    std::filesystem::path dir;
+    Scratch() {
+      const std::filesystem::path base = std::filesystem::is_directory("/dev/shm") ? std::filesystem::path("/dev/shm")
+                                                                                    : std::filesystem::temp_directory_path();
+      dir = base / ("residue-fuzz-" + std::to_string(::getpid()));
+      std::filesystem::create_directories(dir);
+    }
+    ~Scratch() {
+      std::error_code ec;
+      std::filesystem::remove_all(dir, ec);
+    }
+  };
+  static const Scratch scratch;
+  return scratch.dir;
 }
 
 // The input as a file of the given name in scratch_dir(), for readers that take a path.
