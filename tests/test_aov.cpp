@@ -9,6 +9,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/channel_naming.h"
+#include "core/aov/conventions.h"
 #include "core/util/error.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
@@ -527,7 +528,30 @@ TEST(AovErrors, BadMappingFlagsAndFiles) {
 TEST(AovErrors, FolderWithoutColour) {
   TempDir tmp;
   const std::string msg = error_of([&] { load_aov_stack({tmp.path()}); });
+  // Every file-set convention of the registry says what it looks for.
+  for (const auto& convention : file_set_conventions())
+    EXPECT_NE(msg.find(convention->colour_file_pattern()), std::string::npos) << msg;
   EXPECT_NE(msg.find("color.exr"), std::string::npos) << msg;
+}
+
+TEST(AovErrors, FolderWithColourFilesOfTwoConventionsNamesBoth) {
+  TempDir tmp;
+  const auto rgb = std::vector<FixtureChannel>{coded("R", 10), coded("G", 11), coded("B", 12)};
+  write_fixture_exr(tmp / "color.exr", {part(4, 4, rgb)});
+  write_fixture_exr(tmp / "kitchen_0016spp.hdr.exr", {part(4, 4, rgb)});
+  const std::string msg = error_of([&] { load_aov_stack({tmp.path()}); });
+  EXPECT_NE(msg.find("several colour files"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("color.exr"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("kitchen_0016spp.hdr.exr"), std::string::npos) << msg;
+  // Given the file itself, each finds its own siblings.
+  write_fixture_exr(tmp / "albedo.exr", {part(4, 4, {coded("R", 30), coded("G", 31), coded("B", 32)})});
+  write_fixture_exr(tmp / "kitchen_0016spp.alb.exr", {part(4, 4, {coded("R", 50), coded("G", 51), coded("B", 52)})});
+  const AovStack oidn = load_aov_stack({tmp / "kitchen_0016spp.hdr.exr"});
+  EXPECT_EQ(oidn.convention, "OIDN data set");
+  expect_coded(oidn, AovRole::Albedo, 50);
+  const AovStack tungsten = load_aov_stack({tmp / "color.exr"});
+  EXPECT_EQ(tungsten.convention, "Tungsten file set");
+  expect_coded(tungsten, AovRole::Albedo, 30);
 }
 
 }  // namespace

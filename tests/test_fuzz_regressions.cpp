@@ -4,6 +4,7 @@
 // give a residue::Error, never a crash. The crash-* seeds of tests/fuzz/corpus are the fuzzers' findings.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -121,4 +122,37 @@ TEST(FuzzRegressions, SafetensorsTensorsSharingTheirDataAreRefused) {
               std::string::npos) << e.what();
   }
   residue::fuzz::safetensors_one(bytes.data(), bytes.size());
+}
+
+// OpenEXR 3.1 allocates the size a header declares for an attribute before reading it (1.9 GB for a 2.6 KB file):
+// the loader refuses such headers first, naming the file and what the header declares.
+TEST(FuzzRegressions, ExrHeaderDeclaringMoreThanTheFileIsRefusedBeforeOpening) {
+  for (const char* name : {"crash-oom-openexr-string-attribute-1.exr", "crash-oom-openexr-string-attribute-2.exr"}) {
+    const fs::path path = corpus_dir("fuzz_exr_loader") / name;
+    try {
+      (void)residue::load_aov_stack({path}, residue::LoadOptions{});
+      FAIL() << "expected residue::Error for " << name;
+    } catch (const residue::Error& e) {
+      EXPECT_EQ(e.kind(), residue::ErrorKind::Input);
+      const std::string what = e.what();
+      EXPECT_NE(what.find(name), std::string::npos) << what;
+      EXPECT_NE(what.find("header declares a string attribute of"), std::string::npos) << what;
+    }
+  }
+  // A real render passes; the same render with the size of its channel list made larger than the file does not,
+  // and the message names the attribute.
+  const fs::path room = fs::path(RESIDUE_SOURCE_RESOURCES) / "examples" / "room" / "noisy.exr";
+  auto bytes = read_bytes(room);
+  ASSERT_GT(bytes.size(), 64u);
+  EXPECT_FALSE(residue::exr_header_problem(bytes.data(), bytes.size(), bytes.size()));
+  const std::string channels("channels\0chlist", 15);
+  const auto at = std::search(bytes.begin(), bytes.end(), channels.begin(), channels.end());
+  ASSERT_NE(at, bytes.end());
+  const size_t size_at = static_cast<size_t>(at - bytes.begin()) + channels.size() + 1;
+  for (size_t i = 0; i < 4; ++i) bytes[size_at + i] = 0x7f;
+  const auto problem = residue::exr_header_problem(bytes.data(), bytes.size(), bytes.size());
+  ASSERT_TRUE(problem);
+  EXPECT_NE(problem->find("the attribute 'channels'"), std::string::npos) << *problem;
+  const auto path = residue::fuzz::write_input("huge_attribute.exr", bytes.data(), bytes.size());
+  EXPECT_THROW((void)residue::list_channels(path), residue::Error);
 }

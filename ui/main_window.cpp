@@ -196,11 +196,11 @@ void MainWindow::buildToolBar() {
   });
   aov_box_ = new QComboBox(this);
   aov_box_->setObjectName("aovBox");
-  for (AovView v : kAllAovViews) aov_box_->addItem(QString::fromLatin1(to_string(v)), static_cast<int>(v));
+  for (AovRole v : kViewableAovs) aov_box_->addItem(display_name(v), static_cast<int>(v));
   bar->addWidget(new QLabel(tr("  AOV "), this));
   bar->addWidget(aov_box_);
   connect(aov_box_, &QComboBox::currentIndexChanged, this,
-          [this] { setAov(static_cast<AovView>(aov_box_->currentData().toInt())); });
+          [this] { setAov(static_cast<AovRole>(aov_box_->currentData().toInt())); });
 
   exposure_box_ = new QDoubleSpinBox(this);
   exposure_box_->setObjectName("exposureBox");
@@ -402,9 +402,9 @@ void MainWindow::onLoaded() {
   const auto stack = session_->stack();
   last_error_.clear();
   // Fall back to colour when the new render lacks the AOV being shown.
-  if (!session_->hasAov(aov_)) setAov(AovView::Color);
+  if (!session_->hasAov(aov_)) setAov(AovRole::Color);
   for (int i = 0; i < aov_box_->count(); ++i) {
-    const bool has = session_->hasAov(static_cast<AovView>(aov_box_->itemData(i).toInt()));
+    const bool has = session_->hasAov(static_cast<AovRole>(aov_box_->itemData(i).toInt()));
     auto* model = qobject_cast<QStandardItemModel*>(aov_box_->model());
     if (model) model->item(i)->setEnabled(has);
   }
@@ -497,7 +497,7 @@ DisplaySettings MainWindow::displaySettings() const {
 void MainWindow::setExposure(double stops) { exposure_box_->setValue(stops); }
 double MainWindow::exposure() const { return exposure_box_->value(); }
 
-void MainWindow::setAov(AovView aov) {
+void MainWindow::setAov(AovRole aov) {
   if (aov_ == aov && aov_box_->currentData().toInt() == static_cast<int>(aov)) return;
   aov_ = aov;
   aov_box_->setCurrentIndex(aov_box_->findData(static_cast<int>(aov)));
@@ -506,14 +506,14 @@ void MainWindow::setAov(AovView aov) {
 
 void MainWindow::cycleAov(int step) {
   if (!session_->hasStack()) return;
-  const int n = static_cast<int>(std::size(kAllAovViews));
-  int i = static_cast<int>(aov_);
+  const int n = static_cast<int>(std::size(kViewableAovs));
+  int i = static_cast<int>(std::find(std::begin(kViewableAovs), std::end(kViewableAovs), aov_) - std::begin(kViewableAovs));
   for (int k = 0; k < n; ++k) {
     i = (i + step + n) % n;
-    if (session_->hasAov(static_cast<AovView>(i))) break;
+    if (session_->hasAov(kViewableAovs[i])) break;
   }
-  setAov(static_cast<AovView>(i));
-  statusBar()->showMessage(tr("AOV: %1").arg(QString::fromLatin1(to_string(aov_))), 3000);
+  setAov(kViewableAovs[i]);
+  statusBar()->showMessage(tr("AOV: %1").arg(display_name(aov_)), 3000);
 }
 
 void MainWindow::showPane(Source s) {
@@ -542,7 +542,7 @@ void MainWindow::setRoi(std::optional<Rect> roi) {
 std::shared_ptr<const Image> MainWindow::shared(Source s) const {
   if (s == Source::Denoised) return session_->denoisedShared();
   const auto stack = session_->stack();
-  const Image* img = session_->image(s, AovView::Color);
+  const Image* img = session_->image(s, AovRole::Color);
   // Aliasing: the image lives as long as the stack it belongs to.
   return img ? std::shared_ptr<const Image>(stack, img) : nullptr;
 }

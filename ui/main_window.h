@@ -54,8 +54,8 @@ class MainWindow : public QMainWindow {
   // View state.
   void setExposure(double stops);
   double exposure() const;
-  void setAov(AovView aov);
-  AovView aov() const { return aov_; }
+  void setAov(AovRole aov);
+  AovRole aov() const { return aov_; }
   void setRoi(std::optional<Rect> roi);  // as if dragged
   void showPane(Source s);               // single-pane layout on that image
   void setLayout(ImageCanvas::Layout layout);
@@ -121,7 +121,7 @@ class MainWindow : public QMainWindow {
   QLabel* cursor_label_ = nullptr;
   QMenu* recent_menu_ = nullptr;
 
-  AovView aov_ = AovView::Color;
+  AovRole aov_ = AovRole::Color;
   std::vector<Source> pane_sources_;
   std::optional<QPoint> hover_;
   bool interactive_ = true;

@@ -35,23 +35,23 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step) {
     try {
       switch (s) {
         case Source::Noisy: {
-          pane.label = in.aov == AovView::Color ? QStringLiteral("Noisy")
-                                                : QStringLiteral("Noisy: %1").arg(to_string(in.aov));
+          pane.label = in.aov == AovRole::Color ? QStringLiteral("Noisy")
+                                                : QStringLiteral("Noisy: %1").arg(display_name(in.aov));
           if (!in.noisy) break;
           pane.values = std::shared_ptr<const Image>(in.stack, in.noisy);
           pane.channel_count = std::min(3, in.noisy->channels());
-          if (in.aov == AovView::Normal || in.aov == AovView::Depth) {
+          if (in.aov == AovRole::Normal || in.aov == AovRole::Depth) {
             // Data AOVs are shown as data: normals as 0.5 n + 0.5, depth divided by its largest hit.
             Image data = subsample(*in.noisy, step, pane.channel_count);
             float scale = 1.0f;
-            if (in.aov == AovView::Depth) {
+            if (in.aov == AovRole::Depth) {
               float hi = 0.0f;
               for (size_t i = 0; i < in.noisy->size(); ++i)
                 if (std::isfinite(in.noisy->data()[i])) hi = std::max(hi, in.noisy->data()[i]);
               scale = hi > 0 ? 1.0f / hi : 1.0f;
             }
             for (size_t i = 0; i < data.size(); ++i)
-              data.data()[i] = in.aov == AovView::Normal ? 0.5f * data.data()[i] + 0.5f : data.data()[i] * scale;
+              data.data()[i] = in.aov == AovRole::Normal ? 0.5f * data.data()[i] + 0.5f : data.data()[i] * scale;
             pane.display = in.display->render(data, 0, pane.channel_count, data.bounds(), in.settings, Encoding::Data);
           } else {
             pane.display = renderColor(in, *in.noisy, pane.channel_count, step);

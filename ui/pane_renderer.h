@@ -17,7 +17,7 @@ namespace residue::ui {
 struct PaneInputs {
   std::vector<Source> sources;
   std::shared_ptr<const AovStack> stack;
-  AovView aov = AovView::Color;
+  AovRole aov = AovRole::Color;
   const Image* noisy = nullptr;                 // the AOV shown for Noisy (owned by stack)
   std::shared_ptr<const Image> denoised;
   std::shared_ptr<const Image> reference;

@@ -26,13 +26,13 @@ QStringList PixelInspector::lines(const Session& session, QPoint pixel, const Im
       values << QString::number(static_cast<double>(img->at(pixel.x(), pixel.y(), c)), 'g', 6);
     out << QString("%1: %2").arg(name, values.join(' '));
   };
-  add("noisy", session.image(Source::Noisy, AovView::Color), 3);
-  add("denoised", session.image(Source::Denoised, AovView::Color), 3);
-  add("reference", session.image(Source::Reference, AovView::Color), 3);
-  add("albedo", session.image(Source::Noisy, AovView::Albedo), 3);
-  add("normal", session.image(Source::Noisy, AovView::Normal), 3);
-  add("depth", session.image(Source::Noisy, AovView::Depth), 1);
-  add("variance", session.image(Source::Noisy, AovView::Variance), 3);
+  add("noisy", session.image(Source::Noisy, AovRole::Color), 3);
+  add("denoised", session.image(Source::Denoised, AovRole::Color), 3);
+  add("reference", session.image(Source::Reference, AovRole::Color), 3);
+  add("albedo", session.image(Source::Noisy, AovRole::Albedo), 3);
+  add("normal", session.image(Source::Noisy, AovRole::Normal), 3);
+  add("depth", session.image(Source::Noisy, AovRole::Depth), 1);
+  add("variance", session.image(Source::Noisy, AovRole::Variance), 3);
   add(heatmap_name.isEmpty() ? QStringLiteral("heatmap") : heatmap_name, heatmap, 1);
   return out;
 }

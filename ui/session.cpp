@@ -18,15 +18,11 @@ const char* to_string(Source s) {
   return "?";
 }
 
-const char* to_string(AovView v) {
-  switch (v) {
-    case AovView::Color: return "Colour";
-    case AovView::Albedo: return "Albedo";
-    case AovView::Normal: return "Normal";
-    case AovView::Depth: return "Depth";
-    case AovView::Variance: return "Variance";
-  }
-  return "?";
+QString display_name(AovRole role) {
+  QString name = QString::fromLatin1(to_string(role));  // "color", "albedo", ...
+  if (role == AovRole::Color) name = QStringLiteral("colour");
+  name[0] = name[0].toUpper();
+  return name;
 }
 
 struct Session::LoadResult {
@@ -123,20 +119,15 @@ const Image* Session::reference() const {
   return stack_ && stack_->reference ? &stack_->reference->image : nullptr;
 }
 
-bool Session::hasAov(AovView v) const { return image(Source::Noisy, v) != nullptr; }
+bool Session::hasAov(AovRole role) const { return image(Source::Noisy, role) != nullptr; }
 
-const Image* Session::image(Source s, AovView aov) const {
+const Image* Session::image(Source s, AovRole aov) const {
   if (!stack_) return nullptr;
   switch (s) {
-    case Source::Noisy:
-      switch (aov) {
-        case AovView::Color: return &stack_->color.image;
-        case AovView::Albedo: return stack_->albedo ? &stack_->albedo->image : nullptr;
-        case AovView::Normal: return stack_->normal ? &stack_->normal->image : nullptr;
-        case AovView::Depth: return stack_->depth ? &stack_->depth->image : nullptr;
-        case AovView::Variance: return stack_->variance ? &stack_->variance->image : nullptr;
-      }
-      return nullptr;
+    case Source::Noisy: {
+      const Aov* a = stack_->find(aov);
+      return a ? &a->image : nullptr;
+    }
     case Source::Denoised: return denoised();
     case Source::Reference: return reference();
     case Source::Heatmap: return nullptr;

@@ -19,10 +19,10 @@ enum class Source { Noisy, Denoised, Reference, Heatmap };
 const char* to_string(Source s);
 
 // The AOVs a user can page through with [ and ].
-enum class AovView { Color, Albedo, Normal, Depth, Variance };
-const char* to_string(AovView v);
-inline constexpr AovView kAllAovViews[] = {AovView::Color, AovView::Albedo, AovView::Normal, AovView::Depth,
-                                           AovView::Variance};
+// The AOVs a pane can show (the reference is a source of its own), and their names in the UI.
+inline constexpr AovRole kViewableAovs[] = {AovRole::Color, AovRole::Albedo, AovRole::Normal, AovRole::Depth,
+                                            AovRole::Variance};
+QString display_name(AovRole role);
 
 class Session : public QObject {
   Q_OBJECT
@@ -57,8 +57,8 @@ class Session : public QObject {
   // re-made from the kept result at once (no network run). Emits denoisedChanged().
   void setStrength(float strength);
   float strength() const { return strength_; }
-  const Image* image(Source s, AovView aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
-  bool hasAov(AovView v) const;
+  const Image* image(Source s, AovRole aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
+  bool hasAov(AovRole role) const;
 
   // Starts a fresh denoised image: a copy of the noisy colour, so tiles that have not run yet show the input;
   // setDenoisedTile() then overwrites it tile by tile.

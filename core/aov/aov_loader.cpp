@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/aov/channel_naming.h"
+#include "core/aov/exr_header_check.h"
 #include "core/aov/file_sets.h"
 #include "core/util/error.h"
 
@@ -43,6 +44,7 @@ struct OpenedFile {
 
 OpenedFile open_file(const fs::path& path) {
   if (!fs::exists(path)) throw Error(ErrorKind::Input, "input '" + path.string() + "' does not exist");
+  check_exr_header(path);  // before OpenEXR allocates what a corrupt header declares
   auto in = OIIO::ImageInput::open(path.string());
   if (!in)
     throw Error(ErrorKind::Input, "cannot read '" + path.string() + "': " + OIIO::geterror());
@@ -341,13 +343,14 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
       used = true;
     }
     if (used || files.size() != inputs.size()) stack.convention = set->convention;
-    if (set->convention == "Tungsten file set" && plans.count(AovRole::Normal)) {
-      plans[AovRole::Normal].normal_space = NormalSpace::World;
-      plans[AovRole::Depth].depth_kind = DepthKind::RayLength;
+    // What the convention's files hold (a file-set AOV has no layer name to tell by).
+    for (auto& [role, plan] : plans) {
+      if (!set->files.count(role) || plan.file != set->files.at(role).string()) continue;
+      if (role == AovRole::Normal) plan.normal_space = set->normal_space;
+      if (role == AovRole::Depth) plan.depth_kind = set->depth_kind;
     }
   }
   if (plans.count(AovRole::Reference) && !options.load_reference) plans.erase(AovRole::Reference);
-  if (plans.count(AovRole::Depth) && plans.at(AovRole::Depth).channels.empty()) plans.erase(AovRole::Depth);
 
   // 3. Explicit mappings and a reference file override everything above.
   for (const auto& [role, binding] : options.mapping.roles) {
@@ -390,18 +393,7 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
     if (role == AovRole::Depth) stack.depth_kind = plan.depth_kind;
   }
   // The layout: every AOV present, described, without pixels.
-  for (const auto& [role, plan] : plans) {
-    Aov* slot = nullptr;
-    switch (role) {
-      case AovRole::Color: slot = &stack.color; break;
-      case AovRole::Albedo: slot = &stack.albedo.emplace(); break;
-      case AovRole::Normal: slot = &stack.normal.emplace(); break;
-      case AovRole::Depth: slot = &stack.depth.emplace(); break;
-      case AovRole::Variance: slot = &stack.variance.emplace(); break;
-      case AovRole::Reference: slot = &stack.reference.emplace(); break;
-    }
-    slot->source = describe(plan);
-  }
+  for (const auto& [role, plan] : plans) stack.emplace(role).source = describe(plan);
   if (stack.normal_space == NormalSpace::Unknown && plans.count(AovRole::Normal))
     stack.notes.push_back("normal space unknown: give --normal-space camera|world if the network should know");
   stack.metadata = cspec.extra_attribs;
@@ -448,15 +440,7 @@ AovStack AovReader::read(const Rect& rect) const {
                             (role == AovRole::Reference ? "not scored: metrics exclude them" : "set to 0") + ")");
   }
 
-  stack.color = std::move(loaded.at(AovRole::Color));
-  auto move_opt = [&](AovRole role, std::optional<Aov>& dst) {
-    if (loaded.count(role)) dst = std::move(loaded.at(role));
-  };
-  move_opt(AovRole::Albedo, stack.albedo);
-  move_opt(AovRole::Normal, stack.normal);
-  move_opt(AovRole::Depth, stack.depth);
-  move_opt(AovRole::Variance, stack.variance);
-  move_opt(AovRole::Reference, stack.reference);
+  for (auto& [role, aov] : loaded) stack.emplace(role) = std::move(aov);
 
   return stack;
 }

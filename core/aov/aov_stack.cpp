@@ -68,17 +68,34 @@ int64_t AovStack::channel_count() const {
 
 const Aov* AovStack::find(AovRole role) const { return const_cast<AovStack*>(this)->find(role); }
 
-Aov* AovStack::find(AovRole role) {
-  auto opt = [](std::optional<Aov>& a) { return a ? &*a : nullptr; };
+namespace {
+
+// The optional member of a role; null for the colour, which is always there.
+std::optional<Aov>* optional_slot(AovStack& s, AovRole role) {
   switch (role) {
-    case AovRole::Color: return &color;
-    case AovRole::Albedo: return opt(albedo);
-    case AovRole::Normal: return opt(normal);
-    case AovRole::Depth: return opt(depth);
-    case AovRole::Variance: return opt(variance);
-    case AovRole::Reference: return opt(reference);
+    case AovRole::Color: return nullptr;
+    case AovRole::Albedo: return &s.albedo;
+    case AovRole::Normal: return &s.normal;
+    case AovRole::Depth: return &s.depth;
+    case AovRole::Variance: return &s.variance;
+    case AovRole::Reference: return &s.reference;
   }
   return nullptr;
+}
+
+}  // namespace
+
+Aov* AovStack::find(AovRole role) {
+  if (role == AovRole::Color) return &color;
+  std::optional<Aov>* slot = optional_slot(*this, role);
+  return slot && *slot ? &**slot : nullptr;
+}
+
+Aov& AovStack::emplace(AovRole role) {
+  if (role == AovRole::Color) return color;
+  std::optional<Aov>& slot = *optional_slot(*this, role);
+  if (!slot) slot.emplace();
+  return *slot;
 }
 
 }  // namespace residue

@@ -72,10 +72,13 @@ struct AovStack {
 
   int64_t width() const { return color.image.width(); }
   int64_t height() const { return color.image.height(); }
+  // The AOV of a role, or null when the stack has none: the one place that maps roles to the members above.
   const Aov* find(AovRole role) const;
+  Aov* find(AovRole role);
+  // The AOV of a role, created (empty) when absent.
+  Aov& emplace(AovRole role);
   // Floats per pixel of every AOV present (from the channel lists, so a layout without pixels answers too).
   int64_t channel_count() const;
-  Aov* find(AovRole role);
 };
 
 }  // namespace residue

@@ -5,6 +5,8 @@
 #include <map>
 #include <tuple>
 
+#include "core/aov/conventions.h"
+
 namespace residue {
 namespace {
 
@@ -85,89 +87,6 @@ std::vector<ChannelRef> take(const LayerIndex& idx, const std::string& prefix, c
   return {};
 }
 
-struct PassRule {
-  AovRole role;
-  std::vector<std::string> layers;  // lower case, in order of preference; "" = the root layer
-  NormalSpace normal_space = NormalSpace::Unknown;
-  bool flip_normal_z = false;
-  DepthKind depth_kind = DepthKind::Unknown;
-  std::string note;  // said when this rule is used
-};
-
-struct Convention {
-  std::string name;
-  // Layer names whose presence identifies the convention.
-  std::vector<std::string> signature;
-  bool root_beauty_signature = false;  // the signature also needs root R,G,B
-  std::vector<PassRule> rules;         // several rules per role = fallbacks in order
-};
-
-const std::vector<Convention>& conventions() {
-  static const std::vector<Convention> list = {
-      {"Blender Cycles",
-       {"combined", "noisy image", "denoising albedo", "denoising normal", "denoising depth"},
-       false,
-       {
-           {AovRole::Color, {"noisy image", "combined"}},
-           {AovRole::Albedo, {"denoising albedo"}},
-           {AovRole::Albedo, {"diffcol"}, {}, false, {}, "albedo taken from DiffCol (no Denoising Albedo pass)"},
-           {AovRole::Normal, {"denoising normal"}, NormalSpace::Camera, true},
-           {AovRole::Normal, {"normal"}, NormalSpace::World},
-           {AovRole::Depth, {"denoising depth"}, {}, false, DepthKind::RayLength},
-           {AovRole::Depth, {"depth"}, {}, false, DepthKind::Planar},
-           {AovRole::Variance, {"denoising variance"}},
-           {AovRole::Reference, {"reference"}},
-       }},
-      {"RenderMan",
-       {"ci"},
-       false,
-       {
-           {AovRole::Color, {"ci"}},
-           {AovRole::Albedo, {"albedo"}},
-           {AovRole::Normal, {"normal"}, NormalSpace::Unknown, false, {},
-            "RenderMan normal: space not stated in the file (give --normal-space)"},
-           {AovRole::Depth, {"zfiltered", "z"}, {}, false, DepthKind::Planar},
-           {AovRole::Variance, {"mse"}},
-           {AovRole::Reference, {"reference"}},
-       }},
-      {"V-Ray",
-       {"bump_normals", "bumpnormals", "diffuse"},
-       true,
-       {
-           {AovRole::Color, {"", "rgb", "rgba"}},
-           {AovRole::Albedo, {"diffuse"}},
-           {AovRole::Normal, {"bump_normals", "bumpnormals", "normals"}, NormalSpace::Camera},
-           {AovRole::Depth, {"zdepth", "vrayzdepth", "z"}, {}, false, DepthKind::Unknown,
-            "V-Ray depth is often normalised (zdepth min/max); treated as relative depth"},
-           {AovRole::Variance, {"variance"}},
-           {AovRole::Reference, {"reference"}},
-       }},
-      {"Arnold",
-       {"n", "denoise_albedo", "diffuse_albedo"},
-       true,
-       {
-           {AovRole::Color, {"", "rgba", "rgb", "beauty"}},
-           {AovRole::Albedo, {"denoise_albedo", "albedo", "diffuse_albedo"}},
-           {AovRole::Normal, {"n"}, NormalSpace::World},
-           {AovRole::Depth, {"z"}, {}, false, DepthKind::Planar},
-           {AovRole::Variance, {"variance", "rgba_variance"}},
-           {AovRole::Reference, {"reference"}},
-       }},
-      {"plain (R,G,B with named layers)",
-       {},
-       true,
-       {
-           {AovRole::Color, {"", "rgba", "rgb", "beauty", "color", "colour"}},
-           {AovRole::Albedo, {"albedo"}},
-           {AovRole::Normal, {"normal", "normals", "n"}, NormalSpace::Unknown},
-           {AovRole::Depth, {"depth", "z"}, {}, false, DepthKind::Unknown},
-           {AovRole::Variance, {"variance", "colorvariance"}},
-           {AovRole::Reference, {"reference", "ref"}},
-       }},
-  };
-  return list;
-}
-
 // The layer part of a stored channel name, in its original case ("ViewLayer.Denoising Albedo.R" ->
 // "ViewLayer.Denoising Albedo"); root channels are shown as "(root)".
 std::string stored_layer(const std::string& channel, bool root) {
@@ -220,8 +139,8 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
   }
   const std::string wanted_prefix = lower(layer_prefix);
 
-  for (const Convention& conv : conventions()) {
-    if (conv.root_beauty_signature && !has_root_rgb(idx)) continue;
+  for (const LayeredConvention& conv : layered_conventions()) {
+    if (conv.needs_root_rgb && !has_root_rgb(idx)) continue;
     for (const std::string& prefix : prefixes) {
       if (!wanted_prefix.empty() && prefix != wanted_prefix) continue;
       bool signed_here = conv.signature.empty();

@@ -1,14 +1,7 @@
 // Recognising AOVs from channel names, by the naming conventions of the renderers people use.
 //
 // Pure functions of the channel list (no I/O), so every convention is testable on names alone.
-// Conventions, tried in this order (the first whose signature matches wins):
-//   Blender Cycles  `ViewLayer.Combined.R`, `ViewLayer.Denoising Albedo.R`, `... Denoising Normal.X`,
-//                   `... Denoising Depth.Z` (also `Noisy Image`, `Normal`, `Depth`, `DiffCol`, `Denoising Variance`)
-//   RenderMan       `Ci`, `albedo`, `normal`, `zfiltered` / `z`, `mse`
-//   V-Ray           root `R,G,B` (channel names may start with "."), `diffuse.{red,green,blue}`, `bump_normals`
-//   Arnold          root `R,G,B(,A)`, `N`, `Z`, `denoise_albedo` / `albedo`
-//   plain           root `R,G,B` with layers `albedo`, `normal`, `depth` (`variance`, `reference`)
-// Layer and component matching is case-insensitive; components may be R,G,B / X,Y,Z / red,green,blue.
+// The conventions themselves (which renderer names what) are in core/aov/conventions.h.
 #pragma once
 
 #include <string>

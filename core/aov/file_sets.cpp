@@ -2,15 +2,13 @@
 
 #include <algorithm>
 #include <cctype>
-#include <regex>
 
+#include "core/aov/conventions.h"
 #include "core/util/error.h"
 
 namespace residue {
 namespace fs = std::filesystem;
 namespace {
-
-const std::regex kOidnColour(R"(^(.*)_(\d+spp)\.hdr\.exr$)", std::regex::icase);
 
 std::string lower(std::string s) {
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -33,16 +31,16 @@ std::optional<AovRole> role_from_name(const fs::path& file) {
 }  // namespace
 
 fs::path colour_file_in_folder(const fs::path& folder) {
-  if (fs::exists(folder / "color.exr")) return folder / "color.exr";
   std::vector<fs::path> candidates;
-  for (const auto& entry : fs::directory_iterator(folder))
-    if (std::regex_match(entry.path().filename().string(), kOidnColour)) candidates.push_back(entry.path());
-  std::sort(candidates.begin(), candidates.end());
+  std::string expected;
+  for (const auto& convention : file_set_conventions()) {
+    for (auto& file : convention->colour_files_in(folder)) candidates.push_back(std::move(file));
+    expected += (expected.empty() ? "" : " or ") + convention->colour_file_pattern();
+  }
   if (candidates.size() == 1) return candidates.front();
   if (candidates.empty())
-    throw Error(ErrorKind::Input, "folder '" + folder.string() +
-                                      "': no colour file found; expected color.exr (Tungsten) or "
-                                      "NAME_NNNNspp.hdr.exr (OIDN data set), or give the file itself");
+    throw Error(ErrorKind::Input, "folder '" + folder.string() + "': no colour file found; expected " + expected +
+                                      ", or give the file itself");
   std::string list;
   for (const auto& c : candidates) list += " " + c.filename().string();
   throw Error(ErrorKind::Input, "folder '" + folder.string() + "' holds several colour files:" + list +
@@ -52,28 +50,15 @@ fs::path colour_file_in_folder(const fs::path& folder) {
 FileSet sibling_file_set(const fs::path& colour_file) {
   FileSet set;
   set.files[AovRole::Color] = colour_file;
-  const fs::path dir = colour_file.parent_path();
-  const std::string name = colour_file.filename().string();
-  auto add_if = [&](AovRole role, const fs::path& p) {
-    if (!set.files.count(role) && fs::is_regular_file(p)) set.files[role] = p;
-  };
-  std::smatch m;
-  if (std::regex_match(name, m, kOidnColour)) {
-    set.convention = "OIDN data set";
-    const std::string base = m[1].str() + "_" + m[2].str();
-    add_if(AovRole::Albedo, dir / (base + ".alb.exr"));
-    add_if(AovRole::Normal, dir / (base + ".nrm.exr"));
-    add_if(AovRole::Depth, dir / (base + ".z.exr"));
-    add_if(AovRole::Reference, dir / (m[1].str() + "_ref.hdr.exr"));
-    return set;
+  for (const auto& convention : file_set_conventions()) {
+    if (!convention->claims(colour_file)) continue;
+    set.convention = convention->name();
+    set.normal_space = convention->normal_space();
+    set.depth_kind = convention->depth_kind();
+    for (const auto& [role, path] : convention->siblings(colour_file))
+      if (fs::is_regular_file(path)) set.files.emplace(role, path);
+    break;
   }
-  set.convention = "Tungsten file set";
-  const std::string stem = colour_file.stem().string();
-  add_if(AovRole::Albedo, dir / "albedo.exr");
-  add_if(AovRole::Normal, dir / "normal.exr");
-  add_if(AovRole::Depth, dir / "depth.exr");
-  add_if(AovRole::Variance, dir / (stem + "Variance.exr"));
-  if (stem != "reference") add_if(AovRole::Reference, dir / "reference.exr");
   return set;
 }
 

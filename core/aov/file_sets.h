@@ -1,8 +1,6 @@
-// Single-AOV file sets: renders that write one file per buffer.
-//   Tungsten        color.exr, albedo.exr, normal.exr, depth.exr, colorVariance.exr (+ reference.exr)
-//   OIDN data sets  NAME_0016spp.hdr.exr, NAME_0016spp.alb.exr, NAME_0016spp.nrm.exr, NAME_0016spp.z.exr,
-//                   reference NAME_ref.hdr.exr
-//   any files given together whose names say what they hold (albedo/alb, normal/nrm, depth/z, variance, ref).
+// Single-AOV file sets: renders that write one file per buffer. The renderers' own layouts (Tungsten, OIDN's
+// data sets) are in core/aov/conventions.h; besides them, any files given together whose names say what they
+// hold (albedo/alb, normal/nrm, depth/z, variance, ref).
 #pragma once
 
 #include <filesystem>
@@ -18,13 +16,16 @@ namespace residue {
 struct FileSet {
   std::string convention;
   std::map<AovRole, std::filesystem::path> files;  // always has Color
+  NormalSpace normal_space = NormalSpace::Unknown;  // what the convention's normal file holds
+  DepthKind depth_kind = DepthKind::Unknown;        // and its depth file
 };
 
-// A folder given as input -> the colour file inside it (Tungsten's color.exr, an OIDN *spp.hdr.exr).
+// A folder given as input -> the colour file inside it, by the file-set conventions (Tungsten's color.exr, ...).
 // Throws Error(Input) naming the folder and what was looked for when there is none, or several.
 std::filesystem::path colour_file_in_folder(const std::filesystem::path& folder);
 
-// The siblings of a single-layer colour file, by the conventions above. Only existing files are listed.
+// The siblings of a single-layer colour file, by the first convention that claims it. Only existing files are
+// listed.
 FileSet sibling_file_set(const std::filesystem::path& colour_file);
 
 // Roles of several files given together, by their names; the first file without a role keyword is colour.

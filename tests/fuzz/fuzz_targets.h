@@ -20,6 +20,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/channel_mapping.h"
+#include "core/aov/exr_header_check.h"
 #include "core/nn/model_file.h"
 #include "core/nn/oidn_network.h"
 #include "core/nn/safetensors.h"
@@ -62,56 +63,8 @@ inline std::filesystem::path write_input(const std::string& name, const uint8_t*
 // more than this many channel values (4 MiB of floats), or with over 16 subimages, are skipped.
 constexpr int64_t kMaxExrValues = int64_t{1} << 20;
 
-// OpenEXR 3.1 (Debian 12) allocates an attribute's declared size before reading it: a 2.6 KB file whose header
-// declares a 1.9 GB string attribute makes it allocate (and zero) 1.9 GB, found by both 10-minute runs of
-// fuzz_exr_loader (see docs/RELIABILITY.md). That is OpenEXR's, not Residue's, and it ends every run in an
-// out-of-memory at once; so the harness skips inputs whose header declares an attribute larger than the file.
-// Walks the headers (several for a multipart file, an empty one ending the list): name, type, int32 size, value.
-inline bool exr_attribute_sizes_fit(const uint8_t* data, size_t size) {
-  if (size < 8) return true;
-  // OpenEXR reads fixed-size attributes (box2i, ...) by their type, whatever size the header declares, so after a
-  // mutated one its position differs from the walk below; so also look at every "string" type name anywhere,
-  // with the int32 size after it: both OOM inputs of the second run are caught this way.
-  for (const char* type : {"string", "stringvector"}) {
-    const size_t len = std::strlen(type) + 1;
-    for (size_t p = 0; p + len + 4 <= size; ++p) {
-      if (std::memcmp(data + p, type, len) != 0) continue;
-      const size_t q = p + len;
-      const uint32_t n = uint32_t{data[q]} | uint32_t{data[q + 1]} << 8 | uint32_t{data[q + 2]} << 16 |
-                         uint32_t{data[q + 3]} << 24;
-      if (n > size - q - 4) return false;
-    }
-  }
-  const bool multipart = (data[5] & 0x10) != 0;  // version field bit 12
-  size_t pos = 8;
-  auto cstring = [&](size_t& p) -> std::optional<size_t> {  // length of the NUL-terminated string at p
-    const void* nul = std::memchr(data + p, 0, size - p);
-    if (!nul) return std::nullopt;
-    const size_t n = static_cast<size_t>(static_cast<const uint8_t*>(nul) - (data + p));
-    p += n + 1;
-    return n;
-  };
-  for (int header = 0; pos < size; ++header) {
-    bool empty = true;
-    for (;;) {
-      if (pos >= size) return true;
-      const auto name = cstring(pos);
-      if (!name) return true;
-      if (*name == 0) break;  // end of this header
-      empty = false;
-      if (pos >= size || !cstring(pos)) return true;  // type
-      if (size - pos < 4) return true;
-      const uint32_t n = uint32_t{data[pos]} | uint32_t{data[pos + 1]} << 8 | uint32_t{data[pos + 2]} << 16 |
-                         uint32_t{data[pos + 3]} << 24;
-      pos += 4;
-      if (n > size - pos) return false;
-      pos += n;
-    }
-    if (!multipart || empty) return true;
-  }
-  return true;
-}
-
+// OpenEXR 3.1 allocates what a header declares before reading it; the loader refuses such headers first
+// (core/aov/exr_header_check.h), but exr_small_enough below opens the file before the loader, so it checks too.
 inline bool exr_small_enough(const std::string& path) {
   auto in = OIIO::ImageInput::open(path);
   if (!in) {
@@ -133,7 +86,7 @@ inline bool exr_small_enough(const std::string& path) {
 // fuzz_exr_loader: the bytes as input.exr, through list_channels and load_aov_stack (OpenImageIO, channel
 // naming, multipart, data and display windows, normalisation).
 inline void exr_loader_one(const uint8_t* data, size_t size) {
-  if (!exr_attribute_sizes_fit(data, size)) return;
+  if (exr_header_problem(data, size, size)) return;
   const auto path = write_input("input.exr", data, size);
   if (!exr_small_enough(path.string())) return;
   try {

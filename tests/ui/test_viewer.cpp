@@ -441,9 +441,9 @@ class TestViewer : public QObject {
     QTest::keyClick(&w, Qt::Key_S);
     QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::SideBySide);
     QTest::keyClick(&w, Qt::Key_BracketRight);
-    QCOMPARE(w.aov(), AovView::Albedo);
+    QCOMPARE(w.aov(), AovRole::Albedo);
     QTest::keyClick(&w, Qt::Key_BracketLeft);
-    QCOMPARE(w.aov(), AovView::Color);
+    QCOMPARE(w.aov(), AovRole::Color);
     const double fit = w.canvas()->zoom();
     QTest::keyClick(&w, Qt::Key_0, Qt::ControlModifier);
     QCOMPARE(w.canvas()->zoom(), 1.0);

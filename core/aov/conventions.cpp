@@ -1,0 +1,150 @@
+#include "core/aov/conventions.h"
+
+#include <algorithm>
+#include <regex>
+
+namespace residue {
+namespace fs = std::filesystem;
+namespace {
+
+// --- file sets -------------------------------------------------------------------------------------------------
+
+// OIDN's training data: NAME_0016spp.hdr.exr beside NAME_0016spp.{alb,nrm,z}.exr and NAME_ref.hdr.exr.
+class OidnDataSet final : public FileSetConvention {
+ public:
+  std::string name() const override { return "OIDN data set"; }
+  std::string colour_file_pattern() const override { return "NAME_NNNNspp.hdr.exr (OIDN data set)"; }
+  std::vector<fs::path> colour_files_in(const fs::path& folder) const override {
+    std::vector<fs::path> found;
+    for (const auto& entry : fs::directory_iterator(folder))
+      if (claims(entry.path())) found.push_back(entry.path());
+    std::sort(found.begin(), found.end());
+    return found;
+  }
+  bool claims(const fs::path& colour_file) const override {
+    return std::regex_match(colour_file.filename().string(), pattern());
+  }
+  std::map<AovRole, fs::path> siblings(const fs::path& colour_file) const override {
+    std::smatch m;
+    const std::string file = colour_file.filename().string();
+    if (!std::regex_match(file, m, pattern())) return {};
+    const fs::path dir = colour_file.parent_path();
+    const std::string base = m[1].str() + "_" + m[2].str();
+    return {{AovRole::Albedo, dir / (base + ".alb.exr")},
+            {AovRole::Normal, dir / (base + ".nrm.exr")},
+            {AovRole::Depth, dir / (base + ".z.exr")},
+            {AovRole::Reference, dir / (m[1].str() + "_ref.hdr.exr")}};
+  }
+
+ private:
+  static const std::regex& pattern() {
+    static const std::regex re(R"(^(.*)_(\d+spp)\.hdr\.exr$)", std::regex::icase);
+    return re;
+  }
+};
+
+// Tungsten: fixed names in the render's folder; normals in world space, depth as the primary ray's length.
+class Tungsten final : public FileSetConvention {
+ public:
+  std::string name() const override { return "Tungsten file set"; }
+  std::string colour_file_pattern() const override { return "color.exr (Tungsten)"; }
+  std::vector<fs::path> colour_files_in(const fs::path& folder) const override {
+    if (fs::exists(folder / "color.exr")) return {folder / "color.exr"};
+    return {};
+  }
+  bool claims(const fs::path&) const override { return true; }  // the fallback for any single-layer file
+  std::map<AovRole, fs::path> siblings(const fs::path& colour_file) const override {
+    const fs::path dir = colour_file.parent_path();
+    const std::string stem = colour_file.stem().string();
+    std::map<AovRole, fs::path> s = {{AovRole::Albedo, dir / "albedo.exr"},
+                                     {AovRole::Normal, dir / "normal.exr"},
+                                     {AovRole::Depth, dir / "depth.exr"},
+                                     {AovRole::Variance, dir / (stem + "Variance.exr")}};
+    if (stem != "reference") s[AovRole::Reference] = dir / "reference.exr";
+    return s;
+  }
+  NormalSpace normal_space() const override { return NormalSpace::World; }
+  DepthKind depth_kind() const override { return DepthKind::RayLength; }
+};
+
+}  // namespace
+
+const std::vector<std::unique_ptr<const FileSetConvention>>& file_set_conventions() {
+  static const auto list = [] {
+    std::vector<std::unique_ptr<const FileSetConvention>> l;
+    l.push_back(std::make_unique<OidnDataSet>());
+    l.push_back(std::make_unique<Tungsten>());
+    return l;
+  }();
+  return list;
+}
+
+// --- layered files -----------------------------------------------------------------------------------------------
+
+const std::vector<LayeredConvention>& layered_conventions() {
+  static const std::vector<LayeredConvention> list = {
+      {"Blender Cycles",
+       {"combined", "noisy image", "denoising albedo", "denoising normal", "denoising depth"},
+       false,
+       {
+           {AovRole::Color, {"noisy image", "combined"}},
+           {AovRole::Albedo, {"denoising albedo"}},
+           {AovRole::Albedo, {"diffcol"}, {}, false, {}, "albedo taken from DiffCol (no Denoising Albedo pass)"},
+           {AovRole::Normal, {"denoising normal"}, NormalSpace::Camera, true},
+           {AovRole::Normal, {"normal"}, NormalSpace::World},
+           {AovRole::Depth, {"denoising depth"}, {}, false, DepthKind::RayLength},
+           {AovRole::Depth, {"depth"}, {}, false, DepthKind::Planar},
+           {AovRole::Variance, {"denoising variance"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"RenderMan",
+       {"ci"},
+       false,
+       {
+           {AovRole::Color, {"ci"}},
+           {AovRole::Albedo, {"albedo"}},
+           {AovRole::Normal, {"normal"}, NormalSpace::Unknown, false, {},
+            "RenderMan normal: space not stated in the file (give --normal-space)"},
+           {AovRole::Depth, {"zfiltered", "z"}, {}, false, DepthKind::Planar},
+           {AovRole::Variance, {"mse"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"V-Ray",
+       {"bump_normals", "bumpnormals", "diffuse"},
+       true,
+       {
+           {AovRole::Color, {"", "rgb", "rgba"}},
+           {AovRole::Albedo, {"diffuse"}},
+           {AovRole::Normal, {"bump_normals", "bumpnormals", "normals"}, NormalSpace::Camera},
+           {AovRole::Depth, {"zdepth", "vrayzdepth", "z"}, {}, false, DepthKind::Unknown,
+            "V-Ray depth is often normalised (zdepth min/max); treated as relative depth"},
+           {AovRole::Variance, {"variance"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"Arnold",
+       {"n", "denoise_albedo", "diffuse_albedo"},
+       true,
+       {
+           {AovRole::Color, {"", "rgba", "rgb", "beauty"}},
+           {AovRole::Albedo, {"denoise_albedo", "albedo", "diffuse_albedo"}},
+           {AovRole::Normal, {"n"}, NormalSpace::World},
+           {AovRole::Depth, {"z"}, {}, false, DepthKind::Planar},
+           {AovRole::Variance, {"variance", "rgba_variance"}},
+           {AovRole::Reference, {"reference"}},
+       }},
+      {"plain (R,G,B with named layers)",
+       {},
+       true,
+       {
+           {AovRole::Color, {"", "rgba", "rgb", "beauty", "color", "colour"}},
+           {AovRole::Albedo, {"albedo"}},
+           {AovRole::Normal, {"normal", "normals", "n"}, NormalSpace::Unknown},
+           {AovRole::Depth, {"depth", "z"}, {}, false, DepthKind::Unknown},
+           {AovRole::Variance, {"variance", "colorvariance"}},
+           {AovRole::Reference, {"reference", "ref"}},
+       }},
+  };
+  return list;
+}
+
+}  // namespace residue

@@ -1,0 +1,70 @@
+// Renderer conventions, in one registry: how each renderer names its AOVs inside one file, or which files hold
+// them when it writes one file per AOV, and what its normals and depth mean. Supporting another renderer is one
+// entry here; channel_naming.cpp and file_sets.cpp hold the matching mechanics and never name a renderer.
+//
+// Layered files (tried in this order; the first whose signature matches wins):
+//   Blender Cycles  `ViewLayer.Combined.R`, `ViewLayer.Denoising Albedo.R`, `... Denoising Normal.X`,
+//                   `... Denoising Depth.Z` (also `Noisy Image`, `Normal`, `Depth`, `DiffCol`, `Denoising Variance`)
+//   RenderMan       `Ci`, `albedo`, `normal`, `zfiltered` / `z`, `mse`
+//   V-Ray           root `R,G,B` (channel names may start with "."), `diffuse.{red,green,blue}`, `bump_normals`
+//   Arnold          root `R,G,B(,A)`, `N`, `Z`, `denoise_albedo` / `albedo`
+//   plain           root `R,G,B` with layers `albedo`, `normal`, `depth` (`variance`, `reference`)
+// File sets (one file per AOV):
+//   OIDN data set   NAME_0016spp.hdr.exr, NAME_0016spp.alb.exr, .nrm.exr, .z.exr; reference NAME_ref.hdr.exr
+//   Tungsten        color.exr, albedo.exr, normal.exr (world space), depth.exr (path length), colorVariance.exr,
+//                   reference.exr; also the fallback for any single-layer colour file
+#pragma once
+
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/aov/aov_stack.h"
+
+namespace residue {
+
+// Where one AOV lives in a layered file: the layer names to try, in order, and what the values mean.
+struct PassRule {
+  AovRole role = AovRole::Color;
+  std::vector<std::string> layers;  // lower case, in order of preference; "" = the root layer
+  NormalSpace normal_space = NormalSpace::Unknown;
+  bool flip_normal_z = false;       // the renderer's camera space has +z along the view direction
+  DepthKind depth_kind = DepthKind::Unknown;
+  std::string note;                 // said when this rule is used
+};
+
+// A renderer that writes its AOVs as named layers of one file.
+struct LayeredConvention {
+  std::string name;
+  std::vector<std::string> signature;  // layer names (lower case) whose presence identifies the renderer
+  bool needs_root_rgb = false;         // the signature also needs root R,G,B
+  std::vector<PassRule> rules;         // several rules for one role = fallbacks, in order
+};
+
+// The layered conventions, in the order they are tried.
+const std::vector<LayeredConvention>& layered_conventions();
+
+// A renderer that writes one file per AOV.
+class FileSetConvention {
+ public:
+  virtual ~FileSetConvention() = default;
+  virtual std::string name() const = 0;
+  // What its colour file is called, for messages ("color.exr").
+  virtual std::string colour_file_pattern() const = 0;
+  // Its colour files in `folder` (usually none or one).
+  virtual std::vector<std::filesystem::path> colour_files_in(const std::filesystem::path& folder) const = 0;
+  // Whether `colour_file` is named as this renderer names colour.
+  virtual bool claims(const std::filesystem::path& colour_file) const = 0;
+  // Where the other AOVs of `colour_file` would be (the files need not exist).
+  virtual std::map<AovRole, std::filesystem::path> siblings(const std::filesystem::path& colour_file) const = 0;
+  // What its normal and depth files hold.
+  virtual NormalSpace normal_space() const { return NormalSpace::Unknown; }
+  virtual DepthKind depth_kind() const { return DepthKind::Unknown; }
+};
+
+// The file-set conventions, in the order they claim a colour file; the last claims every file.
+const std::vector<std::unique_ptr<const FileSetConvention>>& file_set_conventions();
+
+}  // namespace residue

@@ -1,0 +1,86 @@
+#include "core/aov/exr_header_check.h"
+
+#include <cstring>
+#include <fstream>
+#include <vector>
+
+#include "core/util/error.h"
+
+namespace residue {
+namespace {
+
+// Headers are a few KB; a mutated one that OpenEXR would misread is caught within the first MiB.
+constexpr size_t kHeaderScanBytes = size_t{1} << 20;
+
+uint32_t read_u32(const uint8_t* p) {
+  return uint32_t{p[0]} | uint32_t{p[1]} << 8 | uint32_t{p[2]} << 16 | uint32_t{p[3]} << 24;
+}
+
+std::string too_large(const std::string& what, uint64_t declared, uint64_t file_size) {
+  return "its header declares " + what + " of " + std::to_string(declared) + " bytes, but the file holds " +
+         std::to_string(file_size) + " (corrupt or truncated)";
+}
+
+}  // namespace
+
+std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size, uint64_t file_size) {
+  static constexpr uint8_t kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
+  if (size < 8 || std::memcmp(bytes, kMagic, 4) != 0) return std::nullopt;
+
+  // OpenEXR reads a fixed-size attribute (box2i, v2f, ...) by its type, whatever size the header declares, so
+  // after a mutated size its position and the walk below part ways; so every string type name is also looked
+  // at wherever it stands, with the size after it (both inputs the fuzzer found are caught this way only).
+  for (const char* type : {"string", "stringvector"}) {
+    const size_t len = std::strlen(type) + 1;
+    for (size_t p = 0; p + len + 4 <= size; ++p) {
+      if (std::memcmp(bytes + p, type, len) != 0) continue;
+      const uint32_t n = read_u32(bytes + p + len);
+      if (n > file_size) return too_large(std::string("a ") + type + " attribute", n, file_size);
+    }
+  }
+
+  // The walk: per header (several in a multipart file, an empty one ending the list) name, type, size, value.
+  const bool multipart = (bytes[5] & 0x10) != 0;  // version field, bit 12
+  size_t pos = 8;
+  auto skip_cstring = [&](std::string* out) {
+    const void* nul = std::memchr(bytes + pos, 0, size - pos);
+    if (!nul) return false;
+    const size_t n = static_cast<size_t>(static_cast<const uint8_t*>(nul) - (bytes + pos));
+    if (out) out->assign(reinterpret_cast<const char*>(bytes + pos), n);
+    pos += n + 1;
+    return true;
+  };
+  while (pos < size) {
+    bool empty = true;
+    for (;;) {
+      std::string name;
+      if (pos >= size || !skip_cstring(&name)) return std::nullopt;  // ran past what was read: OpenEXR judges
+      if (name.empty()) break;                                          // end of this header
+      empty = false;
+      if (pos >= size || !skip_cstring(nullptr) || size - pos < 4) return std::nullopt;
+      const uint32_t n = read_u32(bytes + pos);
+      pos += 4;
+      if (n > file_size - std::min<uint64_t>(file_size, pos))
+        return too_large("the attribute '" + name + "'", n, file_size);
+      if (n > size - pos) return std::nullopt;
+      pos += n;
+    }
+    if (!multipart || empty) break;
+  }
+  return std::nullopt;
+}
+
+void check_exr_header(const std::filesystem::path& path) {
+  std::error_code ec;
+  const uint64_t file_size = std::filesystem::file_size(path, ec);
+  if (ec) return;  // OpenImageIO reports what is wrong with it
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return;
+  std::vector<uint8_t> head(static_cast<size_t>(std::min<uint64_t>(file_size, kHeaderScanBytes)));
+  in.read(reinterpret_cast<char*>(head.data()), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(in.gcount()));
+  if (auto problem = exr_header_problem(head.data(), head.size(), file_size))
+    throw Error(ErrorKind::Input, "cannot read '" + path.string() + "': " + *problem);
+}
+
+}  // namespace residue

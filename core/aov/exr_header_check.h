@@ -1,0 +1,24 @@
+#pragma once
+// A check of an OpenEXR file's header before OpenImageIO opens it.
+//
+// OpenEXR 3.1 (Debian 12) allocates and zeroes the size an attribute declares before it reads the value: a 2.6 KB
+// file whose header declares a 1.9 GB string attribute costs 1.9 GB of memory before "unexpected end of file"
+// (found by fuzz_exr_loader; docs/RELIABILITY.md). No valid file declares an attribute larger than itself, so
+// such a header is refused here, naming the attribute, before any allocation.
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+namespace residue {
+
+// What is wrong with the header in `bytes` (the first bytes of a file of `file_size` bytes), or nothing when
+// every attribute it declares fits in the file. Bytes that are not OpenEXR pass (OpenImageIO judges them).
+std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size, uint64_t file_size);
+
+// Reads the start of `path` and throws Error(Input) naming the file when exr_header_problem finds something.
+void check_exr_header(const std::filesystem::path& path);
+
+}  // namespace residue
