@@ -56,6 +56,8 @@ TEST(FuzzCorpus, ChannelMappingSeedsAndCrashes) {
   EXPECT_GE(replay("fuzz_channel_mapping", residue::fuzz::channel_mapping_one), 6);
 }
 
+TEST(FuzzCorpus, TevIpcSeedsAndCrashes) { EXPECT_GE(replay("fuzz_tev_ipc", residue::fuzz::tev_ipc_one), 10); }
+
 // The seeds are real: each model seed loads, so the fuzzers start from inputs that reach the deep code.
 TEST(FuzzCorpus, ModelSeedsAreValid) {
   for (const auto& e : fs::directory_iterator(corpus_dir("fuzz_safetensors"))) {

@@ -21,6 +21,7 @@
 #include "core/aov/aov_loader.h"
 #include "core/aov/channel_mapping.h"
 #include "core/aov/exr_header_check.h"
+#include "core/ipc/tev_protocol.h"
 #include "core/nn/model_file.h"
 #include "core/nn/oidn_network.h"
 #include "core/nn/safetensors.h"
@@ -152,6 +153,34 @@ inline void channel_mapping_one(const uint8_t* data, size_t size) {
     auto m = ChannelMapping::from_json_file(path);
     m.merge(from_flag);
   } catch (const std::exception&) {
+  }
+}
+
+// fuzz_tev_ipc: the bytes as a TCP stream from a tev client, fed to the packet stream in pieces whose size the
+// first byte chooses (so that packets straddle reads), every framed packet decoded; the whole input also as one
+// packet. What the viewer's IPC server does with each connection, without the socket.
+inline void tev_ipc_one(const uint8_t* data, size_t size) {
+  try {
+    (void)ipc::parse_tev_packet({data, size});
+  } catch (const std::exception&) {
+  }
+  if (size == 0) return;
+  const size_t piece = size_t{data[0]} + 1;
+  ipc::TevLimits limits;
+  limits.max_packet_bytes = 1u << 20;  // small inputs; keeps a declared 512 MiB packet from being awaited
+  ipc::TevPacketStream stream(limits);
+  try {
+    for (size_t pos = 1; pos < size; pos += piece) {
+      stream.feed({data + pos, std::min(piece, size - pos)});
+      while (auto packet = stream.next()) {
+        try {
+          (void)ipc::parse_tev_packet(*packet, limits);
+        } catch (const std::exception&) {
+        }
+      }
+    }
+  } catch (const std::exception&) {
+    // a length field out of range: the server closes the connection
   }
 }
 
