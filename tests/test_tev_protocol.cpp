@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/ipc/live_images.h"
 #include "core/ipc/tev_protocol.h"
 #include "core/util/error.h"
 
@@ -190,6 +191,73 @@ TEST(TevProtocol, MalformedPacketsAreRefusedNamingWhatIsWrong) {
       EXPECT_NE(std::string(e.what()).find("declares " + std::to_string(declared) + " bytes"), std::string::npos)
           << e.what();
     }
+  }
+}
+
+// A renderer streaming a 5x3 image with albedo in 2x2 tiles, one overhanging the right edge: the assembled
+// stack holds every value sent, in the right role.
+TEST(LiveImages, TilesAssembleIntoAnAovStack) {
+  LiveImages images;
+  images.apply(std::get<CreateImage>(parse_tev_packet(Packet(4).u8(1).str("live").i32(5).i32(3).i32(6)
+      .str("R").str("G").str("B").str("albedo.R").str("albedo.G").str("albedo.B").done())));
+  auto value = [](int c, int x, int y) { return static_cast<float>(100 * c + 10 * y + x); };
+  for (int ty = 0; ty < 3; ty += 2)
+    for (int tx = 0; tx < 5; tx += 2) {
+      const int w = 2, h = std::min(2, 3 - ty);  // the last column of tiles overhangs x = 5
+      Packet p(5);
+      p.u8(0).str("live").i32(6);
+      for (const char* n : {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B"}) p.str(n);
+      p.i32(tx).i32(ty).i32(w).i32(h);
+      for (int c = 0; c < 6; ++c)
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) p.f32(value(c, tx + x, ty + y));
+      const Rect r = images.apply(std::get<UpdateImage>(parse_tev_packet(p.done())));
+      EXPECT_EQ(r.width, tx == 4 ? 1 : 2);
+    }
+  const LiveImage* live = images.find("live");
+  ASSERT_NE(live, nullptr);
+  EXPECT_EQ(live->updates, 6u);
+  const AovStack stack = live_aov_stack("live", *live);
+  ASSERT_TRUE(stack.albedo);
+  EXPECT_EQ(stack.width(), 5);
+  EXPECT_EQ(stack.height(), 3);
+  for (int y = 0; y < 3; ++y)
+    for (int x = 0; x < 5; ++x)
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(stack.color.image.at(x, y, c), value(c, x, y));
+        EXPECT_EQ(stack.albedo->image.at(x, y, c), value(3 + c, x, y));
+      }
+  EXPECT_EQ(stack.albedo->source.file, "tev IPC: live");
+  EXPECT_TRUE(images.close("live"));
+  EXPECT_EQ(images.find("live"), nullptr);
+}
+
+TEST(LiveImages, UpdatesOfUnknownImagesOrChannelsAndImagesWithoutColourAreRefused) {
+  LiveImages images;
+  UpdateImage u;
+  u.name = "nope";
+  u.channel_names = {"R"};
+  u.width = u.height = 1;
+  u.planes = {{1.0f}};
+  EXPECT_THROW(images.apply(u), Error);
+  CreateImage c;
+  c.name = "depth only";
+  c.width = c.height = 2;
+  c.channel_names = {"Z"};
+  images.apply(c);
+  u.name = "depth only";
+  try {
+    images.apply(u);
+    ADD_FAILURE() << "expected an Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("has no channel 'R' (it has Z)"), std::string::npos) << e.what();
+  }
+  try {
+    (void)live_aov_stack("depth only", *images.find("depth only"));
+    ADD_FAILURE() << "expected an Error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("'depth only' has no colour channels (it has Z)"), std::string::npos)
+        << e.what();
   }
 }
 

@@ -19,9 +19,6 @@ namespace residue {
 namespace fs = std::filesystem;
 namespace {
 
-// Depth values at or above this are "no hit" (Cycles Depth.Z writes 1e10 there).
-constexpr double kDepthBackgroundThreshold = 1e9;
-
 // What to read for one role.
 struct ReadPlan {
   AovRole role = AovRole::Color;
@@ -422,18 +419,7 @@ AovStack AovReader::read(const Rect& rect) const {
   // 6. Normalise conventions and count what is unusual.
   for (auto& [role, aov] : loaded) {
     const ReadPlan& plan = plans.at(role);
-    if (role == AovRole::Normal && plan.flip_normal_z)
-      for (int64_t y = 0; y < aov.image.height(); ++y)
-        for (int64_t x = 0; x < aov.image.width(); ++x) aov.image.at(x, y, 2) = -aov.image.at(x, y, 2);
-    if (role == AovRole::Depth) {
-      for (int64_t y = 0; y < aov.image.height(); ++y)
-        for (float& v : aov.image.row(y))
-          if (v >= plan.depth_background) {  // +Inf too
-            v = 0.0f;
-            ++stack.depth_background_pixels;
-          }
-    }
-    aov.non_finite = count_non_finite(aov.image);
+    stack.depth_background_pixels += normalise_aov(role, plan.flip_normal_z, plan.depth_background, aov);
     if (aov.uncovered_pixels > 0)
       stack.notes.push_back(std::string("the ") + to_string(role) + " AOV does not cover " +
                             std::to_string(aov.uncovered_pixels) + " pixels of the colour's data window (" +
@@ -443,6 +429,23 @@ AovStack AovReader::read(const Rect& rect) const {
   for (auto& [role, aov] : loaded) stack.emplace(role) = std::move(aov);
 
   return stack;
+}
+
+int64_t normalise_aov(AovRole role, bool flip_normal_z, double depth_background, Aov& aov) {
+  int64_t background = 0;
+  if (role == AovRole::Normal && flip_normal_z)
+    for (int64_t y = 0; y < aov.image.height(); ++y)
+      for (int64_t x = 0; x < aov.image.width(); ++x) aov.image.at(x, y, 2) = -aov.image.at(x, y, 2);
+  if (role == AovRole::Depth) {
+    for (int64_t y = 0; y < aov.image.height(); ++y)
+      for (float& v : aov.image.row(y))
+        if (v >= depth_background) {  // +Inf too
+          v = 0.0f;
+          ++background;
+        }
+  }
+  aov.non_finite = count_non_finite(aov.image);
+  return background;
 }
 
 AovStack load_aov_stack(const std::vector<fs::path>& inputs, const LoadOptions& options) {

@@ -45,6 +45,14 @@ class AovReader {
 // Throws residue::Error(Input | Mapping) that names the file, the channels found and the channels expected.
 AovStack load_aov_stack(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {});
 
+// Depth values at or above this are "no hit" (Cycles Depth.Z writes 1e10 there).
+inline constexpr double kDepthBackgroundThreshold = 1e9;
+
+// The loader's last step, for AOVs that come from elsewhere too (a stream): flips a normal's z when its
+// convention says so, sets depth at or above `depth_background` to 0, counts non-finite values into `aov`.
+// Returns how many depth pixels were background.
+int64_t normalise_aov(AovRole role, bool flip_normal_z, double depth_background, Aov& aov);
+
 // The channels of every subimage of `file`, for `info` and for error messages.
 struct FileChannels {
   std::string file;
