@@ -1,5 +1,5 @@
-// tev's IPC protocol (core/ipc/tev_protocol.h): packets as a tev client writes them, built here byte by byte by
-// an encoder of the test's own (the layout of tev's Python client), decoded and compared field by field; the
+// tev's IPC protocol (core/ipc/tev_protocol.h): packets as a tev client writes them, built byte by byte by the
+// tests' own encoder (support/tev_packet.h), decoded and compared field by field; the
 // stream framer fed in pieces; malformed packets refused with the field named.
 #include <gtest/gtest.h>
 
@@ -10,35 +10,12 @@
 #include "core/ipc/live_images.h"
 #include "core/ipc/tev_protocol.h"
 #include "core/util/error.h"
+#include "support/tev_packet.h"
 
 namespace residue::ipc {
 namespace {
 
-// A little-endian packet writer: the client side of the protocol.
-class Packet {
- public:
-  explicit Packet(uint8_t type) : bytes_(4, 0) { bytes_.push_back(type); }
-  Packet& u8(uint8_t v) { bytes_.push_back(v); return *this; }
-  Packet& i32(int32_t v) { return raw(&v, 4); }
-  Packet& i64(int64_t v) { return raw(&v, 8); }
-  Packet& f32(float v) { return raw(&v, 4); }
-  Packet& str(const std::string& s) { bytes_.insert(bytes_.end(), s.begin(), s.end()); return u8(0); }
-  // The finished packet, its length field filled in (or set to `length` to lie about it).
-  std::vector<uint8_t> done(int64_t length = -1) const {
-    std::vector<uint8_t> b = bytes_;
-    const uint32_t n = length < 0 ? static_cast<uint32_t>(b.size()) : static_cast<uint32_t>(length);
-    for (int i = 0; i < 4; ++i) b[static_cast<size_t>(i)] = static_cast<uint8_t>(n >> (8 * i));
-    return b;
-  }
-
- private:
-  Packet& raw(const void* p, size_t n) {  // this test runs on little-endian machines only (x86-64)
-    const auto* c = static_cast<const uint8_t*>(p);
-    bytes_.insert(bytes_.end(), c, c + n);
-    return *this;
-  }
-  std::vector<uint8_t> bytes_;
-};
+using Packet = residue::testing::TevPacket;
 
 std::string error_of(const std::vector<uint8_t>& packet, const TevLimits& limits = {}) {
   try {

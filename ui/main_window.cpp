@@ -18,6 +18,7 @@
 #include <QSettings>
 #include <QStandardItemModel>
 #include <QStatusBar>
+#include <QTimer>
 #include <QToolBar>
 #include <QtConcurrent/QtConcurrentRun>
 #include <cmath>
@@ -33,6 +34,7 @@
 #include "ui/metrics_panel.h"
 #include "ui/pane_renderer.h"
 #include "ui/pixel_inspector.h"
+#include "ui/tev_server.h"
 
 namespace residue::ui {
 
@@ -674,6 +676,41 @@ void MainWindow::updateStatus() {
   } else {
     cursor_label_->clear();
   }
+}
+
+QString MainWindow::listenForRenderers(quint16 port) {
+  if (!tev_) {
+    tev_ = new TevServer(this);
+    live_timer_ = new QTimer(this);
+    live_timer_->setSingleShot(true);
+    live_timer_->setInterval(150);  // a renderer sends many tiles a second; show them a few times a second
+    connect(tev_, &TevServer::liveImageChanged, this, [this](const QString& name) {
+      live_pending_ = name;
+      if (!live_timer_->isActive()) live_timer_->start();
+    });
+    connect(live_timer_, &QTimer::timeout, this, [this] {
+      const ipc::LiveImage* live = tev_->images().find(live_pending_.toStdString());
+      if (!live) return;
+      try {
+        session_->adoptLive(std::make_shared<const AovStack>(ipc::live_aov_stack(live_pending_.toStdString(), *live)),
+                            live_pending_);
+      } catch (const std::exception& e) {
+        statusBar()->showMessage(errorText(e), 10000);
+      }
+    });
+    connect(tev_, &TevServer::openRequested, this, [this](const QString& path, const QString& channels) {
+      if (!channels.isEmpty())
+        statusBar()->showMessage(tr("Opening %1 (channel selector \"%2\" ignored: AOVs are recognised by name)")
+                                     .arg(path, channels), 10000);
+      openFiles({path});
+    });
+    connect(tev_, &TevServer::reloadRequested, this, [this] { session_->reload(); });
+    connect(tev_, &TevServer::protocolError, this, [this](const QString& message) {
+      statusBar()->showMessage(message, 15000);
+    });
+  }
+  if (tev_->listening()) return {};
+  return tev_->listen(port) ? QString() : tev_->errorString();
 }
 
 void MainWindow::updateTitle() {

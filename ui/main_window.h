@@ -23,6 +23,7 @@ class QComboBox;
 class QDoubleSpinBox;
 class QLabel;
 class QMenu;
+class QTimer;
 
 namespace residue::ui {
 
@@ -30,6 +31,7 @@ class DenoisePanel;
 class MetricsPanel;
 class PixelInspector;
 class HelpOverlay;
+class TevServer;
 
 class MainWindow : public QMainWindow {
   Q_OBJECT
@@ -50,6 +52,12 @@ class MainWindow : public QMainWindow {
   // When false, load errors are not shown in dialogs (tests, screenshots); lastError() has them.
   void setInteractive(bool on) { interactive_ = on; }
   QString lastError() const { return last_error_; }
+
+  // Renderers streaming over tev's protocol (ui/tev_server.h): listens on the loopback interface. Returns an
+  // error message (the port is taken, ...) or an empty string. A streamed image is shown as the render, once
+  // its updates pause for a moment.
+  QString listenForRenderers(quint16 port);
+  TevServer* tevServer() const { return tev_; }
 
   // View state.
   void setExposure(double stops);
@@ -102,6 +110,9 @@ class MainWindow : public QMainWindow {
   std::shared_ptr<const Image> shared(Source s) const;
 
   Session* session_ = nullptr;
+  TevServer* tev_ = nullptr;
+  QTimer* live_timer_ = nullptr;  // coalesces a stream's updates into one refresh
+  QString live_pending_;          // the streamed image to show when it fires
   std::shared_ptr<const DisplayTransform> display_;
   ImageCanvas* canvas_ = nullptr;
   MetricsPanel* metrics_ = nullptr;

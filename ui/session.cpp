@@ -97,6 +97,7 @@ void Session::finishLoad() {
   }
   const bool same_grid = stack_ && stack_->width() == r->stack->width() && stack_->height() == r->stack->height();
   inputs_ = r->inputs;
+  live_name_.clear();
   options_ = r->options;
   stack_ = r->stack;
   if (r->reference_only && same_grid) {
@@ -109,9 +110,26 @@ void Session::finishLoad() {
   emit loaded();
 }
 
+void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& name) {
+  ++generation_;  // a file load still in flight is dropped when it ends
+  loading_ = false;
+  inputs_.clear();
+  live_name_ = name;
+  stack_ = std::move(stack);
+  denoised_.reset();
+  blended_.reset();
+  denoised_description_.clear();
+  emit loaded();
+}
+
 QString Session::title() const {
+  if (!live_name_.isEmpty()) return tr("%1 (live)").arg(live_name_);
   QStringList names;
-  for (const auto& p : inputs_) names << QString::fromStdString(p.filename().string());
+  for (const auto& p : inputs_) {
+    // A folder given as "dir/" has an empty file name: name the folder itself.
+    const auto name = p.has_filename() ? p.filename() : p.parent_path().filename();
+    names << QString::fromStdString(name.string());
+  }
   return names.join(", ");
 }
 

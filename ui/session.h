@@ -37,6 +37,10 @@ class Session : public QObject {
   void openReference(const std::filesystem::path& file);
   // Loads the same inputs again (F5), keeping the reference file and mapping; the denoised image is dropped.
   void reload();
+  // Shows a stack that came from no file (an image a renderer streams, ui/tev_server.h), named `name`.
+  // Supersedes a load in flight; the denoised result is cleared as for a new file.
+  void adoptLive(std::shared_ptr<const AovStack> stack, const QString& name);
+  QString liveName() const { return live_name_; }  // empty unless the stack came from adoptLive()
   bool loading() const { return loading_; }
 
   bool hasStack() const { return stack_ != nullptr; }
@@ -86,6 +90,7 @@ class Session : public QObject {
 
   std::shared_ptr<const AovStack> stack_;
   std::vector<std::filesystem::path> inputs_;
+  QString live_name_;
   LoadOptions options_;
   void reblend(const std::optional<Rect>& rect = std::nullopt);
 

@@ -47,8 +47,11 @@ int main(int argc, char** argv) {
   const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window to FILE and quit.", "file");
   const QCommandLineOption when("screenshot-when",
                                 "loaded (default), denoised, or progress:F (a denoise F of the way through).", "when");
+  const QCommandLineOption ipc_port("ipc-port", "Listen for renderers streaming over tev's protocol on this port of "
+                                    "127.0.0.1 (default 14158, tev's).", "port", "14158");
+  const QCommandLineOption no_ipc("no-ipc", "Do not listen for renderers.");
   for (const auto* o : {&reference, &map, &layout, &pane, &heatmap, &model, &denoise, &tile, &exposure, &roi, &zoom, &size, &timing,
-                        &screenshot, &when})
+                        &screenshot, &when, &ipc_port, &no_ipc})
     cli.addOption(*o);
   cli.process(app);
 
@@ -61,6 +64,16 @@ int main(int argc, char** argv) {
   }
   if (cli.isSet(screenshot)) window.setInteractive(false);
   window.show();
+  if (!cli.isSet(no_ipc) && !cli.isSet(screenshot)) {
+    bool ok = false;
+    const uint port = cli.value(ipc_port).toUInt(&ok);
+    if (!ok || port == 0 || port > 65535) {
+      std::fprintf(stderr, "residue: --ipc-port %s: expected a port number 1 to 65535\n", qPrintable(cli.value(ipc_port)));
+      return 2;
+    }
+    const QString error = window.listenForRenderers(static_cast<quint16>(port));
+    if (!error.isEmpty()) std::fprintf(stderr, "residue: %s\n", qPrintable(error));  // the viewer works without it
+  }
 
   residue::LoadOptions options;
   try {

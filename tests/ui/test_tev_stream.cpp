@@ -1,0 +1,121 @@
+// The viewer as a tev server, driven headless: a client written here streams a render over tev's protocol in
+// tiles, the way pbrt-v4 or tev's Python client does, and the viewer shows it (checked on the pixels it holds);
+// clients sending malformed packets are disconnected while the viewer and the good client go on.
+#include <QSignalSpy>
+#include <QTcpSocket>
+#include <QtTest>
+
+#include "support/tev_packet.h"
+#include "ui/main_window.h"
+#include "ui/tev_server.h"
+
+using namespace residue;
+using namespace residue::ui;
+using residue::testing::TevPacket;
+
+namespace {
+
+constexpr int kWidth = 12, kHeight = 10;
+float value(int c, int x, int y, float frame) { return frame + 0.01f * static_cast<float>(c * 1000 + y * 100 + x); }
+
+bool send(QTcpSocket& socket, const std::vector<uint8_t>& bytes) {
+  const auto n = socket.write(reinterpret_cast<const char*>(bytes.data()), static_cast<qint64>(bytes.size()));
+  socket.flush();
+  return n == static_cast<qint64>(bytes.size());
+}
+
+// One progressive pass of the render: 5x4 tiles (the last ones overhang) of R,G,B and albedo, interleaved with
+// a fourth, unused value per pixel (update v3: offsets 0..2, stride 4), as a renderer's framebuffer.
+void streamPass(QTcpSocket& socket, float frame) {
+  for (int ty = 0; ty < kHeight; ty += 4)
+    for (int tx = 0; tx < kWidth; tx += 5) {
+      const int w = 5, h = 4;
+      TevPacket colour(6);
+      colour.u8(0).str("pbrt live").i32(3).str("R").str("G").str("B").i32(tx).i32(ty).i32(w).i32(h);
+      for (int64_t c = 0; c < 3; ++c) colour.i64(c);
+      for (int c = 0; c < 3; ++c) colour.i64(4);
+      for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+          for (int c = 0; c < 3; ++c) colour.f32(value(c, tx + x, ty + y, frame));
+          colour.f32(1.0f);
+        }
+      QVERIFY(send(socket, colour.done()));
+      TevPacket albedo(5);  // planar, v2
+      albedo.u8(0).str("pbrt live").i32(3).str("albedo.R").str("albedo.G").str("albedo.B").i32(tx).i32(ty).i32(w).i32(h);
+      for (int c = 0; c < 3; ++c)
+        for (int y = 0; y < h; ++y)
+          for (int x = 0; x < w; ++x) albedo.f32(0.5f);
+      QVERIFY(send(socket, albedo.done()));
+    }
+}
+
+bool shows(MainWindow& w, float frame) {
+  const auto stack = w.session()->stack();
+  if (!stack || w.session()->liveName() != "pbrt live" || stack->width() != kWidth || !stack->albedo) return false;
+  for (int y = 0; y < kHeight; ++y)
+    for (int x = 0; x < kWidth; ++x)
+      for (int c = 0; c < 3; ++c)
+        if (stack->color.image.at(x, y, c) != value(c, x, y, frame) || stack->albedo->image.at(x, y, c) != 0.5f)
+          return false;
+  return true;
+}
+
+}  // namespace
+
+class TevStreamTest : public QObject {
+  Q_OBJECT
+ private slots:
+  void streamedRenderIsShownAndBadClientsAreDropped() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    QCOMPARE(w.listenForRenderers(0), QString());  // any free port
+    const quint16 port = w.tevServer()->port();
+
+    QTcpSocket renderer;
+    renderer.connectToHost(QHostAddress::LocalHost, port);
+    QVERIFY(renderer.waitForConnected(5000));
+    TevPacket create(4);
+    create.u8(1).str("pbrt live").i32(kWidth).i32(kHeight).i32(6);
+    for (const char* n : {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B"}) create.str(n);
+    QVERIFY(send(renderer, create.done()));
+    streamPass(renderer, 1.0f);
+    QVERIFY(QTest::qWaitFor([&] { return shows(w, 1.0f); }, 10000));
+    QVERIFY(w.windowTitle().startsWith("pbrt live (live)"));
+
+    // Malformed clients: a length below a packet's, an unknown type, a huge declared length, a truncated update.
+    QSignalSpy errors(w.tevServer(), &TevServer::protocolError);
+    std::vector<std::vector<uint8_t>> bad = {
+        {3, 0, 0, 0, 1},
+        TevPacket(42).str("x").done(),
+        {0xff, 0xff, 0xff, 0xff, 4},
+        TevPacket(5).u8(0).str("pbrt live").i32(1).str("R").i32(0).i32(0).i32(1000).i32(1000).f32(1).done(),
+        TevPacket(3).u8(0).str("never created").str("R").i32(0).i32(0).i32(1).i32(1).f32(1).done(),
+    };
+    for (const auto& bytes : bad) {
+      QTcpSocket client;
+      client.connectToHost(QHostAddress::LocalHost, port);
+      QVERIFY(client.waitForConnected(5000));
+      QVERIFY(send(client, bytes));
+      QVERIFY2(QTest::qWaitFor([&] { return client.state() == QAbstractSocket::UnconnectedState; }, 5000),
+               "the server should close a client that sends a malformed packet");
+    }
+    QCOMPARE(errors.count(), static_cast<int>(bad.size()));
+    QVERIFY(errors.at(1).at(0).toString().contains("unknown type 42"));
+    QVERIFY(errors.at(4).at(0).toString().contains("'never created', which was not created"));
+
+    // The good client is still connected, and its next pass is shown.
+    QCOMPARE(renderer.state(), QAbstractSocket::ConnectedState);
+    streamPass(renderer, 2.0f);
+    QVERIFY(QTest::qWaitFor([&] { return shows(w, 2.0f); }, 10000));
+
+    // A second viewer finds the port taken and says so; the first goes on.
+    MainWindow second;
+    const QString error = second.listenForRenderers(port);
+    QVERIFY2(error.contains(QString::number(port)) && error.contains("another Residue viewer"), qPrintable(error));
+    QVERIFY(w.tevServer()->listening());
+  }
+};
+
+QTEST_MAIN(TevStreamTest)
+#include "test_tev_stream.moc"
