@@ -10,6 +10,7 @@
 #include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFileInfo>
+#include <QFileSystemWatcher>
 #include <QFormLayout>
 #include <QKeyEvent>
 #include <QLabel>
@@ -107,6 +108,21 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     statusBar()->showMessage(tr("Loading %1...").arg(what));
   });
   connect(session_, &Session::loaded, this, &MainWindow::onLoaded);
+  watcher_ = new QFileSystemWatcher(this);
+  reload_timer_ = new QTimer(this);
+  reload_timer_->setSingleShot(true);
+  reload_timer_->setInterval(300);
+  const auto changed = [this] {
+    if (auto_reload_->isChecked()) reload_timer_->start();
+  };
+  connect(watcher_, &QFileSystemWatcher::fileChanged, this, changed);
+  connect(watcher_, &QFileSystemWatcher::directoryChanged, this, changed);
+  connect(reload_timer_, &QTimer::timeout, this, [this] {
+    for (const auto& p : session_->inputs())
+      if (!std::filesystem::exists(p)) return watchInputs();  // replaced by a rename: not there yet
+    auto_reloading_ = true;
+    session_->reload();
+  });
   connect(session_, &Session::loadFailed, this, &MainWindow::onLoadFailed);
   connect(session_, &Session::referenceChanged, this, [this] {
     statusBar()->showMessage(tr("Reference loaded"), 5000);
@@ -272,6 +288,12 @@ void MainWindow::buildActions() {
   });
   recent_menu_ = file->addMenu(tr("Open Re&cent"));
   action(file, tr("Re&load"), QKeySequence(Qt::Key_F5), [this] { session_->reload(); });
+  auto_reload_ = action(file, tr("Reload When the Files Change"), QKeySequence(), [this] { watchInputs(); });
+  auto_reload_->setCheckable(true);
+  auto_reload_->setChecked(true);
+  live_denoise_ = action(file, tr("Denoise Streamed Images When They Pause"), QKeySequence(), [] {});
+  live_denoise_->setCheckable(true);
+  live_denoise_->setChecked(true);
   file->addSeparator();
   auto* exp = file->addMenu(tr("&Export"));
   action(exp, tr("Denoised image (EXR)..."), QKeySequence(Qt::CTRL | Qt::Key_E), [this] {
@@ -419,11 +441,29 @@ void MainWindow::onLoaded() {
   updateTitle();
   refreshPanes();
   refreshAnalysis();
+  auto_reloading_ = false;
+  watchInputs();
+}
+
+void MainWindow::watchInputs() {
+  if (const QStringList watched = watcher_->files() + watcher_->directories(); !watched.isEmpty())
+    watcher_->removePaths(watched);
+  if (!auto_reload_->isChecked() || !session_->liveName().isEmpty()) return;
+  // A renderer that replaces the file by a rename drops it from the watch: it is added again after each load.
+  for (const auto& p : session_->inputs())
+    if (std::filesystem::exists(p)) watcher_->addPath(QString::fromStdString(p.string()));
+  if (const auto& ref = session_->loadOptions().reference; ref && std::filesystem::exists(*ref))
+    watcher_->addPath(QString::fromStdString(ref->string()));
 }
 
 void MainWindow::onLoadFailed(const QString& message, int kind, const QStringList& inputs) {
   last_error_ = message;
   statusBar()->showMessage(tr("Could not load: %1").arg(message), 15000);
+  if (auto_reloading_) {  // a file caught half-written: the next change reloads it again
+    auto_reloading_ = false;
+    watchInputs();
+    return;
+  }
   // Channels that no convention recognises: let the user assign them (once per channel layout).
   const bool mapping_problem = kind == static_cast<int>(ErrorKind::Mapping) ||
                                (kind == static_cast<int>(ErrorKind::Input) && message.contains("channel"));
@@ -684,9 +724,18 @@ QString MainWindow::listenForRenderers(quint16 port) {
     live_timer_ = new QTimer(this);
     live_timer_->setSingleShot(true);
     live_timer_->setInterval(150);  // a renderer sends many tiles a second; show them a few times a second
+    live_quiet_ = new QTimer(this);
+    live_quiet_->setSingleShot(true);
+    live_quiet_->setInterval(1000);
     connect(tev_, &TevServer::liveImageChanged, this, [this](const QString& name) {
       live_pending_ = name;
       if (!live_timer_->isActive()) live_timer_->start();
+      live_quiet_->start();  // restarted by every update: fires once the stream pauses
+    });
+    connect(live_quiet_, &QTimer::timeout, this, [this] {
+      if (!live_denoise_->isChecked() || session_->liveName().isEmpty() || denoise_->running()) return;
+      if (live_timer_->isActive()) return live_quiet_->start();  // the last tiles are not shown yet
+      denoise_->start();
     });
     connect(live_timer_, &QTimer::timeout, this, [this] {
       const ipc::LiveImage* live = tev_->images().find(live_pending_.toStdString());

@@ -24,6 +24,8 @@ class QDoubleSpinBox;
 class QLabel;
 class QMenu;
 class QTimer;
+class QFileSystemWatcher;
+class QAction;
 
 namespace residue::ui {
 
@@ -112,6 +114,13 @@ class MainWindow : public QMainWindow {
   Session* session_ = nullptr;
   TevServer* tev_ = nullptr;
   QTimer* live_timer_ = nullptr;  // coalesces a stream's updates into one refresh
+  QTimer* live_quiet_ = nullptr;  // fires when a stream has paused: time to denoise it
+  QAction* live_denoise_ = nullptr;   // File > Denoise streamed images when they pause
+  QFileSystemWatcher* watcher_ = nullptr;  // the open render's files, for reloading when a renderer rewrites them
+  QTimer* reload_timer_ = nullptr;         // a rewrite is several events: reload once they stop
+  QAction* auto_reload_ = nullptr;         // File > Reload when the files change
+  bool auto_reloading_ = false;            // a failed automatic reload goes to the status bar, not a dialog
+  void watchInputs();
   QString live_pending_;          // the streamed image to show when it fires
   std::shared_ptr<const DisplayTransform> display_;
   ImageCanvas* canvas_ = nullptr;

@@ -1,11 +1,15 @@
 // The viewer as a tev server, driven headless: a client written here streams a render over tev's protocol in
 // tiles, the way pbrt-v4 or tev's Python client does, and the viewer shows it (checked on the pixels it holds);
-// clients sending malformed packets are disconnected while the viewer and the good client go on.
+// clients sending malformed packets are disconnected while the viewer and the good client go on; a rewritten
+// file is reloaded.
 #include <QSignalSpy>
+#include <QTemporaryDir>
 #include <QTcpSocket>
 #include <QtTest>
+#include <filesystem>
 
 #include "support/tev_packet.h"
+#include "ui/denoise_panel.h"
 #include "ui/main_window.h"
 #include "ui/tev_server.h"
 
@@ -82,6 +86,10 @@ class TevStreamTest : public QObject {
     streamPass(renderer, 1.0f);
     QVERIFY(QTest::qWaitFor([&] { return shows(w, 1.0f); }, 10000));
     QVERIFY(w.windowTitle().startsWith("pbrt live (live)"));
+    // The stream has paused: the viewer denoises what it has (File > Denoise Streamed Images When They Pause).
+    QVERIFY(QTest::qWaitFor([&] { return w.session()->denoised() != nullptr && !w.denoisePanel()->running(); },
+                            30000));
+    QCOMPARE(w.session()->denoised()->width(), kWidth);
 
     // Malformed clients: a length below a packet's, an unknown type, a huge declared length, a truncated update.
     QSignalSpy errors(w.tevServer(), &TevServer::protocolError);
@@ -114,6 +122,33 @@ class TevStreamTest : public QObject {
     const QString error = second.listenForRenderers(port);
     QVERIFY2(error.contains(QString::number(port)) && error.contains("another Residue viewer"), qPrintable(error));
     QVERIFY(w.tevServer()->listening());
+  }
+
+  // A renderer rewriting the open file, in place or by renaming a new one over it: the viewer reloads it.
+  void rewrittenFileIsReloaded() {
+    QTemporaryDir dir;
+    const std::filesystem::path example = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+    const std::filesystem::path render = std::filesystem::path(dir.path().toStdString()) / "render.exr";
+    std::filesystem::copy_file(example / "noisy.exr", render);
+    MainWindow w;
+    w.setInteractive(false);
+    w.openFiles({QString::fromStdString(render.string())});
+    QVERIFY(QTest::qWaitFor([&] { return w.session()->hasStack() && !w.busy(); }, 30000));
+    const float noisy = w.session()->stack()->color.image.at(10, 10, 0);
+    const auto colour_is = [&](float v) {
+      return w.session()->hasStack() && w.session()->stack()->color.image.at(10, 10, 0) == v && !w.busy();
+    };
+    // In place: the reference's bytes over the render (a different first pixel, no AOVs).
+    std::filesystem::copy_file(example / "reference.exr", render, std::filesystem::copy_options::overwrite_existing);
+    QVERIFY(QTest::qWaitFor([&] { return !colour_is(noisy) && w.session()->hasStack() && !w.session()->stack()->albedo; },
+                            30000));
+    const float reference = w.session()->stack()->color.image.at(10, 10, 0);
+    QVERIFY(reference != noisy);
+    // By a rename, as renderers that write atomically do (the watch follows the new file).
+    const auto fresh = render.parent_path() / "render.tmp.exr";
+    std::filesystem::copy_file(example / "noisy.exr", fresh);
+    std::filesystem::rename(fresh, render);
+    QVERIFY(QTest::qWaitFor([&] { return colour_is(noisy); }, 30000));
   }
 };
 
