@@ -466,6 +466,31 @@ TEST(Denoise, MemoryBoundChoosesTheTile) {
   EXPECT_THROW(denoise(s, model, o), Error);
 }
 
+// The viewer's automatic tile for the shipped models at their benchmarked speed: about half a second of work
+// per tile with its halo, never below 8 halos, on the network's alignment grid.
+TEST(Denoise, InteractiveTileTakesAboutHalfASecondAndKeepsTheHaloSmall) {
+  for (const char* name : {"tiny", "small", "base", "paper"}) {
+    SCOPED_TRACE(name);
+    const nn::Model model = nn::load_model(nn::find_model_for(name, FeatureSet::Full));
+    const auto s_per_mp = model.benchmarked_seconds_per_mp(nn::Precision::FP32);
+    ASSERT_TRUE(s_per_mp) << "the shipped model has its benchmark";
+    const int64_t tile = interactive_tile(model.graph, *s_per_mp);
+    const int64_t halo = model.graph.halo();
+    EXPECT_EQ(tile % model.graph.alignment(), 0);
+    EXPECT_GE(tile, 8 * halo);
+    EXPECT_LE(tile, 1024);
+    const double seconds = std::pow(static_cast<double>(tile + 2 * halo), 2) * *s_per_mp / 1e6;
+    if (tile > 8 * halo + model.graph.alignment()) {  // not held up by the halo bound: near the target
+      EXPECT_LE(seconds, 0.5);
+      EXPECT_GT(std::pow(static_cast<double>(tile + 2 * halo + 2 * model.graph.alignment()), 2) * *s_per_mp / 1e6, 0.5);
+    }
+  }
+  // The paper's 16/128 network is slow: the halo bound wins (a 0.5 s tile would be 2 px).
+  const nn::Model paper = nn::load_model(nn::find_model_for("paper", FeatureSet::Full));
+  EXPECT_EQ(interactive_tile(paper.graph, 26.0), 8 * paper.graph.halo());
+  EXPECT_EQ(interactive_tile(paper.graph, 0.0), 1024);  // no speed known: the largest
+}
+
 TEST(Denoise, RealStarterSceneTiledEqualsUntiled) {
   const auto dir = testing::shared_dataset("cycles-starter/s105");
   RESIDUE_REQUIRE_SHARED(dir);

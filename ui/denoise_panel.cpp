@@ -75,7 +75,8 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   tile_->addItem(tr("auto tile"), 0);
   for (int t : {64, 128, 256, 512, 1024}) tile_->addItem(tr("tile %1").arg(t), t);
   tile_->setToolTip(tr("Tile edge: smaller tiles show progress sooner and use less memory; each tile also "
-                       "computes a halo of the receptive field, so small tiles cost more in total"));
+                       "computes a halo of the receptive field, so small tiles cost more in total. Auto: tiles "
+                       "of about half a second each at the model's speed, so that Cancel stops at once"));
   row->addWidget(tile_);
   roi_only_ = new QCheckBox(tr("ROI only"), this);
   roi_only_->setObjectName("roiOnly");
@@ -298,6 +299,7 @@ void DenoisePanel::start() {
   options.backend = backend_->currentData().toString().toStdString();
   options.roi = rect;
   options.tile = tile_->currentData().toInt();
+  if (options.tile <= 0) options.tile = interactive_tile(net->graph, expectedSecondsPerMp(model));
   options.energy_correction = energy_->isChecked();
   options.variance_blend = blend_->isChecked();
   running_description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->architecture()),
@@ -316,6 +318,17 @@ void DenoisePanel::start() {
   });
   preparing_ = false;
   poll_->start();
+}
+
+double DenoisePanel::expectedSecondsPerMp(const QString& model) const {
+  if (const auto here = measured_s_per_mp_.find(model); here != measured_s_per_mp_.end()) return here->second;
+  for (const auto& m : models_) {
+    if (m.name != model) continue;
+    const auto bench = precision() == nn::Precision::BF16 ? m.s_per_mp_bf16 : m.s_per_mp_fp32;
+    if (bench) return *bench;
+    return m.gflop_per_mp / 50.0;  // no benchmark: 50 GFLOP/s, about what 2 cores of fp32 reach here
+  }
+  return 0.0;
 }
 
 double DenoisePanel::progressFraction() const {

@@ -39,6 +39,8 @@ class DenoisePanel : public QWidget {
   QString selectedModel() const;
   void setPrecision(nn::Precision p);
   nn::Precision precision() const;
+  // Seconds per megapixel the model is expected to take: measured here if it ran, else its benchmark.
+  double expectedSecondsPerMp(const QString& model) const;
   void setRoiOnly(bool on);
   void setTile(int64_t tile);  // 0: automatic (the largest tile that fits the memory budget)
   void setRoi(std::optional<Rect> roi) { roi_ = roi; }

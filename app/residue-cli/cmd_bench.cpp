@@ -1,6 +1,8 @@
 // residue-cli bench: time per megapixel of each model size x backend x precision x tile size on a synthetic
 // render, as GFLOP/s and as a share of this CPU's fp32 ceiling measured by the same tool (an FMA loop).
+#include <chrono>
 #include <cstdio>
+#include <thread>
 #include <iostream>
 #include <memory>
 #include <random>
@@ -12,6 +14,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "core/denoise/denoise_job.h"
 #include "core/denoise/denoiser.h"
 #include "core/nn/model_file.h"
 #include "core/util/cpu_peak.h"
@@ -29,6 +32,7 @@ struct BenchOptions {
   int threads = 0;
   int repeat = 2;
   bool json = false;
+  double cancel_after = 0;  // > 0: measure how long a cancel takes to stop a run, not the run
 };
 
 // BLOCKS/WIDTH: a random ResNet of that size; anything else: a model name or file (the full-AOV variant), e.g.
@@ -68,7 +72,67 @@ AovStack synthetic_stack(int64_t n) {
   return s;
 }
 
+// Tile 0 is the viewer's automatic tile: about half a second per tile at the model's benchmarked speed.
+int64_t tile_for(int64_t tile, const nn::Model& model, nn::Precision precision, int64_t size) {
+  if (tile > 0) return std::min(tile, size);
+  const double s_per_mp = model.benchmarked_seconds_per_mp(precision).value_or(model.graph.flops_per_pixel() / 50e3);
+  return std::min(interactive_tile(model.graph, s_per_mp), size);
+}
+
+// Starts a run as the viewer does (a DenoiseJob on a worker thread), cancels it after `after` seconds and
+// returns how long it took to stop, with the tiles finished by then.
+std::pair<double, DenoiseJob::Progress> time_to_stop(const AovStack& stack, const nn::Model& model,
+                                                     const DenoiseOptions& d, double after) {
+  DenoiseJob job(std::make_shared<const AovStack>(stack), std::make_shared<const nn::Model>(model), d);
+  std::this_thread::sleep_for(std::chrono::duration<double>(after));
+  const auto progress = job.progress();
+  const auto t0 = std::chrono::steady_clock::now();
+  job.cancel();
+  job.wait();
+  return {std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), progress};
+}
+
+int run_cancel(const BenchOptions& o) {
+  const AovStack stack = synthetic_stack(o.size);
+  const std::vector<std::string> backends = o.backends.empty() ? nn::available_backends() : o.backends;
+  nlohmann::json rows = nlohmann::json::array();
+  if (!o.json) {
+    std::printf("cancel %.1f s into a run of a %lldx%lld image, as the viewer's Cancel does\n\n", o.cancel_after,
+                static_cast<long long>(o.size), static_cast<long long>(o.size));
+    std::printf("| model | backend | precision | tile | tiles done | time to stop (s) |\n|---|---|---|---|---|---|\n");
+  }
+  for (const auto& model_text : o.models) {
+    const nn::Model model = bench_model(model_text);
+    for (const auto& backend : backends)
+      for (const auto& precision : o.precisions) {
+        if (backend == "eigen" && precision != "fp32") continue;
+        for (int64_t tile : o.tiles) {
+          DenoiseOptions d;
+          d.backend = backend;
+          d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+          d.tile = tile_for(tile, model, d.precision, o.size);
+          d.threads = o.threads;
+          d.skip_empty_tiles = false;
+          const auto [stop, progress] = time_to_stop(stack, model, d, o.cancel_after);
+          rows.push_back({{"model", model_text}, {"backend", backend}, {"precision", precision}, {"tile", d.tile},
+                          {"auto_tile", tile <= 0}, {"tiles_done", progress.done}, {"tiles", progress.total},
+                          {"seconds_to_stop", stop}});
+          if (!o.json)
+            std::printf("| %s | %s | %s | %lld%s | %lld of %lld | %.2f |\n", model_text.c_str(), backend.c_str(),
+                        precision.c_str(), static_cast<long long>(d.tile), tile <= 0 ? " (auto)" : "",
+                        static_cast<long long>(progress.done), static_cast<long long>(progress.total), stop);
+          std::fflush(stdout);
+        }
+      }
+  }
+  if (o.json)
+    std::cout << nlohmann::json{{"cancel_after_seconds", o.cancel_after}, {"image", o.size}, {"rows", rows}}.dump(2)
+              << "\n";
+  return kOk;
+}
+
 int run(const BenchOptions& o) {
+  if (o.cancel_after > 0) return run_cancel(o);
   const int threads = o.threads > 0 ? o.threads : tbb::this_task_arena::max_concurrency();
   const CpuPeak peak = measure_fp32_peak(threads);
   const AovStack stack = synthetic_stack(o.size);
@@ -92,7 +156,7 @@ int run(const BenchOptions& o) {
           DenoiseOptions d;
           d.backend = backend;
           d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
-          d.tile = std::min(tile, o.size);
+          d.tile = tile_for(tile, model, d.precision, o.size);
           d.threads = threads;
           d.skip_empty_tiles = false;
           DenoiseStats best;
@@ -138,11 +202,14 @@ Command add_bench_command(CLI::App& app) {
   cmd->add_option("--models", o->models, "Model sizes BLOCKS/WIDTH (random weights) or model names (small, oidn, ...)")->capture_default_str()->delimiter(',');
   cmd->add_option("--backends", o->backends, "Backends (default: all available)")->delimiter(',');
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
-  cmd->add_option("--tiles", o->tiles, "Tile edges")->capture_default_str()->delimiter(',');
+  cmd->add_option("--tiles", o->tiles, "Tile edges; 0 = the viewer's automatic tile")->capture_default_str()->delimiter(',');
   cmd->add_option("--size", o->size, "Edge of the square test image")->capture_default_str()->check(CLI::Range(16, 16384));
   cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));
   cmd->add_option("--repeat", o->repeat, "Runs per configuration; the fastest counts")->capture_default_str()->check(CLI::Range(1, 100));
   cmd->add_flag("--json", o->json, "Print JSON instead of a Markdown table");
+  cmd->add_option("--cancel-after", o->cancel_after,
+                  "Instead of timing runs: cancel each S seconds in (as the viewer's Cancel) and time the stop")
+      ->check(CLI::Range(0.0, 3600.0));
   return {cmd, [o]() { return run(*o); }};
 }
 

@@ -207,6 +207,16 @@ int64_t align_tile(int64_t tile, int64_t align) { return std::max(align, tile / 
 
 }  // namespace
 
+int64_t interactive_tile(const nn::Graph& graph, double seconds_per_mp, double target_seconds) {
+  const int64_t a = graph.alignment(), halo = graph.halo();
+  if (!(seconds_per_mp > 0) || !(target_seconds > 0)) return align_tile(kMaxAutoTile, a);
+  // (tile + 2 halo)^2 pixels are computed for a tile.
+  const double computed = target_seconds / seconds_per_mp * 1e6;
+  const int64_t edge = static_cast<int64_t>(std::sqrt(computed)) - 2 * halo;
+  // Below 8 halos the halo's recomputation would cost over half as much again as the tile (1.25^2).
+  return align_tile(std::clamp<int64_t>(edge, std::max<int64_t>(8 * halo, 64), kMaxAutoTile), a);
+}
+
 int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget) {
   for (int64_t t = kMaxAutoTile; t >= 16; t = t * 3 / 4) {
     const int64_t aligned = align_tile(t, graph.alignment());

@@ -100,4 +100,10 @@ std::vector<Rect> make_tiles(const Rect& region, int64_t tile);
 // when even 16 px does not fit.
 int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget);
 
+// The tile edge for interactive use (the viewer): tiles that take about `target_seconds` each at
+// `seconds_per_mp` (the model's measured speed, halo included in the work), so that progress shows often and
+// one layer of a tile (where a oneDNN run can be cancelled) is over well within a second; but never below 8
+// halos (the recomputed halo then costs at most 56 % more than the tile itself) nor above 1024 px.
+int64_t interactive_tile(const nn::Graph& graph, double seconds_per_mp, double target_seconds = 0.5);
+
 }  // namespace residue

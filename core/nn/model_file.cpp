@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdlib>
 
+#include <nlohmann/json.hpp>
+
 #include "core/nn/oidn_network.h"
 #include "core/nn/tza.h"
 #include "core/util/error.h"
@@ -135,6 +137,16 @@ Model load_oidn_model(const std::filesystem::path& path) {
 FeatureSet Model::features() const {
   if (method == Method::Residue) return network.arch.features;
   return oidn.albedo && oidn.normal ? FeatureSet::ColorAlbedoNormal : FeatureSet::ColorOnly;
+}
+
+std::optional<double> Model::benchmarked_seconds_per_mp(Precision precision) const {
+  const auto it = metadata.find("benchmark");
+  if (it == metadata.end()) return std::nullopt;
+  const auto bench = nlohmann::json::parse(it->second, nullptr, false);
+  const char* key = precision == Precision::BF16 ? "bf16_s_per_mp" : "fp32_s_per_mp";
+  if (!bench.is_object() || !bench.contains(key) || !bench[key].is_number()) return std::nullopt;
+  const double v = bench[key].get<double>();
+  return v > 0 ? std::optional<double>(v) : std::nullopt;
 }
 
 std::string Model::architecture() const {

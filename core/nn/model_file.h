@@ -14,10 +14,12 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/features/feature_set.h"
+#include "core/nn/backend.h"
 #include "core/nn/network.h"
 #include "core/nn/safetensors.h"
 
@@ -47,6 +49,9 @@ struct Model {
 
   FeatureSet features() const;  // the AOVs a Residue model reads (OIDN: the nearest set)
   std::string architecture() const;  // "8/32 full", "OIDN UNet (rt_hdr_alb_nrm)"
+  // Seconds per megapixel at `precision` from the file's "benchmark" metadata (residue-cli bench on the machine
+  // it names), or nothing when the file has none.
+  std::optional<double> benchmarked_seconds_per_mp(Precision precision) const;
 };
 
 // A Residue model from a network in memory (tests, benchmarks): its graph made from it.
