@@ -10,6 +10,10 @@ seed, and references.
 Layout (a frame sequence, as `residue-cli denoise` and `eval` take it):
   OUT/noisy.####.exr       --spp spp, every AOV (as the data set's noisy_a.exr), seed 10000 + frame
   OUT/reference.####.exr   --ref-spp spp, colour only
+  OUT/reference_b.####.exr with --second-reference: a second, independent reference per frame (seed
+                           30000 + frame; static: one for every frame, as the first), so that the error the
+                           references' own noise adds to a metric can be measured (tools/flicker_study.py
+                           subtracts it)
   OUT/animation.json       the scene, frames, camera moves, settings and timings
 Resumable: frames whose files exist are not rendered again.
 
@@ -39,6 +43,7 @@ def main():
     ap.add_argument("--move-m", type=float, default=0.4)
     ap.add_argument("--yaw-deg", type=float, default=4.0)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--second-reference", action="store_true")
     ap.add_argument("--blender", default="/usr/bin/blender")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
@@ -74,6 +79,29 @@ def main():
         shutil.rmtree(tmp, ignore_errors=True)
         info["frame_seconds"][f] = round(time.time() - start, 1)
         print(f"frame {f}/{args.frames} ({args.mode}) in {time.time() - start:.1f} s", flush=True)
+    for f in range(1, args.frames + 1) if args.second_reference else []:
+        ref_b = os.path.join(args.out, f"reference_b.{f:04d}.exr")
+        if os.path.exists(ref_b):
+            continue
+        if args.mode == "static" and f > 1:  # one second reference serves every frame, as the first does
+            os.link(os.path.join(args.out, "reference_b.0001.exr"), ref_b)
+            continue
+        t = (f - 1) / max(1, args.frames - 1)
+        tmp = os.path.join(args.out, f".tmp-b-{f:04d}")
+        shutil.rmtree(tmp, ignore_errors=True)
+        cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python",
+               os.path.join(HERE, "make_scene.py"), "--", "--scene-seed", str(args.scene_seed),
+               "--renders", f"{args.ref_spp}:{30000 + f}", "--names", "reference",
+               "--outdir", tmp, "--res", str(args.res), "--threads", str(args.threads),
+               "--camera-move", f"{t * args.move_m},0,0,{t * args.yaw_deg}" if args.mode == "move" else "0,0,0,0"]
+        start = time.time()
+        r = subprocess.run(cmd, capture_output=True, text=True)
+        if r.returncode != 0:
+            sys.exit(f"second reference of frame {f} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
+        os.replace(os.path.join(tmp, "reference.exr"), ref_b)
+        shutil.rmtree(tmp, ignore_errors=True)
+        info["frame_seconds"][f"b{f}"] = round(time.time() - start, 1)
+        print(f"second reference {f}/{args.frames} in {time.time() - start:.1f} s", flush=True)
     with open(os.path.join(args.out, "animation.json"), "w") as fh:
         json.dump(info, fh, indent=1)
 
