@@ -1,4 +1,5 @@
 // AOV stack loading: real Cycles and Tungsten renders, and files written here for every naming convention.
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -290,6 +291,35 @@ TEST(AovConventions, OidnFileSet) {
     expect_coded(s, AovRole::Reference, 60);
     EXPECT_FALSE(s.depth.has_value());
   }
+}
+
+// The data sets' layout (and the Cycles starter set's): noisy_a.exr with reference.exr beside it. The viewer and
+// eval find the reference without -r, and say so; one of another size is left out, with a note.
+TEST(AovConventions, CyclesReferenceBesideTheRender) {
+  const auto scene = testing::shared_dataset("cycles-starter/s105");
+  RESIDUE_REQUIRE_SHARED(scene);
+  TempDir tmp;
+  std::filesystem::copy_file(scene / "noisy_a.exr", tmp / "noisy_a.exr");
+  std::filesystem::copy_file(scene / "reference.exr", tmp / "reference.exr");
+  const AovStack s = load_aov_stack({tmp / "noisy_a.exr"});
+  ASSERT_TRUE(s.reference);
+  EXPECT_EQ(s.reference->source.file, (tmp / "reference.exr").string());
+  const AovStack direct = load_aov_stack({scene / "reference.exr"});
+  EXPECT_EQ(s.reference->image.at(100, 100, 1), direct.color.image.at(100, 100, 1));
+  EXPECT_NE(std::find_if(s.notes.begin(), s.notes.end(),
+                         [](const std::string& n) { return n.find("beside the render") != std::string::npos; }),
+            s.notes.end());
+  LoadOptions no_ref;
+  no_ref.load_reference = false;
+  EXPECT_FALSE(load_aov_stack({tmp / "noisy_a.exr"}, no_ref).reference);
+  // Another size: not used.
+  std::filesystem::remove(tmp / "reference.exr");
+  write_fixture_exr(tmp / "reference.exr", {part(8, 8, {coded("R", 1), coded("G", 2), coded("B", 3)})});
+  const AovStack other = load_aov_stack({tmp / "noisy_a.exr"});
+  EXPECT_FALSE(other.reference);
+  EXPECT_NE(std::find_if(other.notes.begin(), other.notes.end(),
+                         [](const std::string& n) { return n.find("has another size") != std::string::npos; }),
+            other.notes.end());
 }
 
 TEST(AovConventions, FilesNamedByRole) {

@@ -8,6 +8,7 @@
 #include <QTimer>
 #include <cstdio>
 #include <memory>
+#include <string_view>
 
 #include "core/util/openmp_env.h"
 #include "core/util/resources.h"
@@ -20,6 +21,12 @@ using residue::ui::MainWindow;
 
 int main(int argc, char** argv) {
   residue::ensure_passive_openmp(argc, argv);
+  // --help and --version need no display (a farm node, an ssh session): answer them on the offscreen platform.
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    if (a == "-h" || a == "--help" || a == "--help-all" || a == "-v" || a == "--version")
+      qputenv("QT_QPA_PLATFORM", "offscreen");
+  }
   QApplication app(argc, argv);
   QApplication::setApplicationName("residue");
   QApplication::setOrganizationName("Residue");

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/aov/channel_naming.h"
+#include "core/aov/conventions.h"
 #include "core/aov/exr_header_check.h"
 #include "core/aov/file_sets.h"
 #include "core/util/error.h"
@@ -345,6 +346,20 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
       if (!set->files.count(role) || plan.file != set->files.at(role).string()) continue;
       if (role == AovRole::Normal) plan.normal_space = set->normal_space;
       if (role == AovRole::Depth) plan.depth_kind = set->depth_kind;
+    }
+  }
+  // A layered render's reference beside it under the data sets' name, when it has the render's size.
+  if (!set && !plans.count(AovRole::Reference) && options.load_reference && !options.reference) {
+    if (const auto ref = reference_beside(primary.path)) {
+      const OpenedFile& r = open_cached(*ref);
+      const OIIO::ImageSpec& rs = r.specs.front();
+      const OIIO::ImageSpec& ps = primary.specs.front();
+      if (rs.full_width == ps.full_width && rs.full_height == ps.full_height) {
+        plans[AovRole::Reference] = whole_file_plan(AovRole::Reference, r);
+        stack.notes.push_back("reference: '" + ref->filename().string() + "' beside the render (-r names another)");
+      } else {
+        stack.notes.push_back("'" + ref->string() + "' beside the render has another size: not used as its reference");
+      }
     }
   }
   if (plans.count(AovRole::Reference) && !options.load_reference) plans.erase(AovRole::Reference);

@@ -79,6 +79,13 @@ const std::vector<std::unique_ptr<const FileSetConvention>>& file_set_convention
   return list;
 }
 
+std::optional<fs::path> reference_beside(const fs::path& render) {
+  const fs::path ref = render.parent_path() / "reference.exr";
+  std::error_code ec;
+  if (!fs::is_regular_file(ref, ec) || fs::equivalent(ref, render, ec)) return std::nullopt;
+  return ref;
+}
+
 // --- layered files -----------------------------------------------------------------------------------------------
 
 const std::vector<LayeredConvention>& layered_conventions() {

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -66,5 +67,9 @@ class FileSetConvention {
 
 // The file-set conventions, in the order they claim a colour file; the last claims every file.
 const std::vector<std::unique_ptr<const FileSetConvention>>& file_set_conventions();
+
+// A reference beside a layered render, by the name data sets give it (Residue's and the Cycles starter set's
+// noisy_a.exr / reference.exr): `reference.exr` in the render's folder, when it exists and is not the render.
+std::optional<std::filesystem::path> reference_beside(const std::filesystem::path& render);
 
 }  // namespace residue

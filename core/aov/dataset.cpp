@@ -69,6 +69,7 @@ Image variance_from_halves(const Image& a, const Image& b) {
 AovStack load_dataset_scene(const std::filesystem::path& scene, bool with_reference) {
   LoadOptions o;
   if (with_reference) o.reference = scene / "reference.exr";
+  o.load_reference = with_reference;
   AovStack a = load_aov_stack({scene / "noisy_a.exr"}, o);
   const auto b_path = scene / "noisy_b.exr";
   if (!a.variance && std::filesystem::exists(b_path)) {

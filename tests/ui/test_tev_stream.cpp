@@ -1,7 +1,8 @@
 // The viewer as a tev server, driven headless: a client written here streams a render over tev's protocol in
 // tiles, the way pbrt-v4 or tev's Python client does, and the viewer shows it (checked on the pixels it holds);
 // clients sending malformed packets are disconnected while the viewer and the good client go on; a rewritten
-// file is reloaded.
+// file is reloaded; --help needs no display.
+#include <QProcess>
 #include <QSignalSpy>
 #include <QTemporaryDir>
 #include <QTcpSocket>
@@ -122,6 +123,19 @@ class TevStreamTest : public QObject {
     const QString error = second.listenForRenderers(port);
     QVERIFY2(error.contains(QString::number(port)) && error.contains("another Residue viewer"), qPrintable(error));
     QVERIFY(w.tevServer()->listening());
+  }
+
+  // `residue --help` on a machine without a display (no DISPLAY, no QT_QPA_PLATFORM) prints the options.
+  void helpNeedsNoDisplay() {
+    QProcess viewer;
+    QProcessEnvironment env = QProcessEnvironment::systemEnvironment();
+    for (const char* v : {"DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"}) env.remove(v);
+    viewer.setProcessEnvironment(env);
+    viewer.start(RESIDUE_VIEWER_PATH, {"--help"});
+    QVERIFY(viewer.waitForFinished(30000));
+    QCOMPARE(viewer.exitCode(), 0);
+    const QString out = QString::fromUtf8(viewer.readAllStandardOutput());
+    QVERIFY2(out.contains("--no-ipc") && out.contains("--reference"), qPrintable(out));
   }
 
   // A renderer rewriting the open file, in place or by renaming a new one over it: the viewer reloads it.
