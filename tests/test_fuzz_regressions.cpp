@@ -158,3 +158,54 @@ TEST(FuzzRegressions, ExrHeaderDeclaringMoreThanTheFileIsRefusedBeforeOpening) {
   const auto path = residue::fuzz::write_input("huge_attribute.exr", bytes.data(), bytes.size());
   EXPECT_THROW((void)residue::list_channels(path), residue::Error);
 }
+
+// OpenImageIO 2.4 aborts the process (an assertion) on a channel whose pixel type is not 0, 1 or 2: found by a
+// one-hour run of fuzz_exr_loader. The loader refuses it first, naming the channel; the fuzzer's input is a seed.
+TEST(FuzzRegressions, ExrChannelWithAnUnknownPixelTypeIsRefusedNotAnAbort) {
+  const fs::path found = corpus_dir("fuzz_exr_loader") / "crash-oiio-abort-pixel-type-3.exr";
+  try {
+    (void)residue::list_channels(found);
+    FAIL() << "expected residue::Error";
+  } catch (const residue::Error& e) {
+    // Its channel list is wrong twice over (a sampling of -1 first, then the pixel type 3 OpenImageIO aborted on).
+    EXPECT_NE(std::string(e.what()).find("the channel 'G' has sampling 1x-1"), std::string::npos) << e.what();
+  }
+  // The bundled render with its first channel's pixel type set to 3, then its sampling to 0.
+  auto bytes = read_bytes(fs::path(RESIDUE_SOURCE_RESOURCES) / "examples" / "room" / "noisy.exr");
+  const std::string chlist("chlist", 7);
+  const auto at = std::search(bytes.begin(), bytes.end(), chlist.begin(), chlist.end());
+  ASSERT_NE(at, bytes.end());
+  const size_t list = static_cast<size_t>(at - bytes.begin()) + chlist.size() + 4;
+  const auto name_end = std::find(bytes.begin() + static_cast<std::ptrdiff_t>(list), bytes.end(), uint8_t{0});
+  const std::string first(bytes.begin() + static_cast<std::ptrdiff_t>(list), name_end);
+  const size_t type_at = static_cast<size_t>(name_end - bytes.begin()) + 1;
+  auto type3 = bytes;
+  type3[type_at] = 3;
+  auto problem = residue::exr_header_problem(type3.data(), type3.size(), type3.size());
+  ASSERT_TRUE(problem);
+  EXPECT_NE(problem->find("the channel '" + first + "' has pixel type 3"), std::string::npos) << *problem;
+  auto sampling0 = bytes;
+  sampling0[type_at + 8] = 0;
+  problem = residue::exr_header_problem(sampling0.data(), sampling0.size(), sampling0.size());
+  ASSERT_TRUE(problem);
+  EXPECT_NE(problem->find("has sampling 0x1"), std::string::npos) << *problem;
+}
+
+// fuzz_safetensors: a shape or data offset written as a huge float (4.3e81) was converted to an integer out of
+// range (undefined behaviour, UBSan); now refused, naming the tensor and the field.
+TEST(FuzzRegressions, SafetensorsNonIntegerShapesAreRefused) {
+  for (const char* shape : {"[4.3e81]", "[2.5]", "[\"4\"]"}) {
+    const std::string header = std::string(R"({"a":{"dtype":"F32","shape":)") + shape + R"(,"data_offsets":[0,16]}})";
+    std::vector<uint8_t> bytes(8, 0);
+    bytes[0] = static_cast<uint8_t>(header.size());
+    bytes.insert(bytes.end(), header.begin(), header.end());
+    bytes.resize(bytes.size() + 16, 0);
+    const auto path = residue::fuzz::write_input("float_shape.safetensors", bytes.data(), bytes.size());
+    try {
+      (void)residue::nn::read_safetensors(path);
+      FAIL() << "expected residue::Error for shape " << shape;
+    } catch (const residue::Error& e) {
+      EXPECT_NE(std::string(e.what()).find("tensor \"a\": shape holds"), std::string::npos) << e.what();
+    }
+  }
+}

@@ -4,7 +4,8 @@
 // OpenEXR 3.1 (Debian 12) allocates and zeroes the size an attribute declares before it reads the value: a 2.6 KB
 // file whose header declares a 1.9 GB string attribute costs 1.9 GB of memory before "unexpected end of file"
 // (found by fuzz_exr_loader; docs/RELIABILITY.md). No valid file declares an attribute larger than itself, so
-// such a header is refused here, naming the attribute, before any allocation.
+// such a header is refused here, naming the attribute, before any allocation. Likewise a channel list with a
+// pixel type OpenEXR does not have (OpenImageIO 2.4 aborts the process on it) or a sampling below 1.
 
 #include <cstddef>
 #include <cstdint>

@@ -66,8 +66,20 @@ SafetensorsFile read_safetensors(const std::filesystem::path& path) {
       }
       Tensor t;
       t.dtype = it->at("dtype").get<std::string>();
-      t.shape = it->at("shape").get<std::vector<int64_t>>();
-      const auto offsets = it->at("data_offsets").get<std::vector<uint64_t>>();
+      // Integers only: a number such as 4.3e81 would be converted out of range (undefined behaviour; found by
+      // fuzz_safetensors).
+      auto integers = [&](const char* field, bool non_negative) {
+        const auto& array = it->at(field);
+        if (!array.is_array())
+          throw Error(ErrorKind::Input, where + ": tensor \"" + it.key() + "\": " + field + " is not an array");
+        for (const auto& v : array)
+          if (!(non_negative ? v.is_number_unsigned() : v.is_number_integer()))
+            throw Error(ErrorKind::Input, where + ": tensor \"" + it.key() + "\": " + field + " holds " + v.dump() +
+                                              "; expected " + (non_negative ? "integers >= 0" : "integers"));
+        return array;
+      };
+      t.shape = integers("shape", false).get<std::vector<int64_t>>();
+      const auto offsets = integers("data_offsets", true).get<std::vector<uint64_t>>();
       const size_t elem = t.dtype == "F32" ? 4 : (t.dtype == "F16" || t.dtype == "BF16") ? 2 : 0;
       if (elem == 0)
         throw Error(ErrorKind::Input, where + ": tensor \"" + it.key() + "\" has dtype " + t.dtype +
