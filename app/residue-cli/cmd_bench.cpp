@@ -79,6 +79,28 @@ int64_t tile_for(int64_t tile, const nn::Model& model, nn::Precision precision, 
   return std::min(interactive_tile(model.graph, s_per_mp), size);
 }
 
+// Every model x backend x precision x tile of the options as denoise options (eigen runs fp32 only), in order.
+template <typename RunOne>
+void for_each_config(const BenchOptions& o, int threads, RunOne&& run_one) {
+  const std::vector<std::string> backends = o.backends.empty() ? nn::available_backends() : o.backends;
+  for (const auto& model_text : o.models) {
+    const nn::Model model = bench_model(model_text);
+    for (const auto& backend : backends)
+      for (const auto& precision : o.precisions) {
+        if (backend == "eigen" && precision != "fp32") continue;
+        for (int64_t tile : o.tiles) {
+          DenoiseOptions d;
+          d.backend = backend;
+          d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+          d.tile = tile_for(tile, model, d.precision, o.size);
+          d.threads = threads;
+          d.skip_empty_tiles = false;
+          run_one(model_text, model, precision, tile <= 0, d);
+        }
+      }
+  }
+}
+
 // Starts a run as the viewer does (a DenoiseJob on a worker thread), cancels it after `after` seconds and
 // returns how long it took to stop, with the tiles finished by then.
 std::pair<double, DenoiseJob::Progress> time_to_stop(const AovStack& stack, const nn::Model& model,
@@ -94,37 +116,24 @@ std::pair<double, DenoiseJob::Progress> time_to_stop(const AovStack& stack, cons
 
 int run_cancel(const BenchOptions& o) {
   const AovStack stack = synthetic_stack(o.size);
-  const std::vector<std::string> backends = o.backends.empty() ? nn::available_backends() : o.backends;
   nlohmann::json rows = nlohmann::json::array();
   if (!o.json) {
     std::printf("cancel %.1f s into a run of a %lldx%lld image, as the viewer's Cancel does\n\n", o.cancel_after,
                 static_cast<long long>(o.size), static_cast<long long>(o.size));
     std::printf("| model | backend | precision | tile | tiles done | time to stop (s) |\n|---|---|---|---|---|---|\n");
   }
-  for (const auto& model_text : o.models) {
-    const nn::Model model = bench_model(model_text);
-    for (const auto& backend : backends)
-      for (const auto& precision : o.precisions) {
-        if (backend == "eigen" && precision != "fp32") continue;
-        for (int64_t tile : o.tiles) {
-          DenoiseOptions d;
-          d.backend = backend;
-          d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
-          d.tile = tile_for(tile, model, d.precision, o.size);
-          d.threads = o.threads;
-          d.skip_empty_tiles = false;
-          const auto [stop, progress] = time_to_stop(stack, model, d, o.cancel_after);
-          rows.push_back({{"model", model_text}, {"backend", backend}, {"precision", precision}, {"tile", d.tile},
-                          {"auto_tile", tile <= 0}, {"tiles_done", progress.done}, {"tiles", progress.total},
-                          {"seconds_to_stop", stop}});
-          if (!o.json)
-            std::printf("| %s | %s | %s | %lld%s | %lld of %lld | %.2f |\n", model_text.c_str(), backend.c_str(),
-                        precision.c_str(), static_cast<long long>(d.tile), tile <= 0 ? " (auto)" : "",
-                        static_cast<long long>(progress.done), static_cast<long long>(progress.total), stop);
-          std::fflush(stdout);
-        }
-      }
-  }
+  for_each_config(o, o.threads, [&](const std::string& model_text, const nn::Model& model, const std::string& precision,
+                                    bool auto_tile, const DenoiseOptions& d) {
+    const auto [stop, progress] = time_to_stop(stack, model, d, o.cancel_after);
+    rows.push_back({{"model", model_text}, {"backend", d.backend}, {"precision", precision}, {"tile", d.tile},
+                    {"auto_tile", auto_tile}, {"tiles_done", progress.done}, {"tiles", progress.total},
+                    {"seconds_to_stop", stop}});
+    if (!o.json)
+      std::printf("| %s | %s | %s | %lld%s | %lld of %lld | %.2f |\n", model_text.c_str(), d.backend.c_str(),
+                  precision.c_str(), static_cast<long long>(d.tile), auto_tile ? " (auto)" : "",
+                  static_cast<long long>(progress.done), static_cast<long long>(progress.total), stop);
+    std::fflush(stdout);
+  });
   if (o.json)
     std::cout << nlohmann::json{{"cancel_after_seconds", o.cancel_after}, {"image", o.size}, {"rows", rows}}.dump(2)
               << "\n";
@@ -137,7 +146,6 @@ int run(const BenchOptions& o) {
   const CpuPeak peak = measure_fp32_peak(threads);
   const AovStack stack = synthetic_stack(o.size);
   const double megapixels = static_cast<double>(o.size * o.size) / 1e6;
-  const std::vector<std::string> backends = o.backends.empty() ? nn::available_backends() : o.backends;
 
   nlohmann::json rows = nlohmann::json::array();
   if (!o.json) {
@@ -146,44 +154,32 @@ int run(const BenchOptions& o) {
     std::printf("| model | backend | precision | tile | s / MP | GFLOP/s | %% of fp32 peak | implementation |\n");
     std::printf("|---|---|---|---|---|---|---|---|\n");
   }
-  for (const auto& model_text : o.models) {
-    const nn::Model model = bench_model(model_text);
-    const double flops = model.graph.flops_per_pixel() * static_cast<double>(o.size * o.size);
-    for (const auto& backend : backends)
-      for (const auto& precision : o.precisions) {
-        if (backend == "eigen" && precision != "fp32") continue;
-        for (int64_t tile : o.tiles) {
-          DenoiseOptions d;
-          d.backend = backend;
-          d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
-          d.tile = tile_for(tile, model, d.precision, o.size);
-          d.threads = threads;
-          d.skip_empty_tiles = false;
-          DenoiseStats best;
-          best.seconds = 1e30;
-          try {
-            for (int r = 0; r < o.repeat; ++r) {
-              DenoiseStats st;
-              denoise(stack, model, d, {}, &st);
-              if (st.seconds < best.seconds) best = st;
-            }
-          } catch (const Error& e) {
-            std::fprintf(stderr, "bench: %s %s %s: %s\n", model_text.c_str(), backend.c_str(), precision.c_str(), e.what());
-            continue;
-          }
-          const double gflops = flops / best.seconds / 1e9;  // useful work: halo recomputation not counted
-          const double share = 100.0 * gflops / peak.gflops;
-          rows.push_back({{"model", model_text}, {"backend", backend}, {"precision", precision}, {"tile", d.tile},
-                          {"seconds_per_megapixel", best.seconds / megapixels}, {"gflops", gflops},
-                          {"percent_of_fp32_peak", share}, {"implementation", best.backend}});
-          if (!o.json)
-            std::printf("| %s | %s | %s | %lld | %.3f | %.0f | %.0f %% | %s |\n", model_text.c_str(), backend.c_str(),
-                        precision.c_str(), static_cast<long long>(d.tile), best.seconds / megapixels, gflops, share,
-                        best.backend.c_str());
-          std::fflush(stdout);
-        }
+  for_each_config(o, threads, [&](const std::string& model_text, const nn::Model& model, const std::string& precision,
+                                  bool, const DenoiseOptions& d) {
+    DenoiseStats best;
+    best.seconds = 1e30;
+    try {
+      for (int r = 0; r < o.repeat; ++r) {
+        DenoiseStats st;
+        denoise(stack, model, d, {}, &st);
+        if (st.seconds < best.seconds) best = st;
       }
-  }
+    } catch (const Error& e) {
+      std::fprintf(stderr, "bench: %s %s %s: %s\n", model_text.c_str(), d.backend.c_str(), precision.c_str(), e.what());
+      return;
+    }
+    // Useful work: the halo each tile recomputes is not counted.
+    const double gflops = model.graph.flops_per_pixel() * static_cast<double>(o.size * o.size) / best.seconds / 1e9;
+    const double share = 100.0 * gflops / peak.gflops;
+    rows.push_back({{"model", model_text}, {"backend", d.backend}, {"precision", precision}, {"tile", d.tile},
+                    {"seconds_per_megapixel", best.seconds / megapixels}, {"gflops", gflops},
+                    {"percent_of_fp32_peak", share}, {"implementation", best.backend}});
+    if (!o.json)
+      std::printf("| %s | %s | %s | %lld | %.3f | %.0f | %.0f %% | %s |\n", model_text.c_str(), d.backend.c_str(),
+                  precision.c_str(), static_cast<long long>(d.tile), best.seconds / megapixels, gflops, share,
+                  best.backend.c_str());
+    std::fflush(stdout);
+  });
   if (o.json)
     std::cout << nlohmann::json{{"fp32_peak_gflops", peak.gflops}, {"peak_isa", peak.isa}, {"threads", threads},
                                 {"image", o.size}, {"rows", rows}}.dump(2)
