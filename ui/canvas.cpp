@@ -228,6 +228,12 @@ std::optional<QPoint> ImageCanvas::pixelAt(QPointF widget_pos) const {
   return std::nullopt;
 }
 
+std::optional<int> ImageCanvas::paneAt(QPointF widget_pos) const {
+  for (const auto& s : paneSlots())
+    if (s.clip.contains(widget_pos.toPoint())) return s.pane;
+  return std::nullopt;
+}
+
 void ImageCanvas::paintEvent(QPaintEvent*) {
   QPainter p(this);
   p.fillRect(rect(), QColor(38, 38, 38));
@@ -389,6 +395,7 @@ void ImageCanvas::mouseMoveEvent(QMouseEvent* e) {
       break;
   }
   if (drag_ != Drag::Roi) drag_last_ = pos;
+  hovered_pane_ = paneAt(pos);
   emit hovered(pixelAt(pos));
 }
 
@@ -402,7 +409,10 @@ void ImageCanvas::mouseReleaseEvent(QMouseEvent*) {
   drag_ = Drag::None;
 }
 
-void ImageCanvas::leaveEvent(QEvent*) { emit hovered(std::nullopt); }
+void ImageCanvas::leaveEvent(QEvent*) {
+  hovered_pane_.reset();
+  emit hovered(std::nullopt);
+}
 
 void ImageCanvas::resizeEvent(QResizeEvent*) {
   if (!fitted_ || auto_fit_) fit();

@@ -68,6 +68,9 @@ class ImageCanvas : public QWidget {
 
   // The image pixel under a widget position, when it is inside a pane and the image.
   std::optional<QPoint> pixelAt(QPointF widget_pos) const;
+  // The pane (index in panes()) under a widget position, and the one under the mouse as last hovered.
+  std::optional<int> paneAt(QPointF widget_pos) const;
+  std::optional<int> hoveredPane() const { return hovered_pane_; }
   // Pane rectangles in widget coordinates, in the order drawn (for tests and screenshots).
   std::vector<QRect> paneRects() const;
 
@@ -107,6 +110,7 @@ class ImageCanvas : public QWidget {
   void clampView();
 
   std::vector<Pane> panes_;
+  std::optional<int> hovered_pane_;
   QSize image_size_;
   Layout layout_ = Layout::SideBySide;
   int current_ = 0;

@@ -97,6 +97,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   size_label_ = new QLabel(this);
   zoom_label_ = new QLabel(this);
   cursor_label_ = new QLabel(this);
+  cursor_label_->setObjectName("cursorLabel");
   cursor_label_->setMinimumWidth(320);
   statusBar()->addPermanentWidget(cursor_label_);
   statusBar()->addPermanentWidget(size_label_);
@@ -707,11 +708,17 @@ void MainWindow::updateStatus() {
   zoom_label_->setText(QString("%1%").arg(canvas_->zoom() * 100.0, 0, 'f', canvas_->zoom() < 0.1 ? 1 : 0));
   if (hover_) {
     QString text = QString("x %1  y %2").arg(hover_->x()).arg(hover_->y());
-    const Image& c = stack->color.image;
-    text += QString("  noisy %1 %2 %3")
-                .arg(static_cast<double>(c.at(hover_->x(), hover_->y(), 0)), 0, 'g', 4)
-                .arg(static_cast<double>(c.at(hover_->x(), hover_->y(), 1)), 0, 'g', 4)
-                .arg(static_cast<double>(c.at(hover_->x(), hover_->y(), 2)), 0, 'g', 4);
+    // The values of the pane under the cursor (the noisy colour when it has none, e.g. a pane still rendering).
+    const Pane* pane = nullptr;
+    if (const auto i = canvas_->hoveredPane(); i && *i < static_cast<int>(canvas_->panes().size()))
+      pane = &canvas_->panes()[static_cast<size_t>(*i)];
+    const Image* values = pane && pane->values ? pane->values.get() : &stack->color.image;
+    const int first = pane && pane->values ? pane->first_channel : 0;
+    const int count = pane && pane->values ? std::min(pane->channel_count, values->channels() - first) : 3;
+    text += "  " + (pane && pane->values ? pane->label : tr("Noisy"));
+    if (hover_->x() < values->width() && hover_->y() < values->height())
+      for (int c = 0; c < count; ++c)
+        text += QString(" %1").arg(static_cast<double>(values->at(hover_->x(), hover_->y(), first + c)), 0, 'g', 4);
     cursor_label_->setText(text);
   } else {
     cursor_label_->clear();

@@ -61,6 +61,7 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step) {
         case Source::Denoised:
           pane.label = in.model.isEmpty() ? QStringLiteral("Denoised") : QStringLiteral("Denoised: %1").arg(in.model);
           pane.placeholder = QStringLiteral("Not denoised yet:\npick a model and press Denoise (Ctrl+D)");
+          pane.values = in.denoised;
           if (in.denoised) pane.display = renderColor(in, *in.denoised, 3, step);
           break;
         case Source::Reference:

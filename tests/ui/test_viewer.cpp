@@ -4,6 +4,7 @@
 #include <QAction>
 #include <QComboBox>
 #include <QDoubleSpinBox>
+#include <QLabel>
 #include <QMenu>
 #include <QPushButton>
 #include <QSlider>
@@ -175,6 +176,20 @@ class TestViewer : public QObject {
     QVERIFY(settle(w, [&] { return w.heatmapPanel()->map() != nullptr; }));
     const Image rse = metrics::error_map(*denoised, stack->reference->image, metrics::MapKind::RelativeSquaredError);
     QCOMPARE(maxAbsDiff(*w.heatmapPanel()->map(), rse, 1), 0.0);
+    // The status bar reads the pane under the cursor: the denoised values over the denoised pane, the noisy
+    // ones over the noisy pane.
+    auto* cursor = w.findChild<QLabel*>("cursorLabel");
+    QVERIFY(cursor);
+    for (int pane : {0, 1}) {
+      const QRect r = w.canvas()->paneRects()[static_cast<size_t>(pane)];
+      QTest::mouseMove(w.canvas(), r.center());
+      const auto pixel = w.canvas()->pixelAt(r.center());
+      QVERIFY(pixel);
+      const Image& shown = pane == 0 ? stack->color.image : *denoised;
+      const QString expected_value = QString::number(static_cast<double>(shown.at(pixel->x(), pixel->y(), 0)), 'g', 4);
+      QVERIFY2(cursor->text().contains(pane == 0 ? "Noisy " : "Denoised") && cursor->text().contains(expected_value),
+               qPrintable(cursor->text() + " / expected " + expected_value));
+    }
 
     // Asking again for the same model is served from the cache, without a job.
     QSignalSpy again(w.denoisePanel(), &DenoisePanel::finished);
