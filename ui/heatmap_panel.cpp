@@ -162,9 +162,16 @@ ColorScale HeatmapPanel::scale() const {
 }
 
 QString HeatmapPanel::title() const {
-  return QStringLiteral("%1 of %2%3")
-      .arg(QString::fromLatin1(metrics::to_string(kind())), of() == Of::Noisy ? tr("noisy") : tr("denoised"),
-           scale().log ? tr(" (log)") : QString());
+  // Words, not the CLI's short names ("rse" meant nothing to a first-time user).
+  QString what;
+  switch (kind()) {
+    case metrics::MapKind::AbsoluteError: what = tr("Absolute error |x - r|"); break;
+    case metrics::MapKind::SquaredError: what = tr("Squared error (x - r)\u00b2"); break;
+    case metrics::MapKind::RelativeSquaredError: what = tr("Relative squared error (x - r)\u00b2 / (r\u00b2 + 0.01)"); break;
+    case metrics::MapKind::Ssim: what = tr("SSIM"); break;
+  }
+  return tr("%1 of %2%3").arg(what, of() == Of::Noisy ? tr("noisy") : tr("denoised"),
+                              scale().log ? tr(" (log)") : QString());
 }
 
 bool HeatmapPanel::busy() const { return task_->busy(); }
