@@ -5,16 +5,13 @@
 #include <vector>
 
 #include "core/util/error.h"
+#include "core/util/little_endian.h"
 
 namespace residue {
 namespace {
 
 // Headers are a few KB; a mutated one that OpenEXR would misread is caught within the first MiB.
 constexpr size_t kHeaderScanBytes = size_t{1} << 20;
-
-uint32_t read_u32(const uint8_t* p) {
-  return uint32_t{p[0]} | uint32_t{p[1]} << 8 | uint32_t{p[2]} << 16 | uint32_t{p[3]} << 24;
-}
 
 std::string too_large(const std::string& what, uint64_t declared, uint64_t file_size) {
   return "its header declares " + what + " of " + std::to_string(declared) + " bytes, but the file holds " +
@@ -33,9 +30,9 @@ std::optional<std::string> channel_list_problem(const uint8_t* p, size_t n) {
     pos += name.size() + 1;
     if (name.empty()) return std::nullopt;  // the end of the list
     if (n - pos < 16) return std::nullopt;
-    const uint32_t type = read_u32(p + pos);
-    const auto x_sampling = static_cast<int32_t>(read_u32(p + pos + 8));
-    const auto y_sampling = static_cast<int32_t>(read_u32(p + pos + 12));
+    const uint32_t type = load_le32(p + pos);
+    const auto x_sampling = static_cast<int32_t>(load_le32(p + pos + 8));
+    const auto y_sampling = static_cast<int32_t>(load_le32(p + pos + 12));
     if (type > 2)
       return "the channel '" + name + "' has pixel type " + std::to_string(type) +
              "; OpenEXR has 0 (uint), 1 (half) and 2 (float) (corrupt file)";
@@ -60,7 +57,7 @@ std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size,
     const size_t len = std::strlen(type) + 1;
     for (size_t p = 0; p + len + 4 <= size; ++p) {
       if (std::memcmp(bytes + p, type, len) != 0) continue;
-      const uint32_t n = read_u32(bytes + p + len);
+      const uint32_t n = load_le32(bytes + p + len);
       if (n > file_size) return too_large(std::string("a ") + type + " attribute", n, file_size);
     }
   }
@@ -71,7 +68,7 @@ std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size,
   for (size_t p = 0; p + sizeof kChlist + 4 <= size; ++p) {
     if (std::memcmp(bytes + p, kChlist, sizeof kChlist) != 0) continue;
     const size_t value = p + sizeof kChlist + 4;
-    const uint32_t n = read_u32(bytes + p + sizeof kChlist);
+    const uint32_t n = load_le32(bytes + p + sizeof kChlist);
     if (auto problem = channel_list_problem(bytes + value, std::min<size_t>(n, size - value))) return problem;
   }
 
@@ -94,7 +91,7 @@ std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size,
       if (name.empty()) break;                                          // end of this header
       empty = false;
       if (pos >= size || !skip_cstring(nullptr) || size - pos < 4) return std::nullopt;
-      const uint32_t n = read_u32(bytes + pos);
+      const uint32_t n = load_le32(bytes + pos);
       pos += 4;
       if (n > file_size - std::min<uint64_t>(file_size, pos))
         return too_large("the attribute '" + name + "'", n, file_size);

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "core/util/error.h"
+#include "core/util/little_endian.h"
 
 namespace residue::ipc {
 namespace {
@@ -36,10 +37,6 @@ const char* type_name(uint8_t type) {
   return "unknown";
 }
 
-uint32_t read_u32(const uint8_t* p) {
-  return uint32_t{p[0]} | uint32_t{p[1]} << 8 | uint32_t{p[2]} << 16 | uint32_t{p[3]} << 24;
-}
-
 // Reads the fields of one packet in order; every read checks that the bytes are there.
 class FieldReader {
  public:
@@ -51,12 +48,10 @@ class FieldReader {
   bool flag(const char* field) { return take(1, field)[0] != 0; }
   int32_t i32(const char* field) {
     const uint8_t* p = take(4, field);
-    return static_cast<int32_t>(read_u32(p));
+    return static_cast<int32_t>(load_le32(p));
   }
   int64_t i64(const char* field) {
-    const uint8_t* p = take(8, field);
-    const uint64_t v = uint64_t{read_u32(p)} | uint64_t{read_u32(p + 4)} << 32;
-    return static_cast<int64_t>(v);
+    return static_cast<int64_t>(load_little_endian<uint64_t>(take(8, field)));
   }
   std::string string(const char* field) {
     const void* nul = std::memchr(bytes_.data() + pos_, 0, bytes_.size() - pos_);
@@ -93,7 +88,7 @@ class FieldReader {
 };
 
 float read_float(const uint8_t* p) {
-  const uint32_t bits = read_u32(p);
+  const uint32_t bits = load_le32(p);
   float f;
   std::memcpy(&f, &bits, sizeof f);
   return f;
@@ -154,7 +149,7 @@ TevPacket parse_tev_packet(std::span<const uint8_t> packet, const TevLimits& lim
   if (packet.size() < 5)
     throw Error(ErrorKind::Input, "tev IPC packet of " + std::to_string(packet.size()) +
                                       " bytes: a packet has at least a 4-byte length and a type byte");
-  const uint32_t length = read_u32(packet.data());
+  const uint32_t length = load_le32(packet.data());
   if (length != packet.size())
     throw Error(ErrorKind::Input, "tev IPC packet: its length field says " + std::to_string(length) +
                                       " bytes, but it has " + std::to_string(packet.size()));
@@ -224,7 +219,7 @@ void TevPacketStream::feed(std::span<const uint8_t> bytes) {
 
 std::optional<std::vector<uint8_t>> TevPacketStream::next() {
   if (buffered() < 4) return std::nullopt;
-  const uint32_t length = read_u32(buffer_.data() + start_);
+  const uint32_t length = load_le32(buffer_.data() + start_);
   if (length < 5 || length > limits_.max_packet_bytes)
     throw Error(ErrorKind::Input, "tev IPC stream: a packet declares " + std::to_string(length) +
                                       " bytes; expected 5 to " + std::to_string(limits_.max_packet_bytes) +

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "core/util/error.h"
+#include "core/util/little_endian.h"
 
 namespace residue::nn {
 namespace {
@@ -50,8 +51,7 @@ class Cursor {
   template <typename T>
   T read(const std::string& what) {
     need(sizeof(T), what);
-    T v = 0;
-    for (size_t i = 0; i < sizeof(T); ++i) v |= static_cast<T>(static_cast<T>(bytes_[pos_ + i]) << (8 * i));
+    const T v = load_little_endian<T>(bytes_.data() + pos_);
     pos_ += sizeof(T);
     return v;
   }
