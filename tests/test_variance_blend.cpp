@@ -156,7 +156,7 @@ TEST(VarianceBlend, StreamedEqualsInMemoryOnTungstensRender) {
 // -1 % on the starter set's; with tau = 0.005 these two scenes got 14 % worse, which this test caught).
 TEST(VarianceBlend, LowersRelMseOnCleanRealScenes) {
   const auto starter = testing::shared_dataset("cycles-starter");
-  RESIDUE_REQUIRE_SHARED(starter / "s159");
+  RESIDUE_REQUIRE_SHARED(starter);
   const nn::Model model = nn::load_model(nn::find_model("small"));
   double with = 0, without = 0;
   for (const char* scene : {"s159", "s162"}) {  // the two cleanest validation scenes (noisy relMSE ~0.01)
