@@ -27,13 +27,15 @@ ImageCanvas::ImageCanvas(QWidget* parent) : QWidget(parent) {
 
 void ImageCanvas::setPanes(std::vector<Pane> panes, QSize image_size) {
   const bool same_size = image_size == image_size_;
+  const bool same_count = panes.size() == panes_.size();
   panes_ = std::move(panes);
   image_size_ = image_size;
   const int n = static_cast<int>(panes_.size());
   current_ = std::clamp(current_, 0, std::max(0, n - 1));
   wipe_a_ = std::clamp(wipe_a_, 0, std::max(0, n - 1));
   wipe_b_ = std::clamp(wipe_b_, 0, std::max(0, n - 1));
-  if (!same_size || !fitted_) fit();
+  // A fitted view follows the panes: more panes are smaller.
+  if (!same_size || !fitted_ || (auto_fit_ && !same_count)) fit();
   update();
 }
 
@@ -113,13 +115,14 @@ std::vector<ImageCanvas::Slot> ImageCanvas::paneSlots() const {
   const QRect all = rect();
   switch (layout_) {
     case Layout::SideBySide: {
-      const int w = (all.width() - kGap * (n - 1)) / n;
-      for (int i = 0; i < n; ++i) {
-        const QRect r(all.x() + i * (w + kGap), all.y(), w, all.height());
-        out.push_back({i, r, r});
-      }
+      std::vector<int> all_panes(static_cast<size_t>(n));
+      for (int i = 0; i < n; ++i) all_panes[static_cast<size_t>(i)] = i;
+      for (const auto& [i, r] : gridRects(all_panes)) out.push_back({i, r, r});
       break;
     }
+    case Layout::Pair:
+      for (const auto& [i, r] : gridRects({wipe_a_, wipe_b_})) out.push_back({i, r, r});
+      break;
     case Layout::Single: out.push_back({current_, all, all}); break;
     case Layout::Wipe: {
       const int split = wipeSplitX();
@@ -128,6 +131,34 @@ std::vector<ImageCanvas::Slot> ImageCanvas::paneSlots() const {
       break;
     }
   }
+  return out;
+}
+
+// The panes in a grid of the column count that shows the image largest: four square renders on a wide
+// screen go 2 x 2, three go in a row.
+std::vector<std::pair<int, QRect>> ImageCanvas::gridRects(const std::vector<int>& panes) const {
+  const int n = static_cast<int>(panes.size());
+  const QRect all = rect();
+  const double iw = std::max(1, image_size_.width()), ih = std::max(1, image_size_.height());
+  int best_columns = n;
+  double best_zoom = -1;
+  for (int columns = 1; columns <= n; ++columns) {
+    const int rows = (n + columns - 1) / columns;
+    const double w = (all.width() - kGap * (columns - 1)) / static_cast<double>(columns);
+    const double h = (all.height() - kGap * (rows - 1)) / static_cast<double>(rows);
+    const double z = std::min(w / iw, h / ih);
+    if (z > best_zoom + 1e-9) {
+      best_zoom = z;
+      best_columns = columns;
+    }
+  }
+  const int columns = best_columns, rows = (n + columns - 1) / columns;
+  const int w = (all.width() - kGap * (columns - 1)) / columns;
+  const int h = (all.height() - kGap * (rows - 1)) / rows;
+  std::vector<std::pair<int, QRect>> out;
+  for (int k = 0; k < n; ++k)
+    out.emplace_back(panes[static_cast<size_t>(k)],
+                     QRect(all.x() + (k % columns) * (w + kGap), all.y() + (k / columns) * (h + kGap), w, h));
   return out;
 }
 
@@ -284,8 +315,9 @@ void ImageCanvas::drawPane(QPainter& p, const Slot& s) const {
   }
   drawRoi(p, s);
   // Label, on a dark plate so it reads over any image.
-  const QString label = pane.label;
   const QFontMetrics fm(font());
+  // Long labels are shortened in the middle, so both the model and its settings' ends stay readable.
+  const QString label = fm.elidedText(pane.label, Qt::ElideMiddle, std::max(40, s.clip.width() - 24));
   QRect box = fm.boundingRect(label).adjusted(-5, -3, 5, 3);
   box.moveTopLeft(s.clip.topLeft() + QPoint(6, 6));
   if (layout_ == Layout::Wipe && s.pane == wipe_b_) box.moveTopRight(s.clip.topRight() + QPoint(-6, 6));

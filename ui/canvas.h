@@ -1,5 +1,5 @@
 // ImageCanvas: draws one or more panes of the same pixel grid with one zoom and pan, so that every pane shows
-// the same pixels: side by side, a single pane, or a wipe (A left of a split, B right of it).
+// the same pixels: all in a grid, a single pane, two side by side, or a wipe (A left of a split, B right of it).
 // It only draws what it is given (display-encoded QImages, made by DisplayTransform on worker threads) and
 // reports what the user does with the mouse: the pixel under the cursor, a dragged region of interest.
 #pragma once
@@ -28,7 +28,9 @@ struct Pane {
 class ImageCanvas : public QWidget {
   Q_OBJECT
  public:
-  enum class Layout { SideBySide, Single, Wipe };
+  // SideBySide: every pane, in a grid; Single: the current pane; Pair: A and B of the wipe pair side by side;
+  // Wipe: A left of a split, B right of it.
+  enum class Layout { SideBySide, Single, Pair, Wipe };
 
   explicit ImageCanvas(QWidget* parent = nullptr);
 
@@ -101,6 +103,7 @@ class ImageCanvas : public QWidget {
     QRect clip;       // part of rect it draws in (wipe halves)
   };
   std::vector<Slot> paneSlots() const;
+  std::vector<std::pair<int, QRect>> gridRects(const std::vector<int>& panes) const;
   QPointF toImage(const QRect& pane_rect, QPointF widget_pos) const;
   QPointF toWidget(const QRect& pane_rect, QPointF image_pos) const;
   void drawPane(class QPainter& p, const Slot& s) const;

@@ -1,8 +1,13 @@
 #include "ui/heatmap_panel.h"
 
+#include "ui/export_all.h"
+#include "ui/histogram.h"
+
 #include <QCheckBox>
 #include <QComboBox>
 #include <QFormLayout>
+#include <QHBoxLayout>
+#include <QLabel>
 #include <QLineEdit>
 #include <QPainter>
 #include <QVBoxLayout>
@@ -29,9 +34,10 @@ void ColorBar::setScale(Colormap map, double lo, double hi, bool log, QString ti
 
 namespace {
 QString tick(double v) { return QString::number(v, 'g', 3); }
+}  // namespace
 
-void paintBar(QPainter& p, QRect area, Colormap map, double lo, double hi, bool log, const QString& title,
-              const QColor& text) {
+void paint_color_bar(QPainter& p, QRect area, Colormap map, double lo, double hi, bool log, const QString& title,
+                     const QColor& text) {
   const QFontMetrics fm = p.fontMetrics();
   const int th = fm.height();
   const QRect bar(area.left() + 4, area.top() + th + 2, area.width() - 8, std::max(6, area.height() - 2 * th - 6));
@@ -50,11 +56,10 @@ void paintBar(QPainter& p, QRect area, Colormap map, double lo, double hi, bool 
   p.drawText(QRect(bar.left() + 2 * bar.width() / 3, ty, bar.width() - 2 * bar.width() / 3, th), Qt::AlignRight,
              tick(hi));
 }
-}  // namespace
 
 void ColorBar::paintEvent(QPaintEvent*) {
   QPainter p(this);
-  paintBar(p, rect(), map_, lo_, hi_, log_, title_, palette().color(QPalette::WindowText));
+  paint_color_bar(p, rect(), map_, lo_, hi_, log_, title_, palette().color(QPalette::WindowText));
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -84,7 +89,10 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   form->addRow(tr("Map"), kind_);
   of_ = new QComboBox(this);
   of_->setObjectName("heatmapOf");
-  of_->addItems({tr("denoised"), tr("noisy")});
+  of_->addItem(tr("A (the denoised pane)"), static_cast<int>(Of::A));
+  of_->addItem(tr("B"), static_cast<int>(Of::B));
+  of_->addItem(tr("the noisy input"), static_cast<int>(Of::Noisy));
+  of_->addItem(tr("A against B (B as the reference)"), static_cast<int>(Of::AgainstB));
   form->addRow(tr("Of"), of_);
   display_ = new QComboBox(this);
   display_->setObjectName("heatmapDisplay");
@@ -95,6 +103,13 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   for (auto m : {Colormap::Viridis, Colormap::Inferno, Colormap::Magma, Colormap::Turbo})
     colormap_->addItem(QString::fromLatin1(to_string(m)), static_cast<int>(m));
   form->addRow(tr("Colormap"), colormap_);
+  range_mode_ = new QComboBox(this);
+  range_mode_->setObjectName("heatmapRangeMode");
+  range_mode_->addItem(tr("the same for every result"));
+  range_mode_->addItem(tr("this map's own"));
+  range_mode_->setToolTip(tr("The same fixed range for every result, so that their maps compare by eye; or each "
+                             "map's own smallest and largest values. A typed bound overrides either."));
+  form->addRow(tr("Range"), range_mode_);
   log_ = new QCheckBox(tr("log scale"), this);
   log_->setObjectName("heatmapLog");
   log_->setChecked(true);
@@ -105,12 +120,16 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   hi_ = new QLineEdit(this);
   hi_->setObjectName("heatmapHi");
   hi_->setPlaceholderText(tr("auto"));
-  form->addRow(tr("Range low"), lo_);
-  form->addRow(tr("Range high"), hi_);
+  auto* bounds = new QHBoxLayout;
+  bounds->addWidget(lo_);
+  bounds->addWidget(new QLabel(tr("to"), this));
+  bounds->addWidget(hi_);
+  form->addRow(tr("Typed range"), bounds);
   layout->addLayout(form);
   bar_ = new ColorBar(this);
   layout->addWidget(bar_);
-  layout->addStretch(1);
+  histogram_ = new Histogram(this);
+  layout->addWidget(histogram_, 1);
 
   connect(kind_, &QComboBox::currentIndexChanged, this, [this] {
     // SSIM lives in [-1, 1] and reads best on a linear scale; errors span decades.
@@ -121,6 +140,7 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   connect(display_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::displayChanged);
   connect(colormap_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::recolor);
   connect(log_, &QCheckBox::toggled, this, &HeatmapPanel::recolor);
+  connect(range_mode_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::recolor);
   connect(lo_, &QLineEdit::editingFinished, this, &HeatmapPanel::recolor);
   connect(hi_, &QLineEdit::editingFinished, this, &HeatmapPanel::recolor);
 
@@ -132,7 +152,9 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
     map_ = std::move(r.map);
     image_ = std::move(r.image);
     range_ = r.range;
+    subject_ = r.subject;
     bar_->setScale(colormap(), range_.first, range_.second, scale().log, title());
+    histogram_->setValues(map_, scale().log, range_, colormap(), tr("Histogram of the map's values"));
     emit ready();
   });
 }
@@ -146,13 +168,33 @@ HeatmapPanel::Display HeatmapPanel::display() const {
     default: return Display::Off;
   }
 }
-HeatmapPanel::Of HeatmapPanel::of() const { return of_->currentIndex() == 1 ? Of::Noisy : Of::Denoised; }
+HeatmapPanel::Of HeatmapPanel::of() const { return static_cast<Of>(of_->currentData().toInt()); }
 metrics::MapKind HeatmapPanel::kind() const { return static_cast<metrics::MapKind>(kind_->currentData().toInt()); }
 Colormap HeatmapPanel::colormap() const { return static_cast<Colormap>(colormap_->currentData().toInt()); }
+
+std::pair<double, double> HeatmapPanel::sharedRange(metrics::MapKind kind) {
+  // Wide enough for a noisy input's errors, fine enough to tell two good denoisers apart at a glance.
+  switch (kind) {
+    case metrics::MapKind::RelativeSquaredError: return {1e-4, 1.0};
+    case metrics::MapKind::AbsoluteError: return {1e-3, 1.0};
+    case metrics::MapKind::SquaredError: return {1e-6, 1.0};
+    case metrics::MapKind::Ssim: return {0.0, 1.0};
+  }
+  return {0.0, 1.0};
+}
+
+bool HeatmapPanel::sharedScale() const { return range_mode_->currentIndex() == 0; }
+void HeatmapPanel::setSharedScale(bool shared) { range_mode_->setCurrentIndex(shared ? 0 : 1); }
 
 ColorScale HeatmapPanel::scale() const {
   ColorScale s;
   s.log = log_->isChecked();
+  if (sharedScale()) {
+    auto [lo, hi] = sharedRange(kind());
+    if (s.log && lo <= 0) lo = 1e-4;  // SSIM shown on a log scale
+    s.lo = lo;
+    s.hi = hi;
+  }
   bool ok = false;
   const double lo = lo_->text().toDouble(&ok);
   if (ok) s.lo = lo;
@@ -165,19 +207,23 @@ QString HeatmapPanel::title() const {
   // Words, not the CLI's short names ("rse" meant nothing to a first-time user).
   QString what;
   switch (kind()) {
-    case metrics::MapKind::AbsoluteError: what = tr("Absolute error |x - r|"); break;
-    case metrics::MapKind::SquaredError: what = tr("Squared error (x - r)\u00b2"); break;
-    case metrics::MapKind::RelativeSquaredError: what = tr("Relative squared error (x - r)\u00b2 / (r\u00b2 + 0.01)"); break;
+    case metrics::MapKind::AbsoluteError: what = tr("Absolute error"); break;
+    case metrics::MapKind::SquaredError: what = tr("Squared error"); break;
+    case metrics::MapKind::RelativeSquaredError: what = tr("Relative squared error"); break;
     case metrics::MapKind::Ssim: what = tr("SSIM"); break;
   }
-  return tr("%1 of %2%3").arg(what, of() == Of::Noisy ? tr("noisy") : tr("denoised"),
+  return tr("%1 of %2%3").arg(what, subject_.isEmpty() ? tr("nothing yet") : subject_,
                               scale().log ? tr(" (log)") : QString());
+}
+
+QImage HeatmapPanel::imageWithBar() const {
+  return map_with_color_bar(image_, colormap(), range_, scale().log, title());
 }
 
 bool HeatmapPanel::busy() const { return task_->busy(); }
 
 void HeatmapPanel::setKind(metrics::MapKind k) { kind_->setCurrentIndex(kind_->findData(static_cast<int>(k))); }
-void HeatmapPanel::setOf(Of o) { of_->setCurrentIndex(o == Of::Noisy ? 1 : 0); }
+void HeatmapPanel::setOf(Of o) { of_->setCurrentIndex(of_->findData(static_cast<int>(o))); }
 void HeatmapPanel::setDisplay(Display d) { display_->setCurrentIndex(d == Display::Pane ? 0 : d == Display::Overlay ? 1 : 2); }
 void HeatmapPanel::setColormap(Colormap m) { colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(m))); }
 void HeatmapPanel::setLog(bool log) { log_->setChecked(log); }
@@ -187,14 +233,15 @@ void HeatmapPanel::setRange(std::optional<double> lo, std::optional<double> hi) 
   recolor();
 }
 
-void HeatmapPanel::compute(std::shared_ptr<const Image> noisy, std::shared_ptr<const Image> denoised,
-                           std::shared_ptr<const Image> reference, const metrics::Options& options) {
-  auto test = of() == Of::Noisy ? noisy : denoised;
-  if (!test || !reference) {
+void HeatmapPanel::compute(std::shared_ptr<const Image> test, std::shared_ptr<const Image> against,
+                           const QString& subject, const QString& missing, const metrics::Options& options) {
+  if (!test || !against) {
     task_->supersede();
     map_.reset();
     image_ = QImage();
-    bar_->setScale(colormap(), 0, 1, false, reference ? tr("no denoised image yet") : tr("no reference"));
+    subject_ = subject;
+    bar_->setScale(colormap(), 0, 1, false, missing);
+    histogram_->setValues(nullptr, false, {0, 1}, colormap(), missing);
     emit ready();
     return;
   }
@@ -206,7 +253,8 @@ void HeatmapPanel::compute(std::shared_ptr<const Image> noisy, std::shared_ptr<c
   task_->start([=](const LatestTask<Result>::Token& token) {
     Result r;
     try {
-      auto map = std::make_shared<Image>(metrics::error_map(*test, *reference, k, o));
+      r.subject = subject;
+      auto map = std::make_shared<Image>(metrics::error_map(*test, *against, k, o));
       if (token.superseded()) return r;  // dropped anyway: skip the colouring
       r.range = resolve_range(*map, sc);
       r.image = colorize(*map, cm, sc);
@@ -237,8 +285,10 @@ void HeatmapPanel::recolor() {
   // Colouring a large map takes a moment: off the UI thread too.
   const auto map = map_;
   const auto cm = colormap();
+  const QString subject = subject_;
   task_->start([=](const LatestTask<Result>::Token&) {
     Result r;
+    r.subject = subject;
     r.range = resolve_range(*map, sc);
     r.image = colorize(*map, cm, sc);
     r.map = map;

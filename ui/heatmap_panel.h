@@ -1,6 +1,8 @@
-// HeatmapPanel: per-pixel error maps (relative squared error, absolute error, squared error, SSIM) of the
-// noisy or denoised colour against the reference, colour-mapped with core's colormaps (the same bytes an
-// exported PNG holds), with a colour bar that shows the scale. Maps are computed on a worker thread.
+// HeatmapPanel: per-pixel error maps (relative squared error, absolute error, squared error, SSIM) of result A,
+// result B or the noisy input against the reference, or of A against B, colour-mapped with core's colormaps,
+// with a colour bar that shows the scale and a histogram of the values. The range is by default the same fixed
+// one for every result, so that two results' maps can be compared by eye; "this map's own" fits each map.
+// Maps are computed on a worker thread.
 #pragma once
 
 #include <QImage>
@@ -17,6 +19,10 @@ class QLineEdit;
 class QSlider;
 
 namespace residue::ui {
+
+// Draws a colour bar into `area`: the title, the colormap from lo to hi, ticks at both ends and the middle.
+void paint_color_bar(class QPainter& p, QRect area, Colormap map, double lo, double hi, bool log,
+                     const QString& title, const QColor& text);
 
 // A horizontal colour bar: the colormap from lo to hi with tick labels, linear or log.
 class ColorBar : public QWidget {
@@ -40,24 +46,31 @@ class HeatmapPanel : public QWidget {
   Q_OBJECT
  public:
   enum class Display { Off, Pane, Overlay };
-  enum class Of { Noisy, Denoised };
+  enum class Of { A, B, Noisy, AgainstB };  // B, AgainstB: need a result B
 
   explicit HeatmapPanel(QWidget* parent = nullptr);
   ~HeatmapPanel() override;
 
-  // Recomputes the map of `test` against `reference` (whole image) on a worker thread; ready() follows.
-  void compute(std::shared_ptr<const Image> noisy, std::shared_ptr<const Image> denoised,
-               std::shared_ptr<const Image> reference, const metrics::Options& options);
+  // Recomputes the map of `test` against `against` (whole image) on a worker thread; ready() follows.
+  // `subject` names what is mapped in the title ("small fp32", "small fp32 against base fp32"); `missing` is
+  // said when `test` or `against` is null.
+  void compute(std::shared_ptr<const Image> test, std::shared_ptr<const Image> against, const QString& subject,
+               const QString& missing, const metrics::Options& options);
+  // The map as a picture to keep: the colour-mapped image with the colour bar, title and range below it.
+  QImage imageWithBar() const;
+  // The fixed range every result's map shares, per kind (what "the same for every result" uses).
+  static std::pair<double, double> sharedRange(metrics::MapKind kind);
 
   Display display() const;
   Of of() const;
   metrics::MapKind kind() const;
   Colormap colormap() const;
-  ColorScale scale() const;  // as set: log and the range (automatic bounds unset)
+  ColorScale scale() const;  // as set: log and the range (shared, typed, or unset for this map's own)
+  bool sharedScale() const;  // the range is the fixed one every result shares
   std::pair<double, double> range() const { return range_; }  // resolved bounds of the current image
   std::shared_ptr<const Image> map() const { return map_; }   // one channel, image-sized; null when none
   const QImage& image() const { return image_; }               // the colour-mapped map
-  QString title() const;                                       // e.g. "rse of denoised (log)"
+  QString title() const;  // e.g. "Relative squared error of small fp32 (log)", for the map shown
   bool busy() const;
 
   void setKind(metrics::MapKind kind);
@@ -65,7 +78,8 @@ class HeatmapPanel : public QWidget {
   void setDisplay(Display d);
   void setColormap(Colormap map);
   void setLog(bool log);
-  void setRange(std::optional<double> lo, std::optional<double> hi);
+  void setRange(std::optional<double> lo, std::optional<double> hi);  // typed bounds; none: the range mode's
+  void setSharedScale(bool shared);
 
  signals:
   void settingsChanged();  // what the map shows changed: the owner calls compute() again
@@ -79,12 +93,16 @@ class HeatmapPanel : public QWidget {
   QComboBox* of_ = nullptr;
   QComboBox* display_ = nullptr;
   QComboBox* colormap_ = nullptr;
+  QComboBox* range_mode_ = nullptr;
   QCheckBox* log_ = nullptr;
   QLineEdit* lo_ = nullptr;
   QLineEdit* hi_ = nullptr;
   ColorBar* bar_ = nullptr;
+  class Histogram* histogram_ = nullptr;
+  QString subject_;  // what the current map is of
 
   struct Result {
+    QString subject;
     std::shared_ptr<const Image> map;
     QImage image;
     std::pair<double, double> range;

@@ -6,22 +6,27 @@
 #include <QComboBox>
 #include <QDialog>
 #include <QDialogButtonBox>
+#include <QDir>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFileInfo>
 #include <QFileSystemWatcher>
 #include <QFormLayout>
+#include <QGuiApplication>
 #include <QKeyEvent>
 #include <QLabel>
 #include <QMenuBar>
 #include <QMessageBox>
 #include <QSettings>
 #include <QStandardItemModel>
+#include <QScreen>
 #include <QStatusBar>
+#include <QTabWidget>
 #include <QTimer>
 #include <QToolBar>
 #include <QtConcurrent/QtConcurrentRun>
+#include <OpenImageIO/imageio.h>
 #include <cmath>
 
 #include "core/io/atomic_file.h"
@@ -29,7 +34,9 @@
 #include "core/io/map_writer.h"
 #include "core/io/metrics_report.h"
 #include "core/util/error.h"
+#include "ui/comparison_sheet.h"
 #include "ui/denoise_panel.h"
+#include "ui/export_all.h"
 #include "ui/help_overlay.h"
 #include "ui/mapping_dialog.h"
 #include "ui/metrics_panel.h"
@@ -45,10 +52,14 @@ constexpr int kMaxRecent = 10;
 // The shortcuts, in one table: the actions use them and the help overlay lists them.
 const std::vector<std::pair<QString, QString>>& shortcutTable() {
   static const std::vector<std::pair<QString, QString>> table = {
-      {"1 - 9", "show one image: noisy, denoised, reference, heatmap"},
-      {"S", "side by side"},
+      {"1 - 9", "show result 1-9 (rows of the Results tab) as A"},
+      {"Ctrl+1 - 9", "show result 1-9 as B, beside A"},
+      {"Tab  Shift+Tab", "single layout: next / previous pane"},
+      {"A", "all panes, in a grid"},
+      {"S", "A and B side by side"},
       {"W", "wipe between A and B (drag the line)"},
       {"Space", "flip between A and B"},
+      {"D", "difference: the map of A against B"},
       {"[  ]", "previous / next AOV of the noisy input"},
       {"E  Shift+E", "exposure up / down half a stop"},
       {"R", "reset exposure and offset"},
@@ -62,9 +73,11 @@ const std::vector<std::pair<QString, QString>>& shortcutTable() {
       {"Ctrl+D", "denoise with the selected model"},
       {"Esc", "cancel the denoise, close this help"},
       {"Ctrl+O  Ctrl+Shift+O", "open render / open reference"},
+      {"Ctrl+Shift+A", "add a result to compare (or drop files on the image)"},
       {"F5", "reload"},
       {"Ctrl+E", "export the denoised EXR"},
-      {"Ctrl+Shift+S", "export the comparison as displayed (PNG)"},
+      {"Ctrl+Shift+S", "export the comparison sheet (PNG)"},
+      {"Ctrl+Shift+E", "export all: results, heatmaps, metrics, sheet"},
       {"?  F1", "this help"},
   };
   return table;
@@ -81,7 +94,13 @@ struct MainWindow::Rendered {
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setObjectName("mainWindow");
   setWindowTitle("Residue");
-  resize(1500, 900);
+  // Canvas first: most of the window is image, whatever the screen (1280x720 included).
+  if (const QScreen* screen = QGuiApplication::primaryScreen()) {
+    const QSize avail = screen->availableSize();
+    resize(std::min(1500, avail.width() * 19 / 20), std::min(900, avail.height() * 9 / 10));
+  } else {
+    resize(1280, 720);
+  }
   session_ = new Session(this);
   display_ = DisplayTransform::load_default();
   canvas_ = new ImageCanvas(this);
@@ -132,7 +151,20 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   });
   connect(session_, &Session::denoisedChanged, this, [this] {
     refreshPanes();
-    if (!denoise_->running()) refreshAnalysis();
+    refreshAnalysis();
+  });
+  connect(session_, &Session::compareChanged, this, [this] {
+    refreshPanes();
+    refreshAnalysis();
+  });
+  connect(session_, &Session::resultsChanged, this, [this] {
+    refreshAnalysis();
+    updateTitle();
+  });
+  connect(session_, &Session::resultFailed, this, [this](const QString& message) {
+    last_error_ = message;
+    statusBar()->showMessage(message, 15000);
+    if (interactive_) QMessageBox::warning(this, tr("Add result"), message);
   });
   connect(session_, &Session::denoisedTileChanged, this, &MainWindow::patchDenoisedTile);
   connect(canvas_, &ImageCanvas::hovered, this, [this](std::optional<QPoint> p) {
@@ -143,7 +175,23 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   });
   connect(canvas_, &ImageCanvas::viewChanged, this, &MainWindow::updateStatus);
   connect(canvas_, &ImageCanvas::roiChanged, this, [this](std::optional<Rect> roi) { setRoi(roi); });
-  connect(canvas_, &ImageCanvas::filesDropped, this, [this](const QStringList& files) { openFiles(files); });
+  connect(canvas_, &ImageCanvas::filesDropped, this, [this](const QStringList& files) {
+    // With a render open, images of its size with nothing but colour are results to compare; anything else
+    // is a new render.
+    QStringList results;
+    for (const auto& f : files)
+      if (looksLikeResult(f)) results << f;
+    if (results.size() == files.size()) addResultFiles(results);
+    else openFiles(files);
+  });
+  connect(metrics_, &MetricsPanel::showAsA, session_, &Session::setA);
+  connect(metrics_, &MetricsPanel::showAsB, session_, &Session::setB);
+  connect(metrics_, &MetricsPanel::removeRequested, session_, &Session::removeResult);
+  connect(metrics_, &MetricsPanel::addRequested, this, [this] {
+    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), QString(),
+                                                            tr("Images (*.exr *.hdr *.pfm *.tif *.tiff *.png);;All files (*)"));
+    addResultFiles(files);
+  });
   connect(metrics_, &MetricsPanel::optionsChanged, this, &MainWindow::refreshAnalysis);
   connect(heatmap_, &HeatmapPanel::settingsChanged, this, &MainWindow::refreshAnalysis);
   connect(heatmap_, &HeatmapPanel::displayChanged, this, [this] {
@@ -159,6 +207,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(denoise_, &DenoisePanel::finished, this, [this](bool ok, const QString& message) {
     statusBar()->showMessage(ok ? tr("Denoised: %1").arg(session_->denoisedDescription()) : message, 10000);
     updateTitle();
+    refreshPanes();  // the pane labels say whether the result is complete
+    refreshAnalysis();
   });
   rebuildRecentMenu();
   updateStatus();
@@ -168,6 +218,7 @@ MainWindow::~MainWindow() { render_.reset(); }  // first: its jobs post to this 
 
 void MainWindow::showRendered(Rendered&& r) {
   canvas_->setPanes(std::move(r.panes), r.size);
+  setWipePair(wipe_a_, wipe_b_);
   // Tiles that landed while these panes were being drawn are in the session: show them too.
   if (const int d = paneIndex(Source::Denoised); d >= 0 && session_->denoised()) {
     canvas_->setPaneValues(d, std::shared_ptr<const Image>(std::shared_ptr<const Image>(), session_->denoised()));
@@ -183,22 +234,25 @@ void MainWindow::showRendered(Rendered&& r) {
 // Construction
 
 void MainWindow::buildDocks() {
-  const auto dock = [this](const QString& title, const QString& name, QWidget* w, Qt::DockWidgetArea area) {
-    auto* d = new QDockWidget(title, this);
-    d->setObjectName(name);
-    d->setWidget(w);
-    addDockWidget(area, d);
-    return d;
-  };
+  // One side bar of tabs: the canvas keeps most of the window, and the bar can be closed (View > Side Bar).
   denoise_ = new DenoisePanel(session_, this);
   metrics_ = new MetricsPanel(this);
   heatmap_ = new HeatmapPanel(this);
   inspector_ = new PixelInspector(this);
-  dock(tr("Denoise"), "denoiseDock", denoise_, Qt::RightDockWidgetArea);
-  dock(tr("Metrics"), "metricsDock", metrics_, Qt::RightDockWidgetArea);
-  dock(tr("Heatmap"), "heatmapDock", heatmap_, Qt::RightDockWidgetArea);
-  auto* pixel = dock(tr("Pixel"), "inspectorDock", inspector_, Qt::LeftDockWidgetArea);
-  resizeDocks({pixel}, {230}, Qt::Horizontal);
+  tabs_ = new QTabWidget(this);
+  tabs_->setObjectName("sideTabs");
+  tabs_->addTab(metrics_, tr("Results"));
+  tabs_->addTab(denoise_, tr("Denoise"));
+  tabs_->addTab(heatmap_, tr("Heatmap"));
+  tabs_->addTab(inspector_, tr("Pixel"));
+  tabs_->setCurrentWidget(denoise_);
+  auto* dock = new QDockWidget(tr("Residue"), this);
+  dock->setObjectName("sideDock");
+  dock->setWidget(tabs_);
+  dock->setFeatures(QDockWidget::DockWidgetClosable | QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
+  dock->setTitleBarWidget(new QWidget(dock));  // the tabs are the title
+  addDockWidget(Qt::RightDockWidgetArea, dock);
+  resizeDocks({dock}, {400}, Qt::Horizontal);
 }
 
 void MainWindow::buildToolBar() {
@@ -206,17 +260,19 @@ void MainWindow::buildToolBar() {
   bar->setObjectName("viewToolBar");
   layout_box_ = new QComboBox(this);
   layout_box_->setObjectName("layoutBox");
-  layout_box_->addItems({tr("Side by side"), tr("Single"), tr("Wipe")});
-  bar->addWidget(new QLabel(tr(" Layout "), this));
+  layout_box_->addItems({tr("All"), tr("Single"), tr("A | B"), tr("Wipe A | B")});
+  layout_box_->setToolTip(tr("All panes in a grid (A), one pane (Tab cycles, Space flips A and B), A and B side "
+                             "by side (S), or a wipe between them (W)"));
   bar->addWidget(layout_box_);
   connect(layout_box_, &QComboBox::currentIndexChanged, this, [this](int i) {
-    canvas_->setLayout(i == 0 ? ImageCanvas::Layout::SideBySide : i == 1 ? ImageCanvas::Layout::Single
-                                                                         : ImageCanvas::Layout::Wipe);
+    constexpr ImageCanvas::Layout layouts[] = {ImageCanvas::Layout::SideBySide, ImageCanvas::Layout::Single,
+                                               ImageCanvas::Layout::Pair, ImageCanvas::Layout::Wipe};
+    canvas_->setLayout(layouts[std::clamp(i, 0, 3)]);
   });
   aov_box_ = new QComboBox(this);
   aov_box_->setObjectName("aovBox");
   for (AovRole v : kViewableAovs) aov_box_->addItem(display_name(v), static_cast<int>(v));
-  bar->addWidget(new QLabel(tr("  AOV "), this));
+  aov_box_->setToolTip(tr("The AOV the noisy pane shows ([ and ])"));
   bar->addWidget(aov_box_);
   connect(aov_box_, &QComboBox::currentIndexChanged, this,
           [this] { setAov(static_cast<AovRole>(aov_box_->currentData().toInt())); });
@@ -227,7 +283,7 @@ void MainWindow::buildToolBar() {
   exposure_box_->setSingleStep(0.5);
   exposure_box_->setDecimals(1);
   exposure_box_->setToolTip(tr("Exposure in stops (E / Shift+E)"));
-  bar->addWidget(new QLabel(tr("  Exposure "), this));
+  exposure_box_->setPrefix(tr("EV "));
   bar->addWidget(exposure_box_);
   offset_box_ = new QDoubleSpinBox(this);
   offset_box_->setObjectName("offsetBox");
@@ -235,7 +291,7 @@ void MainWindow::buildToolBar() {
   offset_box_->setSingleStep(0.01);
   offset_box_->setDecimals(3);
   offset_box_->setToolTip(tr("Offset added after the exposure"));
-  bar->addWidget(new QLabel(tr(" Offset "), this));
+  offset_box_->setPrefix(tr("+ "));
   bar->addWidget(offset_box_);
   connect(exposure_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
   connect(offset_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
@@ -259,7 +315,6 @@ void MainWindow::buildToolBar() {
     refreshPanes();
   });
   connect(view_box_, &QComboBox::currentIndexChanged, this, &MainWindow::refreshPanes);
-  bar->addWidget(new QLabel(tr("  Display "), this));
   bar->addWidget(display_box_);
   bar->addWidget(view_box_);
   display_box_->setToolTip(tr("OpenColorIO display and view (%1)").arg(QString::fromStdString(display_->source())));
@@ -287,6 +342,11 @@ void MainWindow::buildActions() {
                                                    tr("OpenEXR (*.exr);;All files (*)"));
     if (!f.isEmpty()) openReferenceFile(f);
   });
+  action(file, tr("&Add Result..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_A), [this] {
+    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), QString(),
+                                                            tr("Images (*.exr *.hdr *.pfm *.tif *.tiff *.png);;All files (*)"));
+    addResultFiles(files);
+  });
   recent_menu_ = file->addMenu(tr("Open Re&cent"));
   action(file, tr("Re&load"), QKeySequence(Qt::Key_F5), [this] { session_->reload(); });
   auto_reload_ = action(file, tr("Reload When the Files Change"), QKeySequence(), [this] { watchInputs(); });
@@ -297,6 +357,8 @@ void MainWindow::buildActions() {
   live_denoise_->setChecked(true);
   file->addSeparator();
   auto* exp = file->addMenu(tr("&Export"));
+  action(exp, tr("Export &All..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_E), [this] { exportAllDialog(); });
+  exp->addSeparator();
   action(exp, tr("Denoised image (EXR)..."), QKeySequence(Qt::CTRL | Qt::Key_E), [this] {
     if (!session_->denoised()) return void(QMessageBox::information(this, tr("Export"), tr("Denoise first.")));
     // Pixel type and compression, as residue-cli offers them.
@@ -326,7 +388,7 @@ void MainWindow::buildActions() {
     const QString path = askSavePath(tr("Export the heatmap values"), tr("OpenEXR (*.exr)"), "exr");
     if (!path.isEmpty()) runExport(tr("heatmap EXR"), exportHeatmap(path, true));
   });
-  action(exp, tr("Comparison as displayed (PNG)..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S), [this] {
+  action(exp, tr("Comparison sheet (PNG)..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S), [this] {
     const QString path = askSavePath(tr("Export the comparison"), tr("PNG (*.png)"), "png");
     if (!path.isEmpty()) runExport(tr("comparison PNG"), exportComparison(path, true));
   });
@@ -338,29 +400,47 @@ void MainWindow::buildActions() {
   action(file, tr("&Quit"), QKeySequence::Quit, [this] { close(); });
 
   auto* view = menuBar()->addMenu(tr("&View"));
-  action(view, tr("Side by side"), QKeySequence(Qt::Key_S), [this] { layout_box_->setCurrentIndex(0); });
-  action(view, tr("Wipe A | B"), QKeySequence(Qt::Key_W), [this] { layout_box_->setCurrentIndex(2); });
+  action(view, tr("All panes"), QKeySequence(Qt::Key_A), [this] { layout_box_->setCurrentIndex(0); });
+  action(view, tr("A | B side by side"), QKeySequence(Qt::Key_S), [this] { layout_box_->setCurrentIndex(2); });
+  action(view, tr("Wipe A | B"), QKeySequence(Qt::Key_W), [this] { layout_box_->setCurrentIndex(3); });
   action(view, tr("Flip A / B"), QKeySequence(Qt::Key_Space), [this] {
+    if (canvas_->layout() != ImageCanvas::Layout::Single) canvas_->setCurrent(canvas_->wipeA());
     layout_box_->setCurrentIndex(1);
     canvas_->flipAB();
   });
+  action(view, tr("Difference: A against B"), QKeySequence(Qt::Key_D), [this] {
+    if (session_->b() < 0) return statusBar()->showMessage(tr("Pick a result B first (Ctrl+1-9)"), 5000);
+    heatmap_->setOf(HeatmapPanel::Of::AgainstB);
+    heatmap_->setDisplay(HeatmapPanel::Display::Pane);
+    tabs_->setCurrentWidget(heatmap_);
+    QTimer::singleShot(0, this, [this] { showPane(Source::Heatmap); });
+  });
+  auto* next = action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); });
+  next->setShortcutContext(Qt::ApplicationShortcut);
+  auto* prev = action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Backtab), [this] { cyclePane(-1); });
+  prev->setShortcuts({QKeySequence(Qt::SHIFT | Qt::Key_Backtab), QKeySequence(Qt::Key_Backtab)});
   auto* pick = view->addMenu(tr("Wipe pair"));
-  for (int a = 0; a < 3; ++a) {
-    for (int b = a + 1; b < 4; ++b) {
-      const Source sa = static_cast<Source>(a), sb = static_cast<Source>(b);
-      action(pick, QString("%1 | %2").arg(QString::fromLatin1(to_string(sa)), QString::fromLatin1(to_string(sb))),
-             QKeySequence(), [this, sa, sb] {
-               canvas_->setWipePair(paneIndex(sa), paneIndex(sb));
-               layout_box_->setCurrentIndex(2);
-             });
+  const Source pairable[] = {Source::Noisy, Source::Denoised, Source::Compare, Source::Reference};
+  for (Source sa : pairable) {
+    for (Source sb : pairable) {
+      if (sb <= sa) continue;
+      const auto label = [](Source x) { return x == Source::Denoised ? QString("A") : x == Source::Compare ? QString("B")
+                                                                                       : QString::fromLatin1(to_string(x)); };
+      action(pick, QString("%1 | %2").arg(label(sa), label(sb)), QKeySequence(), [this, sa, sb] {
+        setWipePair(sa, sb);
+        layout_box_->setCurrentIndex(3);
+      });
     }
   }
   view->addSeparator();
+  auto* results = view->addMenu(tr("Results"));
   for (int i = 1; i <= 9; ++i) {
-    action(view, tr("Image %1").arg(i), QKeySequence(Qt::Key_0 + i), [this, i] {
-      if (i - 1 < static_cast<int>(pane_sources_.size())) showPane(pane_sources_[static_cast<size_t>(i - 1)]);
-    });
+    action(results, tr("Result %1 as A").arg(i), QKeySequence(Qt::Key_0 + i), [this, i] { pickResult(i - 1, false); });
+    action(results, tr("Result %1 as B").arg(i), QKeySequence(Qt::CTRL | (Qt::Key_0 + i)), [this, i] { pickResult(i - 1, true); });
   }
+  action(view, tr("Side Bar"), QKeySequence(Qt::Key_F9), [this] {
+    if (auto* d = findChild<QDockWidget*>("sideDock")) d->setVisible(!d->isVisible());
+  });
   view->addSeparator();
   action(view, tr("Fit"), QKeySequence(Qt::Key_F), [this] { canvas_->fit(); });
   action(view, tr("1:1"), QKeySequence(Qt::CTRL | Qt::Key_0), [this] { canvas_->oneToOne(); });
@@ -421,6 +501,27 @@ void MainWindow::openReferenceFile(const QString& file) {
     return;
   }
   session_->openReference(file.toStdString());
+}
+
+void MainWindow::addResultFiles(const QStringList& files) {
+  if (files.isEmpty()) return;
+  if (!session_->hasStack()) {
+    last_error_ = tr("Open a render before adding results to compare with it.");
+    if (interactive_) QMessageBox::information(this, tr("Add Result"), last_error_);
+    return;
+  }
+  tabs_->setCurrentWidget(metrics_);
+  for (const auto& f : files) session_->addResultFile(f.toStdString());
+}
+
+bool MainWindow::looksLikeResult(const QString& file) const {
+  const auto stack = session_->stack();
+  if (!stack) return false;
+  auto in = OIIO::ImageInput::open(file.toStdString());
+  if (!in) return false;
+  const auto& spec = in->spec();
+  return spec.width == stack->width() && spec.height == stack->height() && spec.nchannels <= 4 &&
+         in->current_subimage() == 0 && !in->seek_subimage(1, 0);
 }
 
 void MainWindow::onLoaded() {
@@ -567,7 +668,45 @@ void MainWindow::showPane(Source s) {
 }
 
 void MainWindow::setLayout(ImageCanvas::Layout layout) {
-  layout_box_->setCurrentIndex(layout == ImageCanvas::Layout::SideBySide ? 0 : layout == ImageCanvas::Layout::Single ? 1 : 2);
+  layout_box_->setCurrentIndex(layout == ImageCanvas::Layout::SideBySide ? 0
+                               : layout == ImageCanvas::Layout::Single   ? 1
+                               : layout == ImageCanvas::Layout::Pair     ? 2
+                                                                         : 3);
+}
+
+void MainWindow::setWipePair(Source a, Source b) {
+  wipe_a_ = a;
+  wipe_b_ = b;
+  // What is not shown falls back: B to the reference to the noisy input; A to the noisy input.
+  const auto shown = [this](Source s, std::initializer_list<Source> fallbacks, int not_this) {
+    if (const int i = paneIndex(s); i >= 0 && i != not_this) return i;
+    for (Source f : fallbacks)
+      if (const int i = paneIndex(f); i >= 0 && i != not_this) return i;
+    return -1;
+  };
+  const int ia = shown(a, {Source::Denoised, Source::Noisy}, -1);
+  const int ib = shown(b, {Source::Compare, Source::Reference, Source::Noisy, Source::Denoised}, ia);
+  if (ia >= 0 && ib >= 0) canvas_->setWipePair(ia, ib);
+}
+
+void MainWindow::cyclePane(int step) {
+  const int n = static_cast<int>(canvas_->panes().size());
+  if (n == 0) return;
+  if (canvas_->layout() == ImageCanvas::Layout::Single) canvas_->setCurrent((canvas_->current() + step + n) % n);
+  layout_box_->setCurrentIndex(1);
+  statusBar()->showMessage(canvas_->panes()[static_cast<size_t>(canvas_->current())].label, 3000);
+}
+
+void MainWindow::pickResult(int index, bool as_b) {
+  const auto& results = session_->results();
+  if (index < 0 || index >= static_cast<int>(results.size())) {
+    statusBar()->showMessage(tr("There is no result %1 (the Results tab lists them)").arg(index + 1), 4000);
+    return;
+  }
+  const int id = results[static_cast<size_t>(index)].id;
+  if (as_b) session_->setB(id);
+  else session_->setA(id);
+  statusBar()->showMessage(tr("%1: %2").arg(as_b ? "B" : "A", results[static_cast<size_t>(index)].name), 4000);
 }
 
 int MainWindow::paneIndex(Source s) const {
@@ -607,6 +746,7 @@ void MainWindow::refreshPanes() {
   }
   const auto stack = session_->stack();
   pane_sources_ = {Source::Noisy, Source::Denoised};
+  if (session_->b() >= 0) pane_sources_.push_back(Source::Compare);
   if (session_->reference()) {
     pane_sources_.push_back(Source::Reference);
     if (heatmap_->display() == HeatmapPanel::Display::Pane) pane_sources_.push_back(Source::Heatmap);
@@ -618,12 +758,22 @@ void MainWindow::refreshPanes() {
   in.noisy = session_->image(Source::Noisy, aov_);
   // During a run from the noisy colour the unfinished tiles *are* the noisy colour: draw from the stack (which
   // never changes) rather than holding the image the tiles are written into (that would copy it per tile).
-  in.denoised = denoise_->runningFromNoisy() ? shared(Source::Noisy) : session_->denoisedShared();
+  const bool a_running = denoise_->controller()->runningResult() == session_->a() && session_->a() >= 0;
+  in.denoised = a_running && denoise_->runningFromNoisy() ? shared(Source::Noisy) : session_->denoisedShared();
+  in.compare = session_->compareShared();
   in.reference = shared(Source::Reference);
   in.heat_image = heatmap_->image();
   in.heat_map = heatmap_->map();
   in.heat_title = heatmap_->title();
-  in.model = session_->denoisedDescription();
+  const auto label = [this](int id) {
+    const Result* r = session_->result(id);
+    if (!r) return QString();
+    QString text = session_->resultName(id);
+    if (!r->state.isEmpty()) text += " (" + r->state + ")";
+    return text;
+  };
+  in.a_name = label(session_->a());
+  in.b_name = label(session_->b());
   in.display = display_;
   in.settings = displaySettings();
   const QSize size(static_cast<int>(stack->width()), static_cast<int>(stack->height()));
@@ -663,11 +813,26 @@ void MainWindow::refreshAnalysis() {
   if (!session_->hasStack()) return;
   const auto stack = session_->stack();
   MetricsPanel::Inputs in;
-  in.noisy = shared(Source::Noisy);
-  in.denoised = denoise_->running() ? nullptr : session_->denoisedShared();
+  MetricsPanel::Row noisy;
+  noisy.name = tr("noisy input");
+  noisy.file = QString::fromStdString(stack->color.source.file);
+  noisy.image = shared(Source::Noisy);
+  in.rows.push_back(noisy);
+  const int running = denoise_->controller()->runningResult();
+  for (const auto& r : session_->results()) {
+    MetricsPanel::Row row;
+    row.id = r.id;
+    row.name = session_->resultName(r.id);
+    row.file = r.description;
+    // A result still being made is listed without scores: its pixels are half noisy.
+    if (r.id != running) row.image = r.id == session_->a() ? session_->denoisedShared() : r.image;
+    row.seconds = r.seconds;
+    row.state = r.state;
+    row.a = r.id == session_->a();
+    row.b = r.id == session_->b();
+    in.rows.push_back(std::move(row));
+  }
   in.reference = shared(Source::Reference);
-  in.noisy_file = QString::fromStdString(stack->color.source.file);
-  in.denoised_file = session_->denoisedDescription();
   if (stack->reference) in.reference_file = QString::fromStdString(stack->reference->source.file);
   in.roi = canvas_->roi();
   in.noisy_nan = stack->color.non_finite.nan;
@@ -677,8 +842,30 @@ void MainWindow::refreshAnalysis() {
     in.reference_inf = stack->reference->non_finite.inf;
   }
   metrics_->compute(in);
+
   // The map is computed even when hidden: the inspector and the export read it.
-  heatmap_->compute(in.noisy, in.denoised, in.reference, metrics_->options());
+  const QString a_name = session_->resultName(session_->a()), b_name = session_->resultName(session_->b());
+  const auto a_image = running == session_->a() ? nullptr : session_->denoisedShared();
+  const auto b_image = running == session_->b() ? nullptr : session_->compareShared();
+  switch (heatmap_->of()) {
+    case HeatmapPanel::Of::A:
+      heatmap_->compute(a_image, in.reference, a_name.isEmpty() ? tr("A") : a_name,
+                        !in.reference ? tr("no reference") : tr("no result A yet (denoise, or add a result)"),
+                        metrics_->options());
+      break;
+    case HeatmapPanel::Of::B:
+      heatmap_->compute(b_image, in.reference, b_name.isEmpty() ? tr("B") : b_name,
+                        !in.reference ? tr("no reference") : tr("no result B (Ctrl+1-9 picks one)"), metrics_->options());
+      break;
+    case HeatmapPanel::Of::Noisy:
+      heatmap_->compute(in.rows.front().image, in.reference, tr("the noisy input"), tr("no reference"),
+                        metrics_->options());
+      break;
+    case HeatmapPanel::Of::AgainstB:
+      heatmap_->compute(a_image, b_image, tr("%1 against %2").arg(a_name, b_name),
+                        tr("needs a result A and a result B (Ctrl+1-9)"), metrics_->options());
+      break;
+  }
 }
 
 void MainWindow::applyHeatmap() {
@@ -691,7 +878,9 @@ void MainWindow::applyHeatmap() {
       canvas_->setPaneValues(i, heatmap_->map());
     }
   } else if (d == HeatmapPanel::Display::Overlay) {
-    const int i = paneIndex(heatmap_->of() == HeatmapPanel::Of::Noisy ? Source::Noisy : Source::Denoised);
+    const int i = paneIndex(heatmap_->of() == HeatmapPanel::Of::Noisy ? Source::Noisy
+                            : heatmap_->of() == HeatmapPanel::Of::B  ? Source::Compare
+                                                                     : Source::Denoised);
     if (i >= 0 && !heatmap_->image().isNull()) canvas_->setOverlay(i, heatmap_->image());
   }
 }
@@ -819,25 +1008,14 @@ QFuture<QString> MainWindow::exportDenoisedExr(const QString& path, bool overwri
                                                const QString& compression) {
   const auto denoised = session_->denoisedShared();
   const auto stack = session_->stack();
+  const QString name = session_->resultName(session_->a());
   const QString description = session_->denoisedDescription();
   const float strength = session_->strength();
   return QtConcurrent::run([=]() -> QString {
     if (!denoised || !stack) return tr("Nothing to export: no denoised image.");
     try {
-      io::ExrWriteOptions o;
-      o.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
-      o.compression = compression.toStdString();
-      o.metadata = stack->metadata;
-      o.data_window = stack->data_window;
-      o.display_width = stack->display_width;
-      o.display_height = stack->display_height;
-      o.residue_attributes.attribute("residue:model", description.toStdString());
-      o.residue_attributes.attribute("residue:source", stack->color.source.file);
-      o.residue_attributes.attribute("residue:strength", strength);
-      o.residue_attributes.attribute("residue:version", std::string(RESIDUE_VERSION));
-      o.residue_attributes.attribute("residue:written_by", std::string("residue viewer"));
-      o.overwrite = overwrite;
-      io::write_exr(path.toStdString(), *denoised, o);
+      write_result_exr(path.toStdString(), *denoised, *stack, name, description, overwrite, half,
+                       compression.toStdString(), strength);
       return {};
     } catch (const std::exception& e) {
       return errorText(e);
@@ -847,15 +1025,18 @@ QFuture<QString> MainWindow::exportDenoisedExr(const QString& path, bool overwri
 
 QFuture<QString> MainWindow::exportHeatmap(const QString& path, bool overwrite) {
   const auto map = heatmap_->map();
-  io::MapPngOptions o;
-  o.colormap = heatmap_->colormap();
-  o.scale = heatmap_->scale();
-  o.overwrite = overwrite;
+  const QImage picture = heatmap_->imageWithBar();
   return QtConcurrent::run([=]() -> QString {
     if (!map) return tr("Nothing to export: no heatmap (it needs a reference).");
     try {
-      if (path.endsWith(".exr", Qt::CaseInsensitive)) io::write_map_exr(path.toStdString(), *map, overwrite);
-      else io::write_map_png(path.toStdString(), *map, o);
+      if (path.endsWith(".exr", Qt::CaseInsensitive)) {
+        io::write_map_exr(path.toStdString(), *map, overwrite);
+      } else {
+        io::write_atomically(path.toStdString(), overwrite, [&](const std::filesystem::path& tmp) {
+          if (!picture.save(QString::fromStdString(tmp.string()), "PNG"))
+            throw Error(ErrorKind::Output, "could not encode the heatmap PNG for " + path.toStdString());
+        });
+      }
       return {};
     } catch (const std::exception& e) {
       return errorText(e);
@@ -863,13 +1044,77 @@ QFuture<QString> MainWindow::exportHeatmap(const QString& path, bool overwrite) 
   });
 }
 
+// What a comparison sheet shows, gathered on the UI thread and drawn on a worker.
+struct MainWindow::SheetInputs {
+  struct Item {
+    QString label;
+    std::shared_ptr<const Image> image;
+    QStringList lines;
+  };
+  std::vector<Item> items;
+  std::shared_ptr<const DisplayTransform> display;
+  DisplaySettings settings;
+  SheetOptions options;
+
+  QImage draw() const {
+    std::vector<SheetPanel> panels;
+    for (const auto& it : items) {
+      SheetPanel p{it.label, {}, it.lines};
+      try {
+        if (it.image) p.image = display->render(*it.image, 0, 3, it.image->bounds(), settings, Encoding::SceneLinear);
+      } catch (const std::exception&) {
+        // drawn as "(no image)"
+      }
+      panels.push_back(std::move(p));
+    }
+    return comparison_sheet(panels, options);
+  }
+};
+
+MainWindow::SheetInputs MainWindow::sheetInputs() const {
+  SheetInputs in;
+  in.display = display_;
+  in.settings = displaySettings();
+  const auto stack = session_->stack();
+  if (!stack) return in;
+  const auto& report = metrics_->wholeReport();
+  const auto scores = [&](const QString& name) {
+    for (const auto& row : report.rows)
+      if (QString::fromStdString(row.name) == name)
+        return QStringList{QString("relMSE %1   SSIM %2   PSNR %3 dB")
+                               .arg(row.scores.relmse, 0, 'g', 4)
+                               .arg(row.scores.ssim, 0, 'f', 4)
+                               .arg(row.scores.psnr, 0, 'f', 2)};
+    return QStringList{};
+  };
+  in.items.push_back({tr("Noisy input"), shared(Source::Noisy), scores("noisy")});
+  for (const auto& r : session_->results()) {
+    const QString name = session_->resultName(r.id);
+    QStringList lines = scores(name);
+    if (r.seconds > 0) lines << tr("%1 s here").arg(r.seconds, 0, 'f', 2);
+    if (!r.state.isEmpty()) lines << r.state;
+    in.items.push_back({name, r.id == session_->a() ? session_->denoisedShared() : r.image, lines});
+  }
+  if (const auto ref = shared(Source::Reference)) in.items.push_back({tr("Reference"), ref, {}});
+  in.options.title = tr("%1   %2 x %3   reference: %4   display: %5 / %6, %7 EV")
+                         .arg(session_->title())
+                         .arg(stack->width())
+                         .arg(stack->height())
+                         .arg(stack->reference ? QFileInfo(QString::fromStdString(stack->reference->source.file)).fileName()
+                                               : tr("none"))
+                         .arg(QString::fromStdString(in.settings.display), QString::fromStdString(in.settings.view))
+                         .arg(in.settings.exposure, 0, 'f', 1);
+  return in;
+}
+
 QFuture<QString> MainWindow::exportComparison(const QString& path, bool overwrite) {
-  // Grabbed on the UI thread (it is what is on screen), encoded and written on a worker.
-  const QImage shot = canvas_->grab().toImage();
+  const SheetInputs in = sheetInputs();
   return QtConcurrent::run([=]() -> QString {
     try {
+      const QImage sheet = in.draw();
+      if (sheet.isNull()) return tr("Nothing to export: no render open.");
       io::write_atomically(path.toStdString(), overwrite, [&](const std::filesystem::path& tmp) {
-        if (!shot.save(QString::fromStdString(tmp.string()), "PNG"))
+        if (!sheet.save(QString::fromStdString(tmp.string()), "PNG"))
           throw Error(ErrorKind::Output, "could not encode the comparison PNG for " + path.toStdString());
       });
       return {};
@@ -890,6 +1135,65 @@ QFuture<QString> MainWindow::exportMetrics(const QString& path, bool overwrite) 
       return errorText(e);
     }
   });
+}
+
+QFuture<QString> MainWindow::exportAll(const QString& folder, bool overwrite) {
+  ExportAllInputs in;
+  in.stack = session_->stack();
+  for (const auto& r : session_->results()) {
+    if (r.id == denoise_->controller()->runningResult()) continue;
+    Result copy = r;
+    copy.name = session_->resultName(r.id);
+    if (r.id == session_->a()) {  // as shown: at its strength
+      copy.image = std::const_pointer_cast<Image>(session_->denoisedShared());
+      copy.description = session_->denoisedDescription();
+    }
+    in.results.push_back(std::move(copy));
+  }
+  in.reference = shared(Source::Reference);
+  in.options = metrics_->options();
+  in.map_kind = heatmap_->kind();
+  in.map_name = heatmap_->title().section(" of ", 0, 0);
+  in.colormap = heatmap_->colormap();
+  in.scale = heatmap_->scale();
+  in.whole = metrics_->wholeReport();
+  if (canvas_->roi()) in.roi = metrics_->report();
+  const SheetInputs sheet = sheetInputs();
+  in.sheet = [sheet] { return sheet.draw(); };
+  const std::filesystem::path dir = folder.toStdString();
+  return QtConcurrent::run([in, dir, overwrite]() { return export_all(in, dir, overwrite); });
+}
+
+void MainWindow::exportAllDialog() {
+  if (!session_->hasStack()) return void(QMessageBox::information(this, tr("Export All"), tr("Open a render first.")));
+  QSettings settings;
+  const QString start = settings.value("exportFolder", QDir::homePath() + "/residue-export").toString();
+  const QString folder = QFileDialog::getExistingDirectory(this, tr("Export all into a folder"),
+                                                           QFileInfo(start).exists() ? start : QDir::homePath());
+  if (folder.isEmpty()) return;
+  settings.setValue("exportFolder", folder);
+  // Ask once before replacing anything.
+  ExportAllInputs probe;
+  probe.stack = session_->stack();
+  probe.results = session_->results();
+  probe.reference = shared(Source::Reference);
+  probe.whole = metrics_->wholeReport();
+  if (canvas_->roi()) probe.roi = metrics_->report();
+  probe.sheet = [] { return QImage(); };
+  QStringList existing;
+  for (const auto& f : planned_files(probe, folder.toStdString()))
+    if (std::filesystem::exists(f)) existing << QString::fromStdString(f.filename().string());
+  bool overwrite = false;
+  if (!existing.isEmpty()) {
+    if (QMessageBox::question(this, tr("Export All"),
+                              tr("%1 already holds %n of these file(s):\n%2\n\nReplace them?", nullptr,
+                                 static_cast<int>(existing.size()))
+                                  .arg(folder, existing.mid(0, 12).join("\n") + (existing.size() > 12 ? "\n..." : "")),
+                              QMessageBox::Yes | QMessageBox::Cancel, QMessageBox::Cancel) != QMessageBox::Yes)
+      return;
+    overwrite = true;
+  }
+  runExport(tr("export into %1").arg(folder), exportAll(folder, overwrite));
 }
 
 }  // namespace residue::ui

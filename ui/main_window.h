@@ -1,8 +1,8 @@
 // MainWindow: the viewer. It wires the data flow of the product together:
-//   Session (load AOVs, denoised) -> DisplayTransform (exposure, OCIO) -> ImageCanvas (panes, zoom, ROI)
-//                                 -> MetricsPanel / HeatmapPanel (core metrics on worker threads)
-//                                 -> DenoisePanel (core DenoiseJob, tiles into the session)
-//                                 -> export (core writers, atomic, never overwriting without asking)
+//   Session (load AOVs, results A/B) -> DisplayTransform (exposure, OCIO) -> ImageCanvas (panes, zoom, ROI)
+//                                    -> MetricsPanel (a row of scores per result) / HeatmapPanel (maps, histogram)
+//                                    -> DenoisePanel -> DenoiseController (core DenoiseJob, tiles into a result)
+//                                    -> export (core writers, atomic, never overwriting without asking)
 // Every slow step runs on a worker thread; the UI thread only draws and routes.
 #pragma once
 
@@ -26,6 +26,7 @@ class QMenu;
 class QTimer;
 class QFileSystemWatcher;
 class QAction;
+class QTabWidget;
 
 namespace residue::ui {
 
@@ -47,10 +48,13 @@ class MainWindow : public QMainWindow {
   HeatmapPanel* heatmapPanel() const { return heatmap_; }
   DenoisePanel* denoisePanel() const { return denoise_; }
   PixelInspector* inspector() const { return inspector_; }
+  QTabWidget* sideTabs() const { return tabs_; }
 
   // Opening. Errors go to a message box, or to the mapping dialog when the channels could not be mapped.
   void openFiles(const QStringList& files, const LoadOptions& options = {});
   void openReferenceFile(const QString& file);
+  // Adds images to compare with the render (another denoiser's output, ...) to the result list.
+  void addResultFiles(const QStringList& files);
   // When false, load errors are not shown in dialogs (tests, screenshots); lastError() has them.
   void setInteractive(bool on) { interactive_ = on; }
   QString lastError() const { return last_error_; }
@@ -68,6 +72,9 @@ class MainWindow : public QMainWindow {
   AovRole aov() const { return aov_; }
   void setRoi(std::optional<Rect> roi);  // as if dragged
   void showPane(Source s);               // single-pane layout on that image
+  // The two panes a wipe, flip or A | B layout shows; a source that is not shown falls back (B -> reference
+  // -> noisy).
+  void setWipePair(Source a, Source b);
   void setLayout(ImageCanvas::Layout layout);
   int paneIndex(Source s) const;         // index in canvas()->panes(), -1 when not shown
   bool rendering() const;                // panes being re-rendered
@@ -77,9 +84,15 @@ class MainWindow : public QMainWindow {
   // an empty string. They run on a worker thread; the returned future ends when the file is written.
   QFuture<QString> exportDenoisedExr(const QString& path, bool overwrite, bool half = true,
                                      const QString& compression = "zip");
-  QFuture<QString> exportHeatmap(const QString& path, bool overwrite);  // .png (colour-mapped) or .exr (values)
-  QFuture<QString> exportComparison(const QString& path, bool overwrite);  // the canvas as displayed, PNG
-  QFuture<QString> exportMetrics(const QString& path, bool overwrite);     // .json or .csv
+  // .png (colour-mapped, with its colour bar and range below) or .exr (values)
+  QFuture<QString> exportHeatmap(const QString& path, bool overwrite);
+  // A comparison sheet (ui/comparison_sheet.h): noisy, every result and the reference, labelled with their
+  // scores, as PNG.
+  QFuture<QString> exportComparison(const QString& path, bool overwrite);
+  QFuture<QString> exportMetrics(const QString& path, bool overwrite);     // .json or .csv, every result
+  // Everything at once into `folder` (ui/export_all.h): returns the error message, or an empty string. Files
+  // that exist are replaced only when `overwrite`; else nothing is written and the message names them.
+  QFuture<QString> exportAll(const QString& folder, bool overwrite);
 
  signals:
   void panesRendered();  // the canvas shows the current images
@@ -106,6 +119,12 @@ class MainWindow : public QMainWindow {
   void addRecent(const QStringList& files);
   void rebuildRecentMenu();
   void cycleAov(int step);
+  void cyclePane(int step);
+  void pickResult(int index, bool as_b);  // keys 1-9 / Ctrl+1-9
+  void exportAllDialog();
+  struct SheetInputs;
+  SheetInputs sheetInputs() const;
+  bool looksLikeResult(const QString& file) const;
   void runExport(const QString& what, QFuture<QString> future);
   QString askSavePath(const QString& title, const QString& filter, const QString& suffix);
   DisplaySettings displaySettings() const;
@@ -129,6 +148,7 @@ class MainWindow : public QMainWindow {
   DenoisePanel* denoise_ = nullptr;
   PixelInspector* inspector_ = nullptr;
   HelpOverlay* help_ = nullptr;
+  QTabWidget* tabs_ = nullptr;
 
   QComboBox* layout_box_ = nullptr;
   QComboBox* aov_box_ = nullptr;
@@ -143,6 +163,7 @@ class MainWindow : public QMainWindow {
 
   AovRole aov_ = AovRole::Color;
   std::vector<Source> pane_sources_;
+  Source wipe_a_ = Source::Denoised, wipe_b_ = Source::Compare;
   std::optional<QPoint> hover_;
   bool interactive_ = true;
   QString last_error_;

@@ -1,45 +1,104 @@
 #include "ui/metrics_panel.h"
 
+#include <QApplication>
 #include <QComboBox>
 #include <QDoubleSpinBox>
+#include <QFileInfo>
 #include <QFormLayout>
+#include <QHBoxLayout>
 #include <QHeaderView>
 #include <QLabel>
-#include <QScrollBar>
+#include <QPushButton>
 #include <QTableWidget>
 #include <QVBoxLayout>
 #include <cmath>
+#include <limits>
 
 namespace residue::ui {
 
 namespace {
-enum Column { kRelMse, kSsim, kPsnr, kMse, kPixels, kExcluded, kColumns };
+enum Column { kAB, kName, kRelMse, kSsim, kPsnr, kTime, kRoiRelMse, kRoiSsim, kRoiPsnr, kColumns };
 
 QString number(double v, int precision) {
   if (std::isnan(v)) return QStringLiteral("n/a");
   if (std::isinf(v)) return v > 0 ? QStringLiteral("inf") : QStringLiteral("-inf");
   return QString::number(v, 'g', precision);
 }
+
+// Sorts by the number it shows (text would put 1e-05 after 0.002); unknown values last.
+class NumberItem : public QTableWidgetItem {
+ public:
+  NumberItem(const QString& text, double value) : QTableWidgetItem(text) { setData(Qt::UserRole, value); }
+  bool operator<(const QTableWidgetItem& other) const override {
+    const double a = data(Qt::UserRole).toDouble(), b = other.data(Qt::UserRole).toDouble();
+    if (std::isnan(a) || std::isnan(b)) return !std::isnan(a) && std::isnan(b);
+    return a < b;
+  }
+};
+
+constexpr int kIdRole = Qt::UserRole + 1;  // the result's id, on the name cell (UserRole is its sort key)
+constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
 }  // namespace
 
 MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   auto* layout = new QVBoxLayout(this);
   scope_ = new QLabel(tr("No reference"), this);
   scope_->setObjectName("metricsScope");
+  scope_->setWordWrap(true);
   layout->addWidget(scope_);
 
   table_ = new QTableWidget(0, kColumns, this);
   table_->setObjectName("metricsTable");
-  table_->setHorizontalHeaderLabels({tr("relMSE"), tr("SSIM"), tr("PSNR dB"), tr("MSE"), tr("pixels"),
-                                     tr("excluded")});
+  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("PSNR"), tr("time"),
+                                     tr("ROI relMSE"), tr("ROI SSIM"), tr("ROI PSNR")});
+  const QStringList tips = {tr("A: the denoised pane; B: the one compared with it"),
+                            tr("What made the image: model and precision, or the file it came from"),
+                            tr("relMSE = mean (x - r)\u00b2 / (r\u00b2 + eps) over the whole image (lower is better)"),
+                            tr("SSIM over the whole image (higher is better)"),
+                            tr("PSNR in dB over the whole image (higher is better)"),
+                            tr("Seconds the run took here"),
+                            tr("relMSE in the dragged region"),
+                            tr("SSIM in the dragged region"),
+                            tr("PSNR in the dragged region")};
+  for (int c = 0; c < kColumns; ++c) table_->horizontalHeaderItem(c)->setToolTip(tips[c]);
   table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
+  table_->setSelectionBehavior(QAbstractItemView::SelectRows);
+  table_->setSelectionMode(QAbstractItemView::SingleSelection);
+  table_->verticalHeader()->hide();
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
-  table_->verticalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
-  table_->setSizeAdjustPolicy(QAbstractScrollArea::AdjustToContents);
-  // Both rows (noisy, denoised) stay in view however the docks are squeezed.
-  table_->setMinimumHeight(table_->horizontalHeader()->sizeHint().height() + 2 * table_->verticalHeader()->defaultSectionSize() +
-                           table_->horizontalScrollBar()->sizeHint().height() + 4);
-  layout->addWidget(table_);
+  table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
+  table_->setSortingEnabled(true);
+  table_->sortByColumn(kName, Qt::AscendingOrder);  // the order the results came in
+  table_->setWordWrap(false);
+  table_->setTextElideMode(Qt::ElideMiddle);
+  layout->addWidget(table_, 1);
+
+  auto* buttons = new QHBoxLayout;
+  auto* add = new QPushButton(tr("Add..."), this);
+  add->setObjectName("addResultButton");
+  add->setToolTip(tr("Add an image to compare: another denoiser's output, an earlier render (File > Add Result)"));
+  set_b_ = new QPushButton(tr("Show as B"), this);
+  set_b_->setObjectName("setBButton");
+  set_b_->setToolTip(tr("Compare the selected result with A (Ctrl+click a row; Ctrl+1-9)"));
+  remove_ = new QPushButton(tr("Remove"), this);
+  remove_->setObjectName("removeResultButton");
+  buttons->addWidget(add);
+  buttons->addWidget(set_b_);
+  buttons->addWidget(remove_);
+  layout->addLayout(buttons);
+  connect(add, &QPushButton::clicked, this, &MetricsPanel::addRequested);
+  connect(set_b_, &QPushButton::clicked, this, [this] {
+    if (const int id = selectedId(); id >= 0) emit showAsB(id);
+  });
+  connect(remove_, &QPushButton::clicked, this, [this] {
+    if (const int id = selectedId(); id >= 0) emit removeRequested(id);
+  });
+  connect(table_, &QTableWidget::cellClicked, this, [this](int row, int) {
+    const int id = table_->item(row, kName)->data(kIdRole).toInt();
+    if (id < 0) return;
+    if (QApplication::keyboardModifiers() & Qt::ControlModifier) emit showAsB(id);
+    else emit showAsA(id);
+  });
 
   counts_ = new QLabel(this);
   counts_->setObjectName("metricsCounts");
@@ -62,15 +121,14 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   space_->setToolTip(tr("The values SSIM and PSNR are computed on"));
   form->addRow(tr("SSIM/PSNR on"), space_);
   layout->addLayout(form);
-  layout->addStretch(1);
 
   connect(eps_, &QDoubleSpinBox::valueChanged, this, &MetricsPanel::optionsChanged);
   connect(space_, &QComboBox::currentIndexChanged, this, &MetricsPanel::optionsChanged);
 
   task_ = std::make_unique<LatestTask<Computed>>(this, [this](Computed&& r) {
-    report_ = std::move(r.report);
     error_ = r.error;
-    showReport();
+    known_.merge(r.scores);
+    showTable();
     emit computed();
   });
   setToolTip(QString::fromStdString(metrics::formula_text(options())));
@@ -88,80 +146,154 @@ metrics::Options MetricsPanel::options() const {
 // Until the newest result is shown, not only computed: a caller that waits on busy() then reads report().
 bool MetricsPanel::busy() const { return task_->busy(); }
 
+int MetricsPanel::selectedId() const {
+  const auto rows = table_->selectionModel()->selectedRows();
+  if (rows.isEmpty()) return -1;
+  return table_->item(rows.front().row(), kName)->data(kIdRole).toInt();
+}
+
 void MetricsPanel::compute(Inputs inputs) {
   last_ = inputs;
-  metrics::Options o = options();
-  o.roi = inputs.roi;
+  const metrics::Options o = options();
   setToolTip(QString::fromStdString(metrics::formula_text(o)));
+  // Scores are kept per image; another reference or other settings make them all new.
+  if (inputs.reference.get() != known_reference_ || o.eps != known_options_.eps ||
+      o.ssim_space != known_options_.ssim_space) {
+    known_.clear();
+    known_reference_ = inputs.reference.get();
+    known_options_ = o;
+  }
   if (!inputs.reference) {
     task_->supersede();
-    report_ = {};
     error_.clear();
-    scope_->setText(tr("No reference: open one with File > Open Reference"));
-    table_->setRowCount(0);
-    counts_->clear();
+    scope_->setText(tr("No reference: open one with File > Open Reference; the results are listed without scores"));
+    showTable();
+    emit computed();
+    return;
+  }
+  std::vector<std::pair<Key, std::shared_ptr<const Image>>> todo;
+  for (const auto& row : inputs.rows) {
+    if (!row.image) continue;
+    std::vector<Rect> regions = {row.image->bounds()};
+    if (inputs.roi) regions.push_back(*inputs.roi);
+    for (const Rect& r : regions) {
+      const Key k{row.image.get(), r.x, r.y, r.width, r.height};
+      if (!known_.count(k)) todo.emplace_back(k, row.image);
+    }
+  }
+  showTable();  // the rows at once, scores as they are known
+  if (todo.empty()) {
+    task_->supersede();
     emit computed();
     return;
   }
   scope_->setText(tr("Computing..."));
-  task_->start([inputs, o](const LatestTask<Computed>::Token&) {
+  const auto reference = inputs.reference;
+  task_->start([todo, reference, o](const LatestTask<Computed>::Token& token) {
     Computed c;
-    io::MetricsReport* r = &c.report;
-    r->reference_file = inputs.reference_file.toStdString();
-    r->width = inputs.reference->width();
-    r->height = inputs.reference->height();
-    r->options = o;
     try {
-      if (inputs.noisy)
-        r->rows.push_back({"noisy", inputs.noisy_file.toStdString(), metrics::compare(*inputs.noisy, *inputs.reference, o)});
-      if (inputs.denoised)
-        r->rows.push_back(
-            {"denoised", inputs.denoised_file.toStdString(), metrics::compare(*inputs.denoised, *inputs.reference, o)});
+      for (const auto& [k, image] : todo) {
+        if (token.superseded()) break;
+        metrics::Options ko = o;
+        const Rect region{k.x, k.y, k.w, k.h};
+        if (region != image->bounds()) ko.roi = region;
+        c.scores[k] = {image, metrics::compare(*image, *reference, ko)};
+      }
     } catch (const std::exception& e) {
-      r->rows.clear();
+      c.scores.clear();
       c.error = QString::fromStdString(e.what());
     }
     return c;
   });
 }
 
-void MetricsPanel::showReport() {
-  const auto& o = report_.options;
-  if (!error_.isEmpty()) {
-    scope_->setText(error_);
-    table_->setRowCount(0);
-    return;
-  }
-  scope_->setText(o.roi ? tr("ROI x %1, y %2, %3 x %4")
-                              .arg(o.roi->x).arg(o.roi->y).arg(o.roi->width).arg(o.roi->height)
-                        : tr("Whole image, %1 x %2").arg(report_.width).arg(report_.height));
-  table_->setRowCount(static_cast<int>(report_.rows.size()));
-  QStringList names;
-  for (size_t i = 0; i < report_.rows.size(); ++i) {
-    const auto& row = report_.rows[i];
-    const auto& s = row.scores;
-    names << QString::fromStdString(row.name);
-    const int r = static_cast<int>(i);
-    table_->setItem(r, kRelMse, new QTableWidgetItem(number(s.relmse, 5)));
-    table_->setItem(r, kSsim, new QTableWidgetItem(number(s.ssim, 5)));
-    table_->setItem(r, kPsnr, new QTableWidgetItem(number(s.psnr, 4)));
-    table_->setItem(r, kMse, new QTableWidgetItem(number(s.mse, 5)));
-    table_->setItem(r, kPixels, new QTableWidgetItem(QString::number(s.pixels)));
-    auto* ex = new QTableWidgetItem(QString::number(s.excluded_test + s.excluded_reference));
-    ex->setToolTip(tr("pixels left out: %1 not finite in this image, %2 not finite in the reference")
-                       .arg(s.excluded_test).arg(s.excluded_reference));
-    table_->setItem(r, kExcluded, ex);
-  }
-  table_->setVerticalHeaderLabels(names);
+void MetricsPanel::showTable() {
+  const auto& in = last_;
+  metrics::Options o = options();
+  // The reports, from what is known.
+  const auto fill = [&](io::MetricsReport& report, const std::optional<Rect>& roi) {
+    report = {};
+    if (!in.reference) return;
+    report.reference_file = in.reference_file.toStdString();
+    report.width = in.reference->width();
+    report.height = in.reference->height();
+    report.options = o;
+    report.options.roi = roi;
+    for (const auto& row : in.rows) {
+      if (!row.image) continue;
+      const Rect r = roi.value_or(row.image->bounds());
+      const auto it = known_.find({row.image.get(), r.x, r.y, r.width, r.height});
+      if (it == known_.end()) continue;
+      std::string name = row.id < 0 ? "noisy" : row.name.toStdString();
+      report.rows.push_back({name, row.file.toStdString(), it->second.scores});
+    }
+  };
+  fill(whole_, std::nullopt);
+  if (in.roi) fill(report_, in.roi);
+  else report_ = whole_;
+
+  if (!error_.isEmpty()) scope_->setText(error_);
+  else if (in.reference)
+    scope_->setText(in.roi ? tr("Scores of the whole %1 x %2 image and of the region x %3, y %4, %5 x %6")
+                                 .arg(in.reference->width()).arg(in.reference->height())
+                                 .arg(in.roi->x).arg(in.roi->y).arg(in.roi->width).arg(in.roi->height)
+                           : tr("Scores of the whole %1 x %2 image against %3")
+                                 .arg(in.reference->width()).arg(in.reference->height())
+                                 .arg(QFileInfo(in.reference_file).fileName()));
+
+  updating_ = true;
+  const int sort_column = table_->horizontalHeader()->sortIndicatorSection();
+  const auto sort_order = table_->horizontalHeader()->sortIndicatorOrder();
+  table_->setSortingEnabled(false);
+  table_->setRowCount(static_cast<int>(in.rows.size()));
   const QString formula = QString::fromStdString(metrics::formula_text(o));
+  int a_row = -1;
+  for (size_t i = 0; i < in.rows.size(); ++i) {
+    const auto& row = in.rows[i];
+    const int r = static_cast<int>(i);
+    auto* ab = new NumberItem(row.a ? "A" : row.b ? "B" : "", row.a ? 0 : row.b ? 1 : 2);
+    table_->setItem(r, kAB, ab);
+    auto* name = new NumberItem(row.state.isEmpty() ? row.name : QString("%1 (%2)").arg(row.name, row.state),
+                                static_cast<double>(i));
+    name->setData(kIdRole, row.id);
+    name->setToolTip(row.file);
+    table_->setItem(r, kName, name);
+    const auto scores = [&](const std::optional<Rect>& roi) -> const metrics::Scores* {
+      if (!row.image) return nullptr;
+      const Rect rr = roi.value_or(row.image->bounds());
+      const auto it = known_.find({row.image.get(), rr.x, rr.y, rr.width, rr.height});
+      return it == known_.end() ? nullptr : &it->second.scores;
+    };
+    const auto put = [&](int column, const metrics::Scores* s, double metrics::Scores::*field, int digits) {
+      const double v = s ? s->*field : kUnknown;
+      auto* item = new NumberItem(s ? number(v, digits) : QString(row.image && in.reference ? "..." : "-"), v);
+      if (s) item->setToolTip(tr("%1\n%2 pixels, %3 left out (not finite)")
+                                  .arg(formula).arg(s->pixels).arg(s->excluded_test + s->excluded_reference));
+      table_->setItem(r, column, item);
+    };
+    const auto* whole = scores(std::nullopt);
+    put(kRelMse, whole, &metrics::Scores::relmse, 5);
+    put(kSsim, whole, &metrics::Scores::ssim, 5);
+    put(kPsnr, whole, &metrics::Scores::psnr, 4);
+    const auto* roi = in.roi ? scores(in.roi) : nullptr;
+    put(kRoiRelMse, roi, &metrics::Scores::relmse, 5);
+    put(kRoiSsim, roi, &metrics::Scores::ssim, 5);
+    put(kRoiPsnr, roi, &metrics::Scores::psnr, 4);
+    table_->setItem(r, kTime, new NumberItem(row.seconds > 0 ? QString::number(row.seconds, 'f', 2) + " s" : "-",
+                                             row.seconds > 0 ? row.seconds : kUnknown));
+    if (row.a) a_row = r;
+  }
+  for (int c : {kRoiRelMse, kRoiSsim, kRoiPsnr}) table_->setColumnHidden(c, !in.roi);
+  table_->setSortingEnabled(true);
+  table_->sortByColumn(sort_column, sort_order);
+  // A stays selected, wherever the sort put it.
+  table_->clearSelection();
   for (int r = 0; r < table_->rowCount(); ++r)
-    for (int c = 0; c < kRelMse + 4; ++c)
-      if (auto* item = table_->item(r, c)) item->setToolTip(formula);
+    if (a_row >= 0 && table_->item(r, kAB)->text() == "A") table_->selectRow(r);
+  updating_ = false;
+
   QString counts = tr("Non-finite values: noisy %1 NaN, %2 Inf; reference %3 NaN, %4 Inf")
-                       .arg(last_.noisy_nan).arg(last_.noisy_inf).arg(last_.reference_nan).arg(last_.reference_inf);
-  if (report_.rows.size() == 2 && report_.rows[1].scores.relmse > 0)
-    counts.prepend(tr("Denoised relMSE is %1x lower than noisy.\n")
-                       .arg(report_.rows[0].scores.relmse / report_.rows[1].scores.relmse, 0, 'f', 1));
+                       .arg(in.noisy_nan).arg(in.noisy_inf).arg(in.reference_nan).arg(in.reference_inf);
   counts_->setText(counts);
 }
 

@@ -1,8 +1,12 @@
-// MetricsPanel: SSIM, relMSE, PSNR and MSE of the noisy and the denoised colour against the reference, for the
-// whole image or the ROI, computed by core's metrics on a worker thread (the same numbers residue-cli prints).
+// MetricsPanel: the result list with its scores. One row per result (the noisy input first, then every denoise
+// run and added file), with relMSE, SSIM and PSNR against the reference for the whole image and, when a region
+// is dragged, for the region; the run time; which result is A and which is B. Sortable by any column. Scores
+// come from core's metrics on a worker thread (the numbers residue-cli prints) and are kept per image, so a new
+// result or region only computes what is new. Picking rows asks the owner to show them (the session decides).
 #pragma once
 
 #include <QWidget>
+#include <map>
 #include <memory>
 #include <optional>
 
@@ -12,6 +16,7 @@
 class QComboBox;
 class QDoubleSpinBox;
 class QLabel;
+class QPushButton;
 class QTableWidget;
 
 namespace residue::ui {
@@ -22,39 +27,74 @@ class MetricsPanel : public QWidget {
   explicit MetricsPanel(QWidget* parent = nullptr);
   ~MetricsPanel() override;
 
+  struct Row {
+    int id = -1;  // the result's id; -1 for the noisy input
+    QString name, file;
+    std::shared_ptr<const Image> image;  // null while it is being made: the row shows its state
+    double seconds = 0;
+    QString state;
+    bool a = false, b = false;
+  };
   struct Inputs {
-    std::shared_ptr<const Image> noisy, denoised, reference;
-    QString noisy_file, denoised_file, reference_file;
+    std::vector<Row> rows;
+    std::shared_ptr<const Image> reference;
+    QString reference_file;
     std::optional<Rect> roi;
     int64_t noisy_nan = 0, noisy_inf = 0, reference_nan = 0, reference_inf = 0;  // whole-image value counts
   };
-  // Recomputes on a worker thread (a computation in flight is superseded); computed() follows.
+  // Recomputes what is not known yet on a worker thread (a computation in flight is superseded); computed()
+  // follows. The table lists the rows at once.
   void compute(Inputs inputs);
   metrics::Options options() const;  // eps and SSIM space as set in the panel, without the ROI
-  // The last finished computation, as residue-cli writes it (for export). Empty rows when none.
+  // The last finished computation, as residue-cli writes it (for export): scoped to the ROI when there is one.
+  // Empty rows when none.
   const io::MetricsReport& report() const { return report_; }
+  const io::MetricsReport& wholeReport() const { return whole_; }  // the whole image, always
   bool busy() const;
 
  signals:
   void optionsChanged();  // eps or SSIM space edited: the owner calls compute() again
   void computed();
+  void showAsA(int id);   // a row was picked as A (click, Enter) or B (the B button, Ctrl+click)
+  void showAsB(int id);
+  void removeRequested(int id);
+  void addRequested();    // "Add..." : the owner asks for a file
 
  private:
-  void showReport();
+  void showTable();
+  int selectedId() const;
 
   QLabel* scope_ = nullptr;
   QTableWidget* table_ = nullptr;
   QLabel* counts_ = nullptr;
   QDoubleSpinBox* eps_ = nullptr;
   QComboBox* space_ = nullptr;
+  QPushButton* set_b_ = nullptr;
+  QPushButton* remove_ = nullptr;
+
+  struct Key {  // one image's scores for one region
+    const Image* image;
+    int64_t x, y, w, h;
+    bool operator<(const Key& o) const {
+      return std::tie(image, x, y, w, h) < std::tie(o.image, o.x, o.y, o.w, o.h);
+    }
+  };
+  struct Known {
+    std::shared_ptr<const Image> image;  // keeps the key's pointer from being reused while it is here
+    metrics::Scores scores;
+  };
+  std::map<Key, Known> known_;
+  const Image* known_reference_ = nullptr;
+  metrics::Options known_options_;
   struct Computed {
-    io::MetricsReport report;
+    std::map<Key, Known> scores;
     QString error;  // e.g. a reference of another size: shown instead of scores
   };
   std::unique_ptr<LatestTask<Computed>> task_;
   QString error_;
   Inputs last_;
-  io::MetricsReport report_;
+  io::MetricsReport report_, whole_;
+  bool updating_ = false;  // the table is being refilled: selection changes are not the user's
 };
 
 }  // namespace residue::ui

@@ -23,6 +23,54 @@ QImage renderColor(const PaneInputs& in, const Image& img, int channels, int ste
 }
 }  // namespace
 
+namespace {
+// The value at fraction q of the finite values of channel 0..channels-1 (a sample of at most ~64k values).
+float percentile(const Image& img, int channels, double q) {
+  std::vector<float> v;
+  const size_t n = static_cast<size_t>(img.width() * img.height());
+  const size_t stride = std::max<size_t>(1, n / 65536);
+  for (size_t i = 0; i < n; i += stride)
+    for (int c = 0; c < channels; ++c)
+      if (const float x = img.data()[i * static_cast<size_t>(img.channels()) + static_cast<size_t>(c)]; std::isfinite(x))
+        v.push_back(x);
+  if (v.empty()) return 0.0f;
+  const auto k = static_cast<size_t>(q * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+}  // namespace
+
+Image data_aov_for_display(const Image& aov, AovRole role, int step) {
+  const int channels = std::min(3, aov.channels());
+  Image data = subsample(aov, step, channels);
+  float* d = data.data();
+  const size_t n = data.size();
+  switch (role) {
+    case AovRole::Normal:
+      for (size_t i = 0; i < n; ++i) d[i] = 0.5f * d[i] + 0.5f;
+      break;
+    case AovRole::Depth: {
+      // Near is bright, far dark, over the 1st to 99th percentile: a far background or one stray hit no
+      // longer squeezes the room into one grey.
+      const float lo = percentile(aov, 1, 0.01), hi = percentile(aov, 1, 0.99);
+      const float scale = hi > lo ? 1.0f / (hi - lo) : 1.0f;
+      for (size_t i = 0; i < n; ++i)
+        d[i] = std::isfinite(d[i]) ? std::clamp(1.0f - (d[i] - lo) * scale, 0.0f, 1.0f) : d[i];
+      break;
+    }
+    case AovRole::Variance: {
+      // Variance spans decades and is mostly tiny: the standard deviation over its 99th percentile.
+      for (size_t i = 0; i < n; ++i) d[i] = std::sqrt(std::max(0.0f, d[i]));
+      const float hi = std::sqrt(std::max(0.0f, percentile(aov, channels, 0.99)));
+      const float scale = hi > 0 ? 1.0f / hi : 1.0f;
+      for (size_t i = 0; i < n; ++i) d[i] = std::isfinite(d[i]) ? std::min(1.0f, d[i] * scale) : d[i];
+      break;
+    }
+    default: break;
+  }
+  return data;
+}
+
 int preview_step(int64_t width, int64_t height, int64_t target) {
   return static_cast<int>(std::max<int64_t>(1, std::max(width, height) / target));
 }
@@ -40,18 +88,8 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step) {
           if (!in.noisy) break;
           pane.values = std::shared_ptr<const Image>(in.stack, in.noisy);
           pane.channel_count = std::min(3, in.noisy->channels());
-          if (in.aov == AovRole::Normal || in.aov == AovRole::Depth) {
-            // Data AOVs are shown as data: normals as 0.5 n + 0.5, depth divided by its largest hit.
-            Image data = subsample(*in.noisy, step, pane.channel_count);
-            float scale = 1.0f;
-            if (in.aov == AovRole::Depth) {
-              float hi = 0.0f;
-              for (size_t i = 0; i < in.noisy->size(); ++i)
-                if (std::isfinite(in.noisy->data()[i])) hi = std::max(hi, in.noisy->data()[i]);
-              scale = hi > 0 ? 1.0f / hi : 1.0f;
-            }
-            for (size_t i = 0; i < data.size(); ++i)
-              data.data()[i] = in.aov == AovRole::Normal ? 0.5f * data.data()[i] + 0.5f : data.data()[i] * scale;
+          if (in.aov == AovRole::Normal || in.aov == AovRole::Depth || in.aov == AovRole::Variance) {
+            const Image data = data_aov_for_display(*in.noisy, in.aov, step);
             pane.display = in.display->render(data, 0, pane.channel_count, data.bounds(), in.settings, Encoding::Data);
           } else {
             pane.display = renderColor(in, *in.noisy, pane.channel_count, step);
@@ -59,10 +97,16 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step) {
           break;
         }
         case Source::Denoised:
-          pane.label = in.model.isEmpty() ? QStringLiteral("Denoised") : QStringLiteral("Denoised: %1").arg(in.model);
-          pane.placeholder = QStringLiteral("Not denoised yet:\npick a model and press Denoise (Ctrl+D)");
+          pane.label = in.a_name.isEmpty() ? QStringLiteral("A: denoised") : QStringLiteral("A: %1").arg(in.a_name);
+          pane.placeholder = QStringLiteral("Not denoised yet:\npick a model and press Denoise (Ctrl+D),\n"
+                                            "or add a result (File > Add Result)");
           pane.values = in.denoised;
           if (in.denoised) pane.display = renderColor(in, *in.denoised, 3, step);
+          break;
+        case Source::Compare:
+          pane.label = QStringLiteral("B: %1").arg(in.b_name);
+          pane.values = in.compare;
+          if (in.compare) pane.display = renderColor(in, *in.compare, 3, step);
           break;
         case Source::Reference:
           pane.label = QStringLiteral("Reference");

@@ -12,6 +12,7 @@ const char* to_string(Source s) {
   switch (s) {
     case Source::Noisy: return "Noisy";
     case Source::Denoised: return "Denoised";
+    case Source::Compare: return "Compare";
     case Source::Reference: return "Reference";
     case Source::Heatmap: return "Heatmap";
   }
@@ -104,9 +105,7 @@ void Session::finishLoad() {
     emit referenceChanged();
     return;
   }
-  denoised_.reset();
-  blended_.reset();
-  denoised_description_.clear();
+  clearResults();
   emit loaded();
 }
 
@@ -116,9 +115,7 @@ void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& na
   inputs_.clear();
   live_name_ = name;
   stack_ = std::move(stack);
-  denoised_.reset();
-  blended_.reset();
-  denoised_description_.clear();
+  clearResults();
   emit loaded();
 }
 
@@ -147,53 +144,164 @@ const Image* Session::image(Source s, AovRole aov) const {
       return a ? &a->image : nullptr;
     }
     case Source::Denoised: return denoised();
+    case Source::Compare: return compareShared().get();
     case Source::Reference: return reference();
     case Source::Heatmap: return nullptr;
   }
   return nullptr;
 }
 
-void Session::beginDenoised() {
-  if (!stack_) return;
-  const Image& noisy = stack_->color.image;
-  // The noisy colour's first three channels, so tiles that have not run yet show the input.
-  auto img = std::make_shared<Image>(noisy.width(), noisy.height(), 3);
-  if (noisy.channels() == 3) {
-    std::copy(noisy.data(), noisy.data() + noisy.size(), img->data());
-  } else {
-    for (int64_t y = 0; y < noisy.height(); ++y)
-      for (int64_t x = 0; x < noisy.width(); ++x)
-        for (int c = 0; c < 3; ++c) img->at(x, y, c) = noisy.at(x, y, c);
-  }
-  denoised_ = std::move(img);
-  denoised_description_.clear();
-  reblend();
-  emit denoisedChanged();
+// ---------------------------------------------------------------------------------------------------------------
+// Results
+
+void Session::clearResults() {
+  results_.clear();
+  a_ = b_ = -1;
+  blended_.reset();
+  ++results_epoch_;
 }
 
-void Session::setDenoisedTile(const Rect& rect, const Image& pixels) {
-  if (!denoised_ || !denoised_->bounds().contains(rect)) return;
+Result* Session::find(int id) {
+  for (auto& r : results_)
+    if (r.id == id) return &r;
+  return nullptr;
+}
+
+const Result* Session::result(int id) const { return const_cast<Session*>(this)->find(id); }
+
+const Result* Session::findRun(const QString& key) const {
+  for (const auto& r : results_)
+    if (!r.key.isEmpty() && r.key == key) return &r;
+  return nullptr;
+}
+
+int Session::addResult(Result r) {
+  r.id = next_id_++;
+  // Names are unique, so that a row, a pane label and an exported file name each say which result they are.
+  QString name = r.name;
+  for (int n = 2; std::any_of(results_.begin(), results_.end(), [&](const Result& o) { return o.name == name; }); ++n)
+    name = QString("%1 (%2)").arg(r.name).arg(n);
+  r.name = name;
+  results_.push_back(std::move(r));
+  emit resultsChanged();
+  return results_.back().id;
+}
+
+void Session::setResultTile(int id, const Rect& rect, const Image& pixels) {
+  Result* r = find(id);
+  if (!r || !r->image || !r->image->bounds().contains(rect)) return;
   // Copy on write: a worker (metrics, heatmap, export) may hold the previous image; it keeps its snapshot.
-  if (denoised_.use_count() > 1) denoised_ = std::make_shared<Image>(*denoised_);
+  if (r->image.use_count() > 1) r->image = std::make_shared<Image>(*r->image);
   for (int64_t y = 0; y < rect.height; ++y)
     for (int64_t x = 0; x < rect.width; ++x)
-      for (int c = 0; c < 3; ++c) denoised_->at(rect.x + x, rect.y + y, c) = pixels.at(x, y, c);
-  reblend(rect);
-  emit denoisedTileChanged(rect);
+      for (int c = 0; c < 3; ++c) r->image->at(rect.x + x, rect.y + y, c) = pixels.at(x, y, c);
+  if (id == a_) {
+    reblend(rect);
+    emit denoisedTileChanged(rect);
+  }
 }
 
-void Session::adoptDenoised(std::shared_ptr<Image> image, QString description) {
-  denoised_ = std::move(image);
-  denoised_description_ = std::move(description);
+void Session::updateResult(int id, const std::function<void(Result&)>& edit) {
+  Result* r = find(id);
+  if (!r) return;
+  const Image* before = r->image.get();
+  edit(*r);
+  emit resultsChanged();
+  if (r->image.get() != before) {
+    if (id == a_) {
+      reblend();
+      emit denoisedChanged();
+    }
+    if (id == b_) emit compareChanged();
+  }
+}
+
+void Session::removeResult(int id) {
+  const auto it = std::find_if(results_.begin(), results_.end(), [&](const Result& r) { return r.id == id; });
+  if (it == results_.end()) return;
+  results_.erase(it);
+  if (b_ == id) setB(-1);
+  if (a_ == id) setA(results_.empty() ? -1 : results_.back().id);
+  emit resultsChanged();
+}
+
+void Session::setA(int id) {
+  if (id >= 0 && !find(id)) return;
+  if (id == b_ && id >= 0) {  // picking B as A swaps them, as a flip would
+    b_ = a_;
+    emit compareChanged();
+  }
+  a_ = id;
   reblend();
   emit denoisedChanged();
+  emit resultsChanged();
 }
 
-void Session::clearDenoised() {
-  denoised_.reset();
-  blended_.reset();
-  denoised_description_.clear();
-  emit denoisedChanged();
+void Session::setB(int id) {
+  if (id >= 0 && !find(id)) return;
+  if (id == a_ && id >= 0) {
+    a_ = b_;
+    reblend();
+    emit denoisedChanged();
+  }
+  b_ = id;
+  emit compareChanged();
+  emit resultsChanged();
+}
+
+std::shared_ptr<const Image> Session::denoisedShared() const {
+  const Result* r = result(a_);
+  if (!r) return nullptr;
+  return strength_ < 1.0f && blended_ ? blended_ : r->image;
+}
+
+std::shared_ptr<const Image> Session::compareShared() const {
+  const Result* r = result(b_);
+  return r ? r->image : nullptr;
+}
+
+void Session::addResultFile(const std::filesystem::path& file) {
+  if (!stack_) return emit resultFailed(tr("Open a render before adding results to compare with it."));
+  const int64_t w = stack_->width(), h = stack_->height();
+  const int epoch = results_epoch_;
+  auto* watcher = new QFutureWatcher<Result>(this);
+  auto error = std::make_shared<QString>();
+  connect(watcher, &QFutureWatcherBase::finished, this, [this, watcher, epoch, error] {
+    watcher->deleteLater();
+    if (epoch != results_epoch_) return;  // the render changed meanwhile
+    if (!error->isEmpty()) return emit resultFailed(*error);
+    const int id = addResult(watcher->result());
+    if (a_ < 0) setA(id);
+    else if (b_ < 0) setB(id);
+  });
+  watcher->setFuture(QtConcurrent::run([file, w, h, error]() {
+    Result r;
+    r.file = QString::fromStdString(file.string());
+    r.name = QString::fromStdString(file.filename().string());
+    r.complete = true;
+    try {
+      LoadOptions o;
+      o.load_reference = false;
+      const AovStack s = load_aov_stack({file}, o);
+      if (s.width() != w || s.height() != h)
+        throw Error(ErrorKind::Input, file.string() + ": an image of " + std::to_string(s.width()) + " x " +
+                                          std::to_string(s.height()) + " pixels cannot be compared with a render of " +
+                                          std::to_string(w) + " x " + std::to_string(h));
+      const Image& c = s.color.image;
+      auto img = std::make_shared<Image>(w, h, 3);
+      for (int64_t y = 0; y < h; ++y)
+        for (int64_t x = 0; x < w; ++x)
+          for (int k = 0; k < 3; ++k) img->at(x, y, k) = c.at(x, y, std::min(k, c.channels() - 1));
+      r.image = std::move(img);
+      r.description = r.file;
+      // An EXR Residue wrote says what made it.
+      if (const auto* model = s.metadata.find_pv(OIIO::ustring("residue:model")))
+        r.description += " (" + QString::fromStdString(model->get_string()) + ")";
+    } catch (const std::exception& e) {
+      *error = QString::fromStdString(e.what());
+    }
+    return r;
+  }));
 }
 
 void Session::setStrength(float strength) {
@@ -205,25 +313,36 @@ void Session::setStrength(float strength) {
 }
 
 QString Session::denoisedDescription() const {
-  if (strength_ >= 1.0f || denoised_description_.isEmpty()) return denoised_description_;
-  return denoised_description_ + QString(", strength %1").arg(static_cast<double>(strength_), 0, 'f', 2);
+  const Result* r = result(a_);
+  if (!r) return {};
+  if (strength_ >= 1.0f) return r->description;
+  return r->description + QString(", strength %1").arg(static_cast<double>(strength_), 0, 'f', 2);
+}
+
+QString Session::resultName(int id) const {
+  const Result* r = result(id);
+  if (!r) return {};
+  if (id != a_ || strength_ >= 1.0f) return r->name;
+  return r->name + QString(" @ %1 %").arg(static_cast<double>(strength_) * 100.0, 0, 'f', 0);
 }
 
 // Re-makes the shown image from the result at strength 1: all of it, or one rectangle (a tile just written).
 void Session::reblend(const std::optional<Rect>& rect) {
-  if (strength_ >= 1.0f || !denoised_ || !stack_) {
+  const Result* a = result(a_);
+  if (strength_ >= 1.0f || !a || !a->image || !stack_) {
     blended_.reset();
     return;
   }
+  const Image& result = *a->image;
   const Image& noisy = stack_->color.image;
   if (!rect || !blended_) {
-    blended_ = std::make_shared<Image>(with_strength(noisy, *denoised_, strength_));
+    blended_ = std::make_shared<Image>(with_strength(noisy, result, strength_));
     return;
   }
   if (blended_.use_count() > 1) blended_ = std::make_shared<Image>(*blended_);  // copy on write, as above
   for (int64_t y = rect->y; y < rect->y + rect->height; ++y)
     for (int64_t x = rect->x; x < rect->x + rect->width; ++x)
-      for (int c = 0; c < 3; ++c) blended_->at(x, y, c) = denoised_->at(x, y, c);
+      for (int c = 0; c < 3; ++c) blended_->at(x, y, c) = result.at(x, y, c);
   apply_strength(noisy, 0, *blended_, 0, *rect, rect->y, rect->height, strength_);
 }
 

@@ -5,17 +5,20 @@
 #include <QFutureWatcher>
 #include <QObject>
 #include <QStringList>
+#include <functional>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <vector>
 
 #include "core/aov/aov_loader.h"
+#include "ui/result.h"
 
 namespace residue::ui {
 
 // What a pane can show. Noisy stands for the input render: its colour, or another AOV of the stack.
-enum class Source { Noisy, Denoised, Reference, Heatmap };
+// Denoised is result A, Compare result B (ui/result.h).
+enum class Source { Noisy, Denoised, Compare, Reference, Heatmap };
 const char* to_string(Source s);
 
 // The AOVs a user can page through with [ and ].
@@ -35,10 +38,10 @@ class Session : public QObject {
   void open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {});
   // Loads a reference colour from another file for the current stack (worker thread).
   void openReference(const std::filesystem::path& file);
-  // Loads the same inputs again (F5), keeping the reference file and mapping; the denoised image is dropped.
+  // Loads the same inputs again (F5), keeping the reference file and mapping; the results are dropped.
   void reload();
   // Shows a stack that came from no file (an image a renderer streams, ui/tev_server.h), named `name`.
-  // Supersedes a load in flight; the denoised result is cleared as for a new file.
+  // Supersedes a load in flight; the results are cleared as for a new file.
   void adoptLive(std::shared_ptr<const AovStack> stack, const QString& name);
   QString liveName() const { return live_name_; }  // empty unless the stack came from adoptLive()
   bool loading() const { return loading_; }
@@ -52,36 +55,53 @@ class Session : public QObject {
 
   // The reference colour, when known (from the stack or from another file).
   const Image* reference() const;
-  // The denoised colour as shown, at the current strength; empty until a denoise ran. Tiles of a running
-  // denoise are written into it.
-  const Image* denoised() const { return denoisedShared().get(); }
-  // A snapshot for a worker thread: tiles that arrive later go to a copy, never into this one.
-  std::shared_ptr<const Image> denoisedShared() const { return strength_ < 1.0f && blended_ ? blended_ : denoised_; }
-  // Denoising strength (core/denoise/strength.h): 1 shows the result, 0 the noisy colour, between a blend,
-  // re-made from the kept result at once (no network run). Emits denoisedChanged().
-  void setStrength(float strength);
-  float strength() const { return strength_; }
   const Image* image(Source s, AovRole aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
   bool hasAov(AovRole role) const;
 
-  // Starts a fresh denoised image: a copy of the noisy colour, so tiles that have not run yet show the input;
-  // setDenoisedTile() then overwrites it tile by tile.
-  void beginDenoised();
-  void setDenoisedTile(const Rect& rect, const Image& pixels);  // GUI thread
-  // Shows `image` as the denoised colour without copying it; it is copied on the first tile written into it
-  // while someone else (a cache) holds it too.
-  void adoptDenoised(std::shared_ptr<Image> image, QString description);
-  std::shared_ptr<Image> denoisedForCache() const { return denoised_; }  // at strength 1
-  QString denoisedDescription() const;  // with the strength when below 1
-  void clearDenoised();
+  // Results (ui/result.h): every denoise run and every image added from a file, in the order they came; a new
+  // render empties the list. A and B are the two being compared (ids, -1 for none): A is "the denoised image"
+  // of the panes, the metrics and the exports; B is shown beside it, wiped or flipped against it.
+  const std::vector<Result>& results() const { return results_; }
+  const Result* result(int id) const;
+  const Result* findRun(const QString& key) const;  // the run made with these settings, if kept
+  int addResult(Result r);                          // assigns the id; emits resultsChanged()
+  // A run's tile (GUI thread): copied into the result; shown at once when it is A (denoisedTileChanged).
+  void setResultTile(int id, const Rect& rect, const Image& pixels);
+  // Changes a result's bookkeeping (name, state, time, completeness, or its whole image); emits resultsChanged()
+  // and, when its image is shown, denoisedChanged() / compareChanged().
+  void updateResult(int id, const std::function<void(Result&)>& edit);
+  void removeResult(int id);
+  // Reads an image (the colour of an EXR: another denoiser's output, say) into the list on a worker thread;
+  // resultsChanged() or resultFailed() follows. It must have the render's size.
+  void addResultFile(const std::filesystem::path& file);
+  int a() const { return a_; }
+  int b() const { return b_; }
+  void setA(int id);  // -1: none
+  void setB(int id);
+
+  // Result A as shown, at the current strength; null when there is none. Tiles of a running denoise of A are
+  // written into it.
+  const Image* denoised() const { return denoisedShared().get(); }
+  // A snapshot for a worker thread: tiles that arrive later go to a copy, never into this one.
+  std::shared_ptr<const Image> denoisedShared() const;
+  std::shared_ptr<const Image> compareShared() const;  // result B (at strength 1); null when none
+  // Denoising strength (core/denoise/strength.h) of A: 1 shows the result, 0 the noisy colour, between a blend,
+  // re-made from the kept result at once (no network run). Emits denoisedChanged().
+  void setStrength(float strength);
+  float strength() const { return strength_; }
+  QString denoisedDescription() const;  // A's description, with the strength when below 1
+  QString resultName(int id) const;     // A's name with its strength, others' names; empty for none
 
  signals:
   void loadStarted(QString what);
   void loaded();            // a new stack replaced the old one (denoised cleared)
   void loadFailed(QString message, int error_kind, QStringList inputs);
   void referenceChanged();
-  void denoisedChanged();   // a whole new denoised image (or none)
-  void denoisedTileChanged(residue::Rect rect);
+  void denoisedChanged();   // A is another result, or A's image was replaced as a whole (or none)
+  void compareChanged();    // the same for B
+  void denoisedTileChanged(residue::Rect rect);  // a tile of A
+  void resultsChanged();    // a result was added, removed, renamed or finished
+  void resultFailed(QString message);  // addResultFile() could not use the file
 
  private:
   struct LoadResult;
@@ -94,10 +114,15 @@ class Session : public QObject {
   LoadOptions options_;
   void reblend(const std::optional<Rect>& rect = std::nullopt);
 
-  std::shared_ptr<Image> denoised_;  // the result at strength 1 (shared with the denoise panel's cache)
-  std::shared_ptr<Image> blended_;   // denoised_ at strength_, when below 1
+  Result* find(int id);
+  void clearResults();
+
+  std::vector<Result> results_;
+  int next_id_ = 1;
+  int a_ = -1, b_ = -1;
+  int results_epoch_ = 0;  // a file added for an earlier render is dropped when it arrives
+  std::shared_ptr<Image> blended_;   // A at strength_, when below 1
   float strength_ = 1.0f;
-  QString denoised_description_;
   bool loading_ = false;
   int generation_ = 0;
   QFutureWatcher<std::shared_ptr<LoadResult>>* watcher_ = nullptr;

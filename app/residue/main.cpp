@@ -3,8 +3,10 @@
 #include <QApplication>
 #include <QCommandLineParser>
 #include <QElapsedTimer>
+#include <QFutureWatcher>
 #include <QIcon>
 #include <QScreen>
+#include <QTabWidget>
 #include <QTimer>
 #include <cstdio>
 #include <memory>
@@ -16,6 +18,7 @@
 #include "ui/denoise_panel.h"
 #include "ui/heatmap_panel.h"
 #include "ui/main_window.h"
+#include "ui/session.h"
 
 using residue::ui::MainWindow;
 
@@ -40,10 +43,21 @@ int main(int argc, char** argv) {
   cli.addPositionalArgument("files", "A render: one EXR (multilayer/multipart), a folder, or single-AOV files.");
   const QCommandLineOption reference({"r", "reference"}, "A reference image in another file.", "file");
   const QCommandLineOption map("map", "Channel mapping ROLE=[FILE:]CHANNELS (repeatable), as residue-cli.", "flag");
-  const QCommandLineOption layout("layout", "side, single or wipe.", "layout");
-  const QCommandLineOption pane("pane", "In single layout: noisy, denoised, reference or heatmap.", "pane");
+  const QCommandLineOption add("add", "An image to compare with the render (another denoiser's output, ...); "
+                               "repeatable.", "file");
+  const QCommandLineOption layout("layout", "all (grid), single, pair (A | B) or wipe (A | B).", "layout");
+  const QCommandLineOption pane("pane", "In single layout: noisy, denoised (A), compare (B), reference or heatmap.",
+                                "pane");
+  const QCommandLineOption ab("ab", "Once every denoise is done, show results I and J (1-based, as keys 1-9) as A "
+                              "and B.", "I,J");
+  const QCommandLineOption tab("tab", "The side bar's tab: results, denoise, heatmap or pixel.", "tab");
+  const QCommandLineOption heatmap_of("heatmap-of", "What the heatmap maps: a, b, noisy or a-vs-b.", "what");
+  const QCommandLineOption export_all("export-all", "Once everything is done, export all into DIR (ask nothing: "
+                                      "fails rather than replace files).", "dir");
   const QCommandLineOption heatmap("heatmap", "Heatmap display: pane, overlay or off.", "display");
-  const QCommandLineOption model("model", "Model to select in the denoise panel.", "name");
+  const QCommandLineOption model("model", "Model to select in the denoise panel; with --denoise, a comma list "
+                                 "runs each in turn (tiny,small,base).", "name");
+  const QCommandLineOption precision("precision", "fp32 or bf16.", "precision");
   const QCommandLineOption denoise("denoise", "Denoise once loaded.");
   const QCommandLineOption tile("tile", "Denoise tile edge (64-1024; default automatic).", "pixels");
   const QCommandLineOption exposure("exposure", "Exposure in stops.", "stops");
@@ -57,8 +71,9 @@ int main(int argc, char** argv) {
   const QCommandLineOption ipc_port("ipc-port", "Listen for renderers streaming over tev's protocol on this port of "
                                     "127.0.0.1 (default 14158, tev's).", "port", "14158");
   const QCommandLineOption no_ipc("no-ipc", "Do not listen for renderers.");
-  for (const auto* o : {&reference, &map, &layout, &pane, &heatmap, &model, &denoise, &tile, &exposure, &roi, &zoom, &size, &timing,
-                        &screenshot, &when, &ipc_port, &no_ipc})
+  for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
+                        &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &screenshot, &when, &export_all,
+                        &ipc_port, &no_ipc})
     cli.addOption(*o);
   cli.process(app);
 
@@ -90,9 +105,27 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (cli.isSet(reference)) options.reference = cli.value(reference).toStdString();
-  if (cli.isSet(model) && !window.denoisePanel()->selectModel(cli.value(model))) {
-    std::fprintf(stderr, "residue: no model named %s\n", qPrintable(cli.value(model)));
-    return 2;
+  QStringList models = cli.isSet(model) ? cli.value(model).split(',', Qt::SkipEmptyParts) : QStringList();
+  for (const QString& m : models) {
+    if (!window.denoisePanel()->selectModel(m)) {
+      std::fprintf(stderr, "residue: no model named %s\n", qPrintable(m));
+      return 2;
+    }
+  }
+  if (!models.isEmpty()) window.denoisePanel()->selectModel(models.front());
+  if (cli.isSet(precision))
+    window.denoisePanel()->setPrecision(cli.value(precision) == "bf16" ? residue::nn::Precision::BF16
+                                                                       : residue::nn::Precision::FP32);
+  if (cli.isSet(tab)) {
+    const QString t = cli.value(tab);
+    auto* tabs = window.sideTabs();
+    for (int i = 0; i < tabs->count(); ++i)
+      if (tabs->tabText(i).compare(t, Qt::CaseInsensitive) == 0) tabs->setCurrentIndex(i);
+  }
+  if (cli.isSet(heatmap_of)) {
+    const QString o = cli.value(heatmap_of);
+    using Of = residue::ui::HeatmapPanel::Of;
+    window.heatmapPanel()->setOf(o == "b" ? Of::B : o == "noisy" ? Of::Noisy : o == "a-vs-b" ? Of::AgainstB : Of::A);
   }
   if (cli.isSet(tile)) window.denoisePanel()->setTile(cli.value(tile).toLongLong());
   if (cli.isSet(heatmap)) {
@@ -105,6 +138,51 @@ int main(int argc, char** argv) {
 
   // Applies the view options once the first images are on screen.
   bool configured = false;
+  QStringList pending_models = models.isEmpty() ? QStringList{window.denoisePanel()->selectedModel()} : models;
+  // --denoise with several models: the next starts when one ends.
+  QObject::connect(window.denoisePanel(), &residue::ui::DenoisePanel::finished, &app, [&] {
+    if (!cli.isSet(denoise) || pending_models.isEmpty()) return;
+    QTimer::singleShot(0, &app, [&] {
+      window.denoisePanel()->selectModel(pending_models.takeFirst());
+      window.denoisePanel()->start();
+    });
+  });
+  // Once every run is done: A and B as asked (--ab), then the export (--export-all).
+  bool finished_setup = false;
+  auto export_done = std::make_shared<bool>(!cli.isSet(export_all));
+  const auto allDone = [&] {
+    const bool runs_done = !cli.isSet(denoise) || (pending_models.isEmpty() && !window.denoisePanel()->running() &&
+                                                   window.session()->denoised());
+    const size_t added = static_cast<size_t>(cli.values(add).size()) + (cli.isSet(denoise) ? static_cast<size_t>(models.size()) : 0);
+    return configured && runs_done && window.session()->results().size() >= added && !window.busy();
+  };
+  auto* finisher = new QTimer(&app);
+  QObject::connect(finisher, &QTimer::timeout, &app, [&, finisher] {
+    if (!allDone()) return;
+    if (!finished_setup) {
+      finished_setup = true;
+      if (cli.isSet(ab)) {
+        const QStringList ij = cli.value(ab).split(',');
+        const auto& results = window.session()->results();
+        const auto id = [&](int k) { return k >= 1 && k <= static_cast<int>(results.size()) ? results[static_cast<size_t>(k - 1)].id : -1; };
+        if (ij.size() >= 1) window.session()->setA(id(ij[0].toInt()));
+        if (ij.size() >= 2) window.session()->setB(id(ij[1].toInt()));
+      }
+      return;  // the next tick, once the new panes and scores are in
+    }
+    finisher->stop();
+    if (cli.isSet(export_all)) {
+      auto* w = new QFutureWatcher<QString>(&app);
+      QObject::connect(w, &QFutureWatcherBase::finished, &app, [w, export_done] {
+        *export_done = true;
+        const QString error = w->result();
+        if (!error.isEmpty()) std::fprintf(stderr, "residue: %s\n", qPrintable(error));
+        else std::fprintf(stderr, "residue: exported all\n");
+      });
+      w->setFuture(window.exportAll(cli.value(export_all), false));
+    }
+  });
+  finisher->start(100);
   const auto configure = [&] {
     if (configured) return;
     configured = true;
@@ -113,19 +191,25 @@ int main(int argc, char** argv) {
       if (r.size() == 4) window.setRoi(residue::Rect{r[0].toLongLong(), r[1].toLongLong(), r[2].toLongLong(), r[3].toLongLong()});
     }
     const QString l = cli.value(layout);
-    if (l == "wipe") window.canvas()->setWipePair(window.paneIndex(residue::ui::Source::Noisy),
-                                                  window.paneIndex(residue::ui::Source::Denoised));
+    using residue::ui::Source;
     if (l == "single" || cli.isSet(pane)) {
       const QString p = cli.value(pane);
-      window.showPane(p == "denoised"    ? residue::ui::Source::Denoised
-                      : p == "reference" ? residue::ui::Source::Reference
-                      : p == "heatmap"   ? residue::ui::Source::Heatmap
-                                         : residue::ui::Source::Noisy);
+      window.showPane(p == "denoised"    ? Source::Denoised
+                      : p == "compare"   ? Source::Compare
+                      : p == "reference" ? Source::Reference
+                      : p == "heatmap"   ? Source::Heatmap
+                                         : Source::Noisy);
     } else if (l == "wipe") {
       window.setLayout(residue::ui::ImageCanvas::Layout::Wipe);
+    } else if (l == "pair") {
+      window.setLayout(residue::ui::ImageCanvas::Layout::Pair);
     }
     if (cli.isSet(zoom)) window.canvas()->setView(cli.value(zoom).toDouble(), window.canvas()->center());
-    if (cli.isSet(denoise)) window.denoisePanel()->start();
+    if (!cli.values(add).isEmpty()) window.addResultFiles(cli.values(add));
+    if (cli.isSet(denoise)) {
+      window.denoisePanel()->selectModel(pending_models.takeFirst());
+      window.denoisePanel()->start();
+    }
   };
   QObject::connect(&window, &MainWindow::panesRendered, &app, configure);
 
@@ -190,7 +274,7 @@ int main(int argc, char** argv) {
     const QString file = cli.value(screenshot);
     const QString condition = cli.isSet(when) ? cli.value(when) : QStringLiteral("loaded");
     auto* timer = new QTimer(&app);
-    QObject::connect(timer, &QTimer::timeout, &app, [&, timer, file, condition] {
+    QObject::connect(timer, &QTimer::timeout, &app, [&, timer, file, condition, finisher, export_done] {
       if (!window.lastError().isEmpty()) {
         std::fprintf(stderr, "residue: %s\n", qPrintable(window.lastError()));
         QApplication::exit(1);
@@ -202,8 +286,7 @@ int main(int argc, char** argv) {
         // Mid-denoise: the bar and half-finished tiles are the point of this picture.
         ready = window.denoisePanel()->running() && window.denoisePanel()->progressFraction() >= condition.mid(9).toDouble();
       } else {
-        const bool denoised = condition != "denoised" || (window.session()->denoised() && !window.denoisePanel()->running());
-        ready = denoised && !window.busy();
+        ready = !finisher->isActive() && *export_done && allDone();
       }
       if (!ready) return;
       timer->stop();

@@ -1,0 +1,243 @@
+#include "ui/denoise_controller.h"
+
+#include <QCoreApplication>
+#include <QTimer>
+#include <QtConcurrent/QtConcurrentRun>
+
+#include "core/denoise/bilateral.h"
+#include "core/denoise/denoiser.h"
+#include "core/features/features.h"
+#include "ui/session.h"
+
+namespace residue::ui {
+
+namespace {
+bool covered(const std::vector<Rect>& rects, const Rect& r) {
+  for (const auto& c : rects)
+    if (c.contains(r)) return true;
+  return false;
+}
+
+QString precisionName(nn::Precision p) { return p == nn::Precision::BF16 ? "bf16" : "fp32"; }
+}  // namespace
+
+DenoiseController::DenoiseController(Session* session, std::vector<ModelEntry> models, QObject* parent)
+    : QObject(parent), session_(session), models_(std::move(models)) {
+  poll_ = new QTimer(this);
+  poll_->setInterval(50);
+  connect(poll_, &QTimer::timeout, this, &DenoiseController::poll);
+  bilateral_ = new QFutureWatcher<std::shared_ptr<Image>>(this);
+  connect(bilateral_, &QFutureWatcherBase::finished, this, [this] {
+    bilateral_running_ = false;
+    auto img = bilateral_->result();
+    if (!img) return finish(false, tr("the bilateral filter failed"), tr("failed"));
+    const Rect r = request_.roi.value_or(img->bounds());
+    session_->setResultTile(result_id_, r, crop(*img, r));
+    finish(true, {});
+  });
+  // A new render drops every result: a run for the old one is stopped.
+  connect(session_, &Session::loaded, this, &DenoiseController::cancel);
+}
+
+DenoiseController::~DenoiseController() {
+  if (job_) job_->cancel();
+  job_.reset();
+  bilateral_->waitForFinished();
+}
+
+QString DenoiseController::key(const Request& r) {
+  if (r.model == "bilateral") return r.model;
+  return QString("%1 %2 %3%4%5")
+      .arg(r.model, precisionName(r.precision), r.backend, r.energy_correction ? "" : " raw",
+           r.variance_blend ? "" : " noblend");
+}
+
+QString DenoiseController::name(const Request& r) {
+  if (r.model == "bilateral") return r.model;
+  QString n = QString("%1 %2").arg(r.model, precisionName(r.precision));
+  if (!r.backend.isEmpty()) n += " " + r.backend;
+  if (!r.energy_correction) n += " raw";
+  if (!r.variance_blend) n += " noblend";
+  return n;
+}
+
+bool DenoiseController::start(const Request& req) {
+  if (running() || !session_->hasStack()) return false;
+  if (req.model.isEmpty()) {
+    emit finished(false, tr("Pick a model first."));
+    return false;
+  }
+  const auto stack = session_->stack();
+  const QString k = key(req);
+  std::optional<Rect> rect = req.roi && !req.roi->empty() ? req.roi : std::nullopt;
+
+  // Nothing to run when these settings already made what is asked for.
+  const Result* kept = session_->findRun(k);
+  if (kept && kept->state.isEmpty() && (kept->complete || (rect && covered(kept->rects, *rect)))) {
+    session_->setA(kept->id);
+    emit finished(true, tr("%1: kept from an earlier run").arg(kept->name));
+    return false;
+  }
+  request_ = req;
+  request_.roi = rect;
+
+  std::shared_ptr<const nn::Model> net;
+  QString variant;
+  if (req.model != "bilateral") {
+    try {
+      const auto path = nn::find_model_for(req.model.toStdString(), feature_set_for(*stack));
+      variant = QString::fromStdString(path.stem().string());
+      auto& slot = loaded_[QString::fromStdString(path.string())];
+      if (!slot) slot = std::make_shared<const nn::Model>(nn::load_model(path));
+      net = slot;
+    } catch (const std::exception& e) {
+      emit finished(false, QString::fromStdString(e.what()));
+      return false;
+    }
+  }
+
+  // Continue the result these settings started (a new region adds to it), else start one from the noisy
+  // colour, so that tiles that have not run yet show the input.
+  from_noisy_ = !kept;
+  if (kept) {
+    result_id_ = kept->id;
+  } else {
+    Result r;
+    r.key = k;
+    r.name = name(req);
+    const Image& noisy = stack->color.image;
+    auto img = std::make_shared<Image>(noisy.width(), noisy.height(), 3);
+    for (int64_t y = 0; y < noisy.height(); ++y)
+      for (int64_t x = 0; x < noisy.width(); ++x)
+        for (int c = 0; c < 3; ++c) img->at(x, y, c) = noisy.at(x, y, std::min(c, noisy.channels() - 1));
+    r.image = std::move(img);
+    result_id_ = session_->addResult(std::move(r));
+  }
+
+  if (req.model == "bilateral") {
+    description_ = tr("cross-bilateral filter");
+  } else {
+    description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->architecture()),
+                                              precisionName(req.precision));
+    if (!req.energy_correction) description_ += tr(", no energy correction");
+    if (stack->variance) description_ += req.variance_blend ? tr(", variance blend") : tr(", no variance blend");
+    if (variant != req.model) description_ += tr(" — picked for the AOVs this render has");
+  }
+  const QString description = description_;
+  session_->updateResult(result_id_, [&](Result& r) {
+    r.description = description;
+    r.state = tr("running");
+  });
+  session_->setA(result_id_);
+  clock_.start();
+  emit started(description_);
+
+  if (req.model == "bilateral") {
+    bilateral_running_ = true;
+    bilateral_->setFuture(QtConcurrent::run([stack, rect]() {
+      try {
+        return std::make_shared<Image>(cross_bilateral(*stack, {}, rect));
+      } catch (const std::exception&) {
+        return std::shared_ptr<Image>();
+      }
+    }));
+    poll_->start();
+    return true;
+  }
+
+  DenoiseOptions options;
+  options.precision = req.precision;
+  options.backend = req.backend.toStdString();
+  options.roi = rect;
+  options.tile = req.tile;
+  if (options.tile <= 0) options.tile = interactive_tile(net->graph, expectedSecondsPerMp(req.model, req.precision));
+  options.energy_correction = req.energy_correction;
+  options.variance_blend = req.variance_blend;
+  // Tiles arrive on the worker thread and are handed to the GUI thread; poll() delivers the queued ones before
+  // it ends a job, so none of an old job lands in a new one.
+  const int id = result_id_;
+  job_ = std::make_unique<DenoiseJob>(stack, net, options, [this, id](const Rect& r, const Image& pixels) {
+    QMetaObject::invokeMethod(
+        this, [this, id, r, pixels] { if (job_) session_->setResultTile(id, r, pixels); }, Qt::QueuedConnection);
+  });
+  poll_->start();
+  return true;
+}
+
+DenoiseController::Progress DenoiseController::progress() const {
+  Progress p;
+  if (!running()) return p;
+  p.elapsed = static_cast<double>(clock_.elapsed()) / 1000.0;
+  if (!job_) return p;
+  const auto jp = job_->progress();
+  p.done = jp.done;
+  p.total = jp.total;
+  if (p.done > 0 && p.done < p.total)
+    p.left = p.elapsed / static_cast<double>(p.done) * static_cast<double>(p.total - p.done);
+  return p;
+}
+
+double DenoiseController::expectedSecondsPerMp(const QString& model, nn::Precision precision) const {
+  if (const auto here = measured_s_per_mp_.find(key({model, precision})); here != measured_s_per_mp_.end())
+    return here->second;
+  for (const auto& m : models_) {
+    if (m.name != model) continue;
+    const auto bench = precision == nn::Precision::BF16 ? m.s_per_mp_bf16 : m.s_per_mp_fp32;
+    if (bench) return *bench;
+    return m.gflop_per_mp / 50.0;  // no benchmark: 50 GFLOP/s, about what 2 cores of fp32 reach here
+  }
+  return 0.0;
+}
+
+std::optional<double> DenoiseController::measuredSecondsPerMp(const QString& model) const {
+  for (const auto p : {nn::Precision::FP32, nn::Precision::BF16})
+    if (const auto here = measured_s_per_mp_.find(key({model, p})); here != measured_s_per_mp_.end())
+      return here->second;
+  return std::nullopt;
+}
+
+void DenoiseController::cancel() {
+  if (job_) job_->cancel();
+}
+
+void DenoiseController::poll() {
+  if (!job_) return;
+  const auto p = progress();
+  if (p.total > 0) emit progressed(p.done, p.total);
+  const auto st = job_->status();
+  if (st == DenoiseJob::Status::Running) return;
+  // Deliver the tiles still queued before the result is taken.
+  QCoreApplication::sendPostedEvents(this);
+  if (st == DenoiseJob::Status::Done) {
+    const auto& stats = job_->stats();
+    const Rect r = request_.roi.value_or(job_->result()->bounds());
+    // The tiles shown so far are the network's output; the result may differ by the post-steps.
+    session_->setResultTile(result_id_, r, crop(*job_->result(), r));
+    const double mp = static_cast<double>(r.area()) / 1e6;
+    if (mp > 0 && stats.seconds > 0) measured_s_per_mp_[key({request_.model, request_.precision})] = stats.seconds / mp;
+    finish(true, {});
+  } else if (st == DenoiseJob::Status::Cancelled) {
+    finish(false, tr("cancelled after %1 of %2 tiles: the rest is the noisy input").arg(p.done).arg(p.total),
+           tr("cancelled after %1 of %2 tiles").arg(p.done).arg(p.total));
+  } else {
+    finish(false, QString::fromStdString(job_->error()), tr("failed"));
+  }
+}
+
+void DenoiseController::finish(bool ok, const QString& message, const QString& state) {
+  poll_->stop();
+  const double elapsed = static_cast<double>(clock_.elapsed()) / 1000.0;
+  if (job_) job_->wait();
+  job_.reset();
+  const auto roi = request_.roi;
+  session_->updateResult(result_id_, [&](Result& r) {
+    r.state = state;
+    if (!ok) return;
+    r.seconds = elapsed;
+    if (roi) r.rects.push_back(*roi);
+    else r.complete = true;
+  });
+  emit finished(ok, message);
+}
+
+}  // namespace residue::ui

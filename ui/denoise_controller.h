@@ -1,0 +1,89 @@
+// DenoiseController: runs a denoise for the viewer without being a widget. A request (model, precision,
+// backend, tile, post-steps, region) either names a result the session already keeps (shown again at no
+// cost) or starts core's DenoiseJob, whose tiles go into a result of the session's list as they finish. It
+// keeps the seconds per megapixel each model took here, picks the interactive tile size when asked for
+// "auto", and reports progress and the end. The DenoisePanel is its face; tests drive it directly.
+#pragma once
+
+#include <QElapsedTimer>
+#include <QFutureWatcher>
+#include <QObject>
+#include <map>
+#include <memory>
+#include <optional>
+
+#include "core/denoise/denoise_job.h"
+#include "ui/model_catalog.h"
+
+class QTimer;
+
+namespace residue::ui {
+
+class Session;
+
+class DenoiseController : public QObject {
+  Q_OBJECT
+ public:
+  struct Request {
+    QString model;  // a ModelEntry name: "small", "bilateral", "oidn", ...
+    nn::Precision precision = nn::Precision::FP32;
+    QString backend;  // empty: the fastest
+    int64_t tile = 0;  // 0: tiles of about half a second at the model's speed (interactive_tile)
+    bool energy_correction = true;
+    bool variance_blend = true;
+    std::optional<Rect> roi;  // denoise only this region
+  };
+  struct Progress {
+    int64_t done = 0, total = 0;  // tiles
+    double elapsed = 0, left = -1;  // seconds; left < 0: not known yet
+  };
+
+  DenoiseController(Session* session, std::vector<ModelEntry> models, QObject* parent = nullptr);
+  ~DenoiseController() override;
+
+  // The settings as a key: two requests with the same key make the same image.
+  static QString key(const Request& r);
+  // The short name a run's result gets: "small fp32", "oidn bf16 raw".
+  static QString name(const Request& r);
+  // Starts `r`, or shows the result kept for it. Returns false when nothing started (one is running, no render
+  // is open, an unknown model); finished() tells the outcome either way.
+  bool start(const Request& r);
+  void cancel();  // the job stops within one network layer; its finished tiles stay in the result
+  bool running() const { return job_ != nullptr || bilateral_running_; }
+  int runningResult() const { return running() ? result_id_ : -1; }
+  // True while a run that started from the noisy colour is in flight: its unfinished tiles are the noisy colour.
+  bool runningFromNoisy() const { return running() && from_noisy_; }
+  Progress progress() const;
+  QString runningDescription() const { return description_; }
+  // Seconds per megapixel for `model` at `precision`: as measured here when it ran, else its benchmark, else
+  // an estimate from its FLOPs.
+  double expectedSecondsPerMp(const QString& model, nn::Precision precision) const;
+  std::optional<double> measuredSecondsPerMp(const QString& model) const;
+  const std::vector<ModelEntry>& models() const { return models_; }
+
+ signals:
+  void started(QString description);
+  void progressed(int64_t done, int64_t total);
+  // ok: the result is complete (or covers the region asked for) and is A; otherwise `message` says why not.
+  void finished(bool ok, QString message);
+
+ private:
+  void poll();
+  void finish(bool ok, const QString& message = {}, const QString& state = {});
+
+  Session* session_;
+  std::vector<ModelEntry> models_;
+  std::map<QString, std::shared_ptr<const nn::Model>> loaded_;
+  std::map<QString, double> measured_s_per_mp_;
+  Request request_;
+  QString description_;
+  int result_id_ = -1;
+  bool from_noisy_ = false;
+  QElapsedTimer clock_;
+  QTimer* poll_ = nullptr;
+  std::unique_ptr<DenoiseJob> job_;
+  bool bilateral_running_ = false;
+  QFutureWatcher<std::shared_ptr<Image>>* bilateral_ = nullptr;
+};
+
+}  // namespace residue::ui

@@ -1,0 +1,151 @@
+#include "ui/export_all.h"
+
+#include <QObject>
+#include <QPainter>
+
+#include "core/io/atomic_file.h"
+#include "core/io/exr_writer.h"
+#include "core/io/map_writer.h"
+#include "core/util/error.h"
+#include "ui/heatmap_panel.h"
+
+namespace residue::ui {
+
+QString file_stem(const QString& name) {
+  QString out;
+  for (const QChar c : name) {
+    if (c.isLetterOrNumber() || c == '.' || c == '-' || c == '_') out += c;
+    else if (!out.endsWith('_')) out += '_';
+  }
+  while (out.endsWith('_')) out.chop(1);
+  return out.isEmpty() ? QStringLiteral("result") : out;
+}
+
+namespace {
+struct Planned {
+  std::filesystem::path path;
+  std::function<void(const std::filesystem::path&, bool)> write;
+};
+
+std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path& folder) {
+  std::vector<Planned> out;
+  const auto at = [&](const QString& name) { return folder / name.toStdString(); };
+  if (in.results_exr && in.stack) {
+    for (const auto& r : in.results) {
+      if (!r.image) continue;
+      out.push_back({at(file_stem(r.name) + ".exr"), [&in, r](const std::filesystem::path& p, bool overwrite) {
+                       write_result_exr(p, *r.image, *in.stack, r.name, r.description, overwrite);
+                     }});
+    }
+  }
+  if (in.heatmaps && in.reference) {
+    for (const auto& r : in.results) {
+      if (!r.image) continue;
+      // One map per result, made once for both files.
+      auto map = std::make_shared<std::optional<Image>>();
+      const auto make = [&in, r, map]() -> const Image& {
+        if (!*map) *map = metrics::error_map(*r.image, *in.reference, in.map_kind, in.options);
+        return **map;
+      };
+      const QString stem = "heatmap-" + file_stem(r.name);
+      out.push_back({at(stem + ".png"), [&in, r, make](const std::filesystem::path& p, bool overwrite) {
+                       const Image& m = make();
+                       const auto range = resolve_range(m, in.scale);
+                       const QImage pic = map_with_color_bar(colorize(m, in.colormap, in.scale), in.colormap, range,
+                                                             in.scale.log, QString("%1 of %2").arg(in.map_name, r.name));
+                       io::write_atomically(p, overwrite, [&](const std::filesystem::path& tmp) {
+                         if (!pic.save(QString::fromStdString(tmp.string()), "PNG"))
+                           throw Error(ErrorKind::Output, "could not encode the heatmap PNG " + p.string());
+                       });
+                     }});
+      out.push_back({at(stem + ".exr"), [make](const std::filesystem::path& p, bool overwrite) {
+                       io::write_map_exr(p, make(), overwrite);
+                     }});
+    }
+  }
+  if (in.metrics && !in.whole.rows.empty()) {
+    for (const char* ext : {".json", ".csv"}) {
+      out.push_back({at(QString("metrics") + ext), [&in](const std::filesystem::path& p, bool overwrite) {
+                       io::write_metrics(p, in.whole, overwrite);
+                     }});
+      if (!in.roi.rows.empty())
+        out.push_back({at(QString("metrics-roi") + ext), [&in](const std::filesystem::path& p, bool overwrite) {
+                         io::write_metrics(p, in.roi, overwrite);
+                       }});
+    }
+  }
+  if (in.comparison && in.sheet) {
+    out.push_back({at("comparison.png"), [&in](const std::filesystem::path& p, bool overwrite) {
+                     const QImage sheet = in.sheet();
+                     io::write_atomically(p, overwrite, [&](const std::filesystem::path& tmp) {
+                       if (sheet.isNull() || !sheet.save(QString::fromStdString(tmp.string()), "PNG"))
+                         throw Error(ErrorKind::Output, "could not encode the comparison sheet " + p.string());
+                     });
+                   }});
+  }
+  return out;
+}
+}  // namespace
+
+std::vector<std::filesystem::path> planned_files(const ExportAllInputs& in, const std::filesystem::path& folder) {
+  std::vector<std::filesystem::path> out;
+  for (const auto& p : plan(in, folder)) out.push_back(p.path);
+  return out;
+}
+
+QString export_all(const ExportAllInputs& in, const std::filesystem::path& folder, bool overwrite) {
+  try {
+    const auto files = plan(in, folder);
+    if (files.empty()) return QObject::tr("Nothing to export: no results, no metrics.");
+    if (!overwrite) {
+      QStringList existing;
+      for (const auto& f : files)
+        if (std::filesystem::exists(f.path)) existing << QString::fromStdString(f.path.filename().string());
+      if (!existing.isEmpty())
+        return QObject::tr("Not replacing what is in %1: %2").arg(QString::fromStdString(folder.string()), existing.join(", "));
+    }
+    std::filesystem::create_directories(folder);
+    for (const auto& f : files) f.write(f.path, overwrite);
+    return {};
+  } catch (const std::exception& e) {
+    return QString::fromStdString(e.what());
+  }
+}
+
+void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,
+                      const QString& name, const QString& description, bool overwrite, bool half,
+                      const std::string& compression, float strength) {
+  io::ExrWriteOptions o;
+  o.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
+  o.compression = compression;
+  o.metadata = stack.metadata;
+  o.data_window = stack.data_window;
+  o.display_width = stack.display_width;
+  o.display_height = stack.display_height;
+  o.residue_attributes.attribute("residue:model", description.toStdString());
+  o.residue_attributes.attribute("residue:result", name.toStdString());
+  o.residue_attributes.attribute("residue:source", stack.color.source.file);
+  o.residue_attributes.attribute("residue:strength", strength);
+  o.residue_attributes.attribute("residue:version", std::string(RESIDUE_VERSION));
+  o.residue_attributes.attribute("residue:written_by", std::string("residue viewer"));
+  o.overwrite = overwrite;
+  io::write_exr(path, image, o);
+}
+
+QImage map_with_color_bar(const QImage& colored, Colormap colormap, std::pair<double, double> range, bool log,
+                          const QString& title) {
+  if (colored.isNull()) return {};
+  const int bar_height = 64;
+  QImage out(std::max(colored.width(), 360), colored.height() + bar_height, QImage::Format_RGB32);
+  out.fill(Qt::white);
+  QPainter p(&out);
+  p.drawImage(0, 0, colored);
+  QFont f = p.font();
+  f.setPixelSize(12);
+  p.setFont(f);
+  paint_color_bar(p, QRect(0, colored.height() + 4, out.width(), bar_height - 8), colormap, range.first, range.second,
+                  log, title, Qt::black);
+  return out;
+}
+
+}  // namespace residue::ui

@@ -1,0 +1,29 @@
+// Result: one denoised image the viewer keeps, so that any two can be compared. A result is either a run of a
+// model in the viewer (its settings are its key: asking for them again shows it without a new run) or an image
+// the user added from a file (another denoiser's output, a colleague's render). The Session owns the list.
+#pragma once
+
+#include <QString>
+#include <memory>
+#include <vector>
+
+#include "core/image/image.h"
+
+namespace residue::ui {
+
+struct Result {
+  int id = 0;            // stable for the session's stack; never reused
+  QString name;          // short and unique in the list: "small fp32", "nfor.exr"
+  QString description;   // in full: the model file, architecture, precision, post-steps; or the file's path
+  QString key;           // runs: the settings that made it; files: empty
+  QString file;          // files: the path it was read from
+  std::shared_ptr<Image> image;  // 3 channels, the render's size (copied on write while someone else holds it)
+  bool complete = false;         // every pixel is the result's own (a finished run, a file)
+  std::vector<Rect> rects;       // regions a run has finished, when not complete (ROI runs)
+  double seconds = 0;            // how long the run took (0 for files)
+  double flop = 0;               // network work of the run, when known (for time comparisons)
+  QString state;                 // "" when done; "running"; "cancelled after 3 of 12 tiles"
+  bool fromFile() const { return key.isEmpty(); }
+};
+
+}  // namespace residue::ui
