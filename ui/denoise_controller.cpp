@@ -1,12 +1,14 @@
 #include "ui/denoise_controller.h"
 
 #include <QCoreApplication>
+#include <algorithm>
 #include <QTimer>
 #include <QtConcurrent/QtConcurrentRun>
 
 #include "core/denoise/bilateral.h"
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
+#include "core/util/error.h"
 #include "ui/session.h"
 
 namespace residue::ui {
@@ -61,7 +63,9 @@ QString DenoiseController::name(const Request& r) {
   return n;
 }
 
-bool DenoiseController::start(const Request& req) {
+bool DenoiseController::start(const Request& req) { return start(req, req.model); }
+
+bool DenoiseController::start(const Request& req, const QString& asked) {
   if (running() || !session_->hasStack()) return false;
   if (req.model.isEmpty()) {
     emit finished(false, tr("Pick a model first."));
@@ -82,10 +86,28 @@ bool DenoiseController::start(const Request& req) {
   request_.roi = rect;
 
   std::shared_ptr<const nn::Model> net;
-  QString variant;
+  QString variant, substitute;
   if (req.model != "bilateral") {
     try {
-      const auto path = nn::find_model_for(req.model.toStdString(), feature_set_for(*stack));
+      std::filesystem::path path;
+      try {
+        path = nn::find_model_for(req.model.toStdString(), feature_set_for(*stack));
+      } catch (const Error&) {
+        const bool known = std::any_of(models_.begin(), models_.end(), [&](const ModelEntry& m) { return m.name == req.model; });
+        if (!known) throw;
+        // The family has no variant for this render's AOVs (a stream with colour only, say): the cheapest
+        // family that has one runs instead, and its name says so.
+        for (const auto& m : models_) {
+          if (m.baseline() || m.name.startsWith("oidn")) continue;
+          try {
+            path = nn::find_model_for(m.name.toStdString(), feature_set_for(*stack));
+            substitute = m.name;
+            break;
+          } catch (const Error&) {
+          }
+        }
+        if (substitute.isEmpty()) throw;
+      }
       variant = QString::fromStdString(path.stem().string());
       auto& slot = loaded_[QString::fromStdString(path.string())];
       if (!slot) slot = std::make_shared<const nn::Model>(nn::load_model(path));
@@ -94,6 +116,11 @@ bool DenoiseController::start(const Request& req) {
       emit finished(false, QString::fromStdString(e.what()));
       return false;
     }
+  }
+  if (!substitute.isEmpty()) {
+    Request instead = req;
+    instead.model = substitute;
+    return start(instead, asked);
   }
 
   // Continue the result these settings started (a new region adds to it), else start one from the noisy
@@ -121,7 +148,8 @@ bool DenoiseController::start(const Request& req) {
                                               precisionName(req.precision));
     if (!req.energy_correction) description_ += tr(", no energy correction");
     if (stack->variance) description_ += req.variance_blend ? tr(", variance blend") : tr(", no variance blend");
-    if (variant != req.model) description_ += tr(" — picked for the AOVs this render has");
+    if (asked != req.model) description_ += tr(", instead of %1, which has no variant for this render's AOVs").arg(asked);
+    else if (variant != req.model) description_ += tr(" — picked for the AOVs this render has");
   }
   const QString description = description_;
   session_->updateResult(result_id_, [&](Result& r) {

@@ -45,8 +45,9 @@ class DenoiseController : public QObject {
   static QString key(const Request& r);
   // The short name a run's result gets: "small fp32", "oidn bf16 raw".
   static QString name(const Request& r);
-  // Starts `r`, or shows the result kept for it. Returns false when nothing started (one is running, no render
-  // is open, an unknown model); finished() tells the outcome either way.
+  // Starts `r`, or shows the result kept for it. When the model has no variant for the render's AOVs, the
+  // cheapest model that has one runs instead (and its description says so). Returns false when nothing started
+  // (one is running, no render is open, no model fits); finished() tells the outcome either way.
   bool start(const Request& r);
   void cancel();  // the job stops within one network layer; its finished tiles stay in the result
   bool running() const { return job_ != nullptr || bilateral_running_; }
@@ -68,6 +69,7 @@ class DenoiseController : public QObject {
   void finished(bool ok, QString message);
 
  private:
+  bool start(const Request& r, const QString& asked);  // `asked`: the model the user picked
   void poll();
   void finish(bool ok, const QString& message = {}, const QString& state = {});
 

@@ -219,6 +219,10 @@ MainWindow::~MainWindow() { render_.reset(); }  // first: its jobs post to this 
 void MainWindow::showRendered(Rendered&& r) {
   canvas_->setPanes(std::move(r.panes), r.size);
   setWipePair(wipe_a_, wipe_b_);
+  if (pending_pane_ && paneIndex(*pending_pane_) >= 0) {
+    showPane(*pending_pane_);
+    pending_pane_.reset();
+  }
   // Tiles that landed while these panes were being drawn are in the session: show them too.
   if (const int d = paneIndex(Source::Denoised); d >= 0 && session_->denoised()) {
     canvas_->setPaneValues(d, std::shared_ptr<const Image>(std::shared_ptr<const Image>(), session_->denoised()));
@@ -413,7 +417,8 @@ void MainWindow::buildActions() {
     heatmap_->setOf(HeatmapPanel::Of::AgainstB);
     heatmap_->setDisplay(HeatmapPanel::Display::Pane);
     tabs_->setCurrentWidget(heatmap_);
-    QTimer::singleShot(0, this, [this] { showPane(Source::Heatmap); });
+    if (paneIndex(Source::Heatmap) >= 0) showPane(Source::Heatmap);
+    else pending_pane_ = Source::Heatmap;  // once the panes are drawn with it
   });
   auto* next = action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); });
   next->setShortcutContext(Qt::ApplicationShortcut);

@@ -164,6 +164,7 @@ class MainWindow : public QMainWindow {
   AovRole aov_ = AovRole::Color;
   std::vector<Source> pane_sources_;
   Source wipe_a_ = Source::Denoised, wipe_b_ = Source::Compare;
+  std::optional<Source> pending_pane_;  // to show in single layout once the panes include it
   std::optional<QPoint> hover_;
   bool interactive_ = true;
   QString last_error_;

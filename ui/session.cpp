@@ -220,8 +220,19 @@ void Session::removeResult(int id) {
   const auto it = std::find_if(results_.begin(), results_.end(), [&](const Result& r) { return r.id == id; });
   if (it == results_.end()) return;
   results_.erase(it);
-  if (b_ == id) setB(-1);
-  if (a_ == id) setA(results_.empty() ? -1 : results_.back().id);
+  if (b_ == id) {
+    b_ = -1;
+    emit compareChanged();
+  }
+  if (a_ == id) {  // B takes A's place; without a B, the newest result does
+    a_ = b_ >= 0 ? b_ : results_.empty() ? -1 : results_.back().id;
+    if (b_ >= 0) {
+      b_ = -1;
+      emit compareChanged();
+    }
+    reblend();
+    emit denoisedChanged();
+  }
   emit resultsChanged();
 }
 

@@ -129,7 +129,11 @@ class TestViewer : public QObject {
     // What the table shows is that number.
     auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
     QVERIFY(table);
-    QCOMPARE(table->item(0, 0)->text(), QString::number(expected.relmse, 'g', 5));
+    int roi_column = -1;
+    for (int c = 0; c < table->columnCount(); ++c)
+      if (table->horizontalHeaderItem(c)->text() == "ROI relMSE") roi_column = c;
+    QVERIFY(roi_column >= 0 && !table->isColumnHidden(roi_column));
+    QCOMPARE(table->item(0, roi_column)->text(), QString::number(expected.relmse, 'g', 5));
     // The ROI differs from the whole image, and clearing it brings the whole image back.
     const auto whole = metrics::compare(stack->color.image, stack->reference->image);
     QVERIFY(std::abs(whole.relmse - expected.relmse) > 1e-6);
@@ -187,7 +191,7 @@ class TestViewer : public QObject {
       QVERIFY(pixel);
       const Image& shown = pane == 0 ? stack->color.image : *denoised;
       const QString expected_value = QString::number(static_cast<double>(shown.at(pixel->x(), pixel->y(), 0)), 'g', 4);
-      QVERIFY2(cursor->text().contains(pane == 0 ? "Noisy " : "Denoised") && cursor->text().contains(expected_value),
+      QVERIFY2(cursor->text().contains(pane == 0 ? "Noisy " : "A: tiny fp32") && cursor->text().contains(expected_value),
                qPrintable(cursor->text() + " / expected " + expected_value));
     }
 
@@ -321,14 +325,23 @@ class TestViewer : public QObject {
     keep >> content;
     QCOMPARE(content, std::string("mine"));
 
-    // Heatmap PNG: the colormap bytes core gives for the map; heatmap EXR: the values.
+    // Heatmap PNG: the colormap bytes core gives for the map, with the colour bar below; heatmap EXR: the values.
     f = w.exportHeatmap(path("heat.png"), false);
     f.waitForFinished();
     QCOMPARE(f.result(), QString());
     QImage png(path("heat.png"));
-    QCOMPARE(png.size(), QSize(192, 192));
+    QCOMPARE(png.height(), 192 + 64);
+    QVERIFY(png.width() >= 192);
     const QImage expected = colorize(*w.heatmapPanel()->map(), w.heatmapPanel()->colormap(), w.heatmapPanel()->scale());
-    QCOMPARE(png.convertToFormat(QImage::Format_RGB32), expected);
+    QCOMPARE(png.convertToFormat(QImage::Format_RGB32).copy(0, 0, 192, 192), expected);
+    // The bar under it runs from the colormap's first colour to its last.
+    const auto first = colormap_lookup(w.heatmapPanel()->colormap(), 0.0);
+    const auto last = colormap_lookup(w.heatmapPanel()->colormap(), 1.0);
+    const int bar_y = 192 + 4 + QFontMetrics(QFont()).height() + 8;
+    QVERIFY(bar_y < png.height());
+    const QRgb left = png.pixel(4, std::min(bar_y, png.height() - 20)), right = png.pixel(png.width() - 5, std::min(bar_y, png.height() - 20));
+    QCOMPARE(qRed(left), int(first[0]));
+    QCOMPARE(qBlue(right), int(last[2]));
     f = w.exportHeatmap(path("heat.exr"), false);
     f.waitForFinished();
     QCOMPARE(f.result(), QString());
@@ -341,18 +354,21 @@ class TestViewer : public QObject {
     std::ifstream js(path("m.json").toStdString());
     const auto j = nlohmann::json::parse(js);
     QCOMPARE(j["rows"].size(), size_t(2));
-    QCOMPARE(j["rows"][1]["name"].get<std::string>(), std::string("denoised"));
+    QCOMPARE(j["rows"][1]["name"].get<std::string>(), std::string("tiny fp32"));
     QCOMPARE(j["rows"][1]["relmse"].get<double>(), w.metricsPanel()->report().rows[1].scores.relmse);
     f = w.exportMetrics(path("m.csv"), false);
     f.waitForFinished();
     QCOMPARE(f.result(), QString());
     QVERIFY(QFile(path("m.csv")).size() > 50);
 
-    // The comparison as displayed.
+    // The comparison sheet: noisy, tiny and the reference at 1:1 (192 px), in one row on white.
     f = w.exportComparison(path("cmp.png"), false);
     f.waitForFinished();
     QCOMPARE(f.result(), QString());
-    QCOMPARE(QImage(path("cmp.png")).size(), w.canvas()->size());
+    const QImage sheet(path("cmp.png"));
+    QVERIFY2(sheet.width() >= 3 * 200 && sheet.width() < 4 * 200 && sheet.height() > 192 && sheet.height() < 2 * 192,
+             qPrintable(QString("%1 x %2").arg(sheet.width()).arg(sheet.height())));
+    QCOMPARE(sheet.pixel(2, 2), QColor(Qt::white).rgb());
   }
 
   void unmappedChannelsGoThroughTheMappingDialogAndAreRemembered() {
@@ -448,12 +464,16 @@ class TestViewer : public QObject {
     QVERIFY(qGray(w.canvas()->panes()[0].display.pixel(100, 100)) > qGray(before));
     QTest::keyClick(&w, Qt::Key_E, Qt::ShiftModifier);
     QCOMPARE(w.exposure(), 0.0);
-    QTest::keyClick(&w, Qt::Key_3);
+    // Tab: one pane, then the next ones in turn.
+    w.canvas()->setCurrent(0);
+    for (int k = 0; k < 3; ++k) QTest::keyClick(&w, Qt::Key_Tab);
     QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Single);
     QCOMPARE(w.canvas()->current(), w.paneIndex(Source::Reference));
     QTest::keyClick(&w, Qt::Key_W);
     QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Wipe);
     QTest::keyClick(&w, Qt::Key_S);
+    QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Pair);
+    QTest::keyClick(&w, Qt::Key_A);
     QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::SideBySide);
     QTest::keyClick(&w, Qt::Key_BracketRight);
     QCOMPARE(w.aov(), AovRole::Albedo);
