@@ -586,3 +586,45 @@ TEST(AovErrors, FolderWithColourFilesOfTwoConventionsNamesBoth) {
 
 }  // namespace
 }  // namespace residue
+
+namespace residue {
+namespace {
+
+// Writes a 4x2 RGB image of one value per channel, as `type`, optionally tagged with a colour space.
+void write_flat(const std::filesystem::path& path, OIIO::TypeDesc type, const float rgb[3], const char* colorspace) {
+  OIIO::ImageSpec spec(4, 2, 3, type);
+  if (colorspace) spec.attribute("oiio:ColorSpace", colorspace);
+  std::vector<float> px(4 * 2 * 3);
+  for (size_t i = 0; i < px.size(); ++i) px[i] = rgb[i % 3];
+  auto out = OIIO::ImageOutput::create(path.string());
+  ASSERT_TRUE(out && out->open(path.string(), spec));
+  ASSERT_TRUE(out->write_image(OIIO::TypeFloat, px.data()));
+  out->close();
+}
+
+TEST(AovEncoding, PngColourIsDecodedFromSrgbToLinear) {
+  TempDir dir;
+  // 8-bit sRGB 188/255 is linear 0.5029 (the sRGB curve), 0 stays 0, 255 stays 1.
+  const float rgb[3] = {188.0f / 255.0f, 0.0f, 1.0f};
+  write_flat(dir.path() / "render.png", OIIO::TypeDesc::UINT8, rgb, nullptr);
+  const AovStack s = load_aov_stack({dir.path() / "render.png"});
+  const double expected = std::pow((188.0 / 255.0 + 0.055) / 1.055, 2.4);  // written out here, not the loader's
+  EXPECT_NEAR(s.color.image.at(1, 1, 0), expected, 1e-6);
+  EXPECT_EQ(s.color.image.at(1, 1, 1), 0.0f);
+  EXPECT_NEAR(s.color.image.at(1, 1, 2), 1.0, 1e-6);
+  const bool noted = std::any_of(s.notes.begin(), s.notes.end(),
+                                 [](const std::string& n) { return n.find("decoded to linear") != std::string::npos; });
+  EXPECT_TRUE(noted);
+}
+
+TEST(AovEncoding, LinearFloatTiffIsUsedAsStored) {
+  TempDir dir;
+  const float rgb[3] = {0.25f, 3.5f, 0.0f};
+  write_flat(dir.path() / "render.tif", OIIO::TypeDesc::FLOAT, rgb, "linear");
+  const AovStack s = load_aov_stack({dir.path() / "render.tif"});
+  EXPECT_EQ(s.color.image.at(0, 0, 0), 0.25f);
+  EXPECT_EQ(s.color.image.at(0, 0, 1), 3.5f);
+}
+
+}  // namespace
+}  // namespace residue

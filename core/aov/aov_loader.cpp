@@ -32,6 +32,22 @@ struct ReadPlan {
   double depth_background = kDepthBackgroundThreshold;
 };
 
+// Whether a file's values are display-encoded sRGB (a PNG or JPEG as most tools write them), which colour AOVs
+// must be decoded from: light adds up only in linear values.
+bool encoded_srgb(const OIIO::ImageSpec& spec) {
+  std::string cs = spec.get_string_attribute("oiio:ColorSpace");
+  std::transform(cs.begin(), cs.end(), cs.begin(), [](unsigned char c) { return std::tolower(c); });
+  return cs.rfind("srgb", 0) == 0;
+}
+
+bool decodes_srgb(const OIIO::ImageSpec& spec, AovRole role) {
+  return encoded_srgb(spec) && (role == AovRole::Color || role == AovRole::Albedo || role == AovRole::Reference);
+}
+
+float srgb_to_linear(float v) {
+  return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
 // An opened input: its channels and per-subimage windows.
 struct OpenedFile {
   std::string path;
@@ -246,12 +262,14 @@ void read_plans(const OpenedFile& file, const std::vector<const ReadPlan*>& plan
       for (const ReadPlan* p : sub_plans) {
         Image& img = out[p->role].image;
         const int dst_ch = img.channels();
+        const bool decode = decodes_srgb(spec, p->role);
         for (int64_t row = std::max(y, y0); row < std::min(y_end, y1); ++row) {
           const float* src = buffer.data() + (row - y) * spec.width * nch;
           for (int64_t x = x0; x < x1; ++x)
-            for (int c = 0; c < dst_ch; ++c)
-              img.at(x - grid.x, row - grid.y, c) =
-                  src[(x - spec.x) * nch + (p->channels[static_cast<size_t>(c)].index - ch_begin)];
+            for (int c = 0; c < dst_ch; ++c) {
+              const float v = src[(x - spec.x) * nch + (p->channels[static_cast<size_t>(c)].index - ch_begin)];
+              img.at(x - grid.x, row - grid.y, c) = decode ? srgb_to_linear(v) : v;
+            }
         }
       }
       y = y_end;
@@ -396,10 +414,16 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
   }
 
   std::set<std::string> non_exr;
-  for (const auto& [role, plan] : plans)
-    if (const OpenedFile& f = open_cached(plan.file); f.format != "openexr" && non_exr.insert(f.path).second)
-      stack.notes.push_back("'" + f.path + "' is a " + f.format + " file: its values are used as stored (no "
-                            "conversion from a display encoding to linear light)");
+  for (const auto& [role, plan] : plans) {
+    const OpenedFile& f = open_cached(plan.file);
+    if (f.format == "openexr" || !non_exr.insert(f.path).second) continue;
+    const auto& spec = f.specs.at(static_cast<size_t>(plan.channels.front().subimage));
+    stack.notes.push_back(encoded_srgb(spec)
+                              ? "'" + f.path + "' is an sRGB-encoded " + f.format + " file: its colour is decoded to "
+                                "linear light (8 bits: expect banding in dark regions)"
+                              : "'" + f.path + "' is a " + f.format + " file that says it is linear: its values are "
+                                "used as stored");
+  }
   for (const auto& [role, plan] : plans) {
     if (role == AovRole::Normal) stack.normal_space = plan.normal_space;
     if (role == AovRole::Depth) stack.depth_kind = plan.depth_kind;
