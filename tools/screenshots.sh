@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # Screenshots of the real viewer window under Xvfb, for docs/ and the README:
 #   tools/screenshots.sh [BUILD_DIR] [OUT_DIR]
-# Views: side by side after a denoise, a zoomed wipe noisy|denoised, the heatmap pane with its colour bar,
-# the heatmap overlaid, and a denoise in progress (tiles appearing) on the example repeated 8 x 8.
+# Views, at 1280x720 (the smallest screen the viewer is made for): three results and the reference with a row of
+# scores per result; a zoomed wipe between two models; the heatmap pane with its shared range and colour bar;
+# the heatmap overlaid; a denoise in progress (tiles appearing) on the example repeated 8 x 8; and the comparison
+# sheet an export-all writes. RESIDUE_SCREEN=1920x1080 takes them at that size instead.
 # Needs xvfb-run (Debian xvfb) and Python's OpenImageIO (python3-openimageio); the scene comes from
 # ../shared/datasets (the bundled example without it).
 set -euo pipefail
@@ -20,19 +22,19 @@ mkdir -p "$out"
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 export OMP_WAIT_POLICY=passive
 
-shot() {  # shot NAME ARGS...: one window, one PNG
+screen=${RESIDUE_SCREEN:-1280x720}
+shot() {  # shot NAME ARGS...: one window filling the screen, one PNG
   local name=$1; shift
-  xvfb-run -a -s "-screen 0 1700x1000x24" "$viewer" --size 1600x900 --screenshot "$out/$name.png" "$@"
+  xvfb-run -a -s "-screen 0 ${screen}x24" "$viewer" --no-ipc --size "$screen" --screenshot "$out/$name.png" "$@"
 }
+ref=(--reference "$scene/reference.exr")
 
-shot viewer_side_by_side "$noisy" --reference "$scene/reference.exr" --model small --denoise \
-  --screenshot-when denoised
-shot viewer_wipe "$noisy" --reference "$scene/reference.exr" --model small --denoise --screenshot-when denoised \
-  --layout wipe --zoom 3
-shot viewer_heatmap "$noisy" --reference "$scene/reference.exr" --model small --denoise --screenshot-when denoised \
-  --layout single --pane heatmap
-shot viewer_overlay "$noisy" --reference "$scene/reference.exr" --model small --denoise --screenshot-when denoised \
-  --heatmap overlay --layout single --pane denoised
+shot viewer_results "$noisy" "${ref[@]}" --model tiny,base,oidn --denoise --screenshot-when denoised --tab results
+shot viewer_wipe "$noisy" "${ref[@]}" --model small,oidn --denoise --ab 1,2 --screenshot-when denoised \
+  --layout wipe --zoom 2.5 --tab results
+shot viewer_heatmap "$noisy" "${ref[@]}" --model small,oidn --denoise --ab 1,2 --screenshot-when denoised \
+  --tab heatmap --export-all "$tmp/export"
+cp "$tmp/export/comparison.png" "$out/viewer_comparison_sheet.png"
 
 # A denoise in progress needs a render that takes a while: the example repeated 8 x 8 (1536 x 1536; repeated,
 # not upscaled, so that the noise stays per-pixel), every channel and its name kept.

@@ -61,6 +61,12 @@ void ImageCanvas::setPaneDisplay(int index, QImage display) {
   update();
 }
 
+void ImageCanvas::setPaneLabel(int index, QString label) {
+  if (index < 0 || index >= static_cast<int>(panes_.size())) return;
+  panes_[static_cast<size_t>(index)].label = std::move(label);
+  update();
+}
+
 void ImageCanvas::setOverlay(int index, QImage overlay) {
   if (index < 0 || index >= static_cast<int>(panes_.size())) return;
   panes_[static_cast<size_t>(index)].overlay = std::move(overlay);

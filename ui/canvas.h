@@ -41,6 +41,7 @@ class ImageCanvas : public QWidget {
   void patchPane(int index, QPoint at, const QImage& pixels);
   void setPaneValues(int index, std::shared_ptr<const Image> values);
   void setPaneDisplay(int index, QImage display);
+  void setPaneLabel(int index, QString label);
   void setOverlay(int index, QImage overlay);  // null clears it
   void clearOverlays();
 

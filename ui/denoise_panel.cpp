@@ -36,10 +36,10 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   auto* layout = new QVBoxLayout(this);
   table_ = new QTableWidget(0, kColumns, this);
   table_->setObjectName("modelTable");
-  table_->setHorizontalHeaderLabels({tr("model"), tr("GFLOP/MP"), tr("s/MP"), tr("here"), tr("relMSE"), tr("SSIM")});
+  table_->setHorizontalHeaderLabels({tr("model"), tr("GFLOP"), tr("s/MP"), tr("here"), tr("relMSE"), tr("SSIM")});
   const QStringList header_tips = {
       tr("The model family; the variant for the render's AOVs is picked when it runs"),
-      tr("Network work per megapixel, in billions of multiply-adds x 2"),
+      tr("Network work per megapixel: billions of floating-point operations (a multiply-add is two)"),
       tr("Seconds per megapixel at the chosen precision, as benchmarked (the model file says on which CPU)"),
       tr("Seconds per megapixel measured on this machine, once the model has run here"),
       tr("Mean relMSE on the validation scenes (lower is better)"),
@@ -50,12 +50,12 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
   table_->verticalHeader()->hide();
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
-  table_->horizontalHeader()->setStretchLastSection(true);
+  table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
   table_->setToolTip(tr("Speed against accuracy: seconds per megapixel as benchmarked (model file) and as "
                         "measured on this machine; relMSE and SSIM on the validation scenes."));
   layout->addWidget(table_, 1);
-  auto* caption = new QLabel(tr("s/MP: seconds per megapixel, benchmarked; here: measured on this machine. "
-                                "relMSE, SSIM: validation scenes."), this);
+  auto* caption = new QLabel(tr("GFLOP per megapixel; s/MP: seconds per megapixel as benchmarked, here: as "
+                                "measured on this machine; relMSE, SSIM: on the validation scenes."), this);
   caption->setWordWrap(true);
   caption->setObjectName("modelTableCaption");
   layout->addWidget(caption);

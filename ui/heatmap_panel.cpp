@@ -175,9 +175,9 @@ Colormap HeatmapPanel::colormap() const { return static_cast<Colormap>(colormap_
 std::pair<double, double> HeatmapPanel::sharedRange(metrics::MapKind kind) {
   // Wide enough for a noisy input's errors, fine enough to tell two good denoisers apart at a glance.
   switch (kind) {
-    case metrics::MapKind::RelativeSquaredError: return {1e-4, 1.0};
+    case metrics::MapKind::RelativeSquaredError: return {1e-5, 1.0};
     case metrics::MapKind::AbsoluteError: return {1e-3, 1.0};
-    case metrics::MapKind::SquaredError: return {1e-6, 1.0};
+    case metrics::MapKind::SquaredError: return {1e-7, 1.0};
     case metrics::MapKind::Ssim: return {0.0, 1.0};
   }
   return {0.0, 1.0};

@@ -881,6 +881,7 @@ void MainWindow::applyHeatmap() {
     if (i >= 0) {
       canvas_->setPaneDisplay(i, heatmap_->image());
       canvas_->setPaneValues(i, heatmap_->map());
+      canvas_->setPaneLabel(i, heatmap_->title());  // the map may be newer than the panes
     }
   } else if (d == HeatmapPanel::Display::Overlay) {
     const int i = paneIndex(heatmap_->of() == HeatmapPanel::Of::Noisy ? Source::Noisy
@@ -1086,17 +1087,16 @@ MainWindow::SheetInputs MainWindow::sheetInputs() const {
   const auto scores = [&](const QString& name) {
     for (const auto& row : report.rows)
       if (QString::fromStdString(row.name) == name)
-        return QStringList{QString("relMSE %1   SSIM %2   PSNR %3 dB")
-                               .arg(row.scores.relmse, 0, 'g', 4)
-                               .arg(row.scores.ssim, 0, 'f', 4)
-                               .arg(row.scores.psnr, 0, 'f', 2)};
+        return QStringList{QString("relMSE %1   SSIM %2").arg(row.scores.relmse, 0, 'g', 4).arg(row.scores.ssim, 0, 'f', 4),
+                           QString("PSNR %1 dB").arg(row.scores.psnr, 0, 'f', 2)};
     return QStringList{};
   };
   in.items.push_back({tr("Noisy input"), shared(Source::Noisy), scores("noisy")});
   for (const auto& r : session_->results()) {
     const QString name = session_->resultName(r.id);
     QStringList lines = scores(name);
-    if (r.seconds > 0) lines << tr("%1 s here").arg(r.seconds, 0, 'f', 2);
+    if (r.seconds > 0 && !lines.isEmpty()) lines.back() += tr("   %1 s here").arg(r.seconds, 0, 'f', 2);
+    else if (r.seconds > 0) lines << tr("%1 s here").arg(r.seconds, 0, 'f', 2);
     if (!r.state.isEmpty()) lines << r.state;
     in.items.push_back({name, r.id == session_->a() ? session_->denoisedShared() : r.image, lines});
   }

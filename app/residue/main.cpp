@@ -65,6 +65,8 @@ int main(int argc, char** argv) {
   const QCommandLineOption zoom("zoom", "Zoom (screen pixels per image pixel) instead of fit.", "factor");
   const QCommandLineOption size("size", "Window size WxH.", "size");
   const QCommandLineOption timing("timing", "Print when the render is loaded, first shown and fully analysed.");
+  const QCommandLineOption cancel_after("cancel-after", "Cancel each denoise S seconds after it starts and print how "
+                                        "long it took to stop (the viewer's Cancel, measured).", "seconds");
   const QCommandLineOption screenshot("screenshot", "Save a screenshot of the window to FILE and quit.", "file");
   const QCommandLineOption when("screenshot-when",
                                 "loaded (default), denoised, or progress:F (a denoise F of the way through).", "when");
@@ -72,7 +74,7 @@ int main(int argc, char** argv) {
                                     "127.0.0.1 (default 14158, tev's).", "port", "14158");
   const QCommandLineOption no_ipc("no-ipc", "Do not listen for renderers.");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
-                        &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &screenshot, &when, &export_all,
+                        &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
                         &ipc_port, &no_ipc})
     cli.addOption(*o);
   cli.process(app);
@@ -267,6 +269,29 @@ int main(int argc, char** argv) {
                    static_cast<long long>(*ticks), static_cast<double>(*worst) * 1e-6);
     });
     tick->start(5);
+  }
+
+  if (cli.isSet(cancel_after)) {
+    // The time from Cancel to the end of the run, as a user pressing Escape would wait for it.
+    auto cancelled_at = std::make_shared<QElapsedTimer>();
+    const int delay_ms = static_cast<int>(cli.value(cancel_after).toDouble() * 1000.0);
+    QObject::connect(window.denoisePanel(), &residue::ui::DenoisePanel::started, &app, [&window, cancelled_at, delay_ms] {
+      QTimer::singleShot(delay_ms, &window, [&window, cancelled_at] {
+        if (!window.denoisePanel()->running()) return;
+        const auto p = window.denoisePanel()->controller()->progress();
+        std::fprintf(stderr, "residue: cancelling at tile %lld of %lld\n", static_cast<long long>(p.done),
+                     static_cast<long long>(p.total));
+        cancelled_at->start();
+        window.denoisePanel()->cancel();
+      });
+    });
+    QObject::connect(window.denoisePanel(), &residue::ui::DenoisePanel::finished, &app,
+                     [cancelled_at](bool, const QString& message) {
+                       if (!cancelled_at->isValid()) return;
+                       std::fprintf(stderr, "residue: stopped %.3f s after Cancel (%s)\n",
+                                    static_cast<double>(cancelled_at->nsecsElapsed()) * 1e-9, qPrintable(message));
+                       cancelled_at->invalidate();
+                     });
   }
 
   if (cli.isSet(screenshot)) {

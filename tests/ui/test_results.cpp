@@ -190,6 +190,10 @@ class TestResults : public QObject {
     QTest::keyClick(&w, Qt::Key_1);  // tiny as A
     QVERIFY(settle(w, [&] { return w.heatmapPanel()->title().contains("tiny"); }));
     QCOMPARE(w.heatmapPanel()->range(), range);
+    // The heatmap pane is titled with the map it shows (it once kept the previous result's title).
+    QVERIFY(settle(w, [&] { return w.paneIndex(Source::Heatmap) >= 0; }));
+    QCOMPARE(w.canvas()->panes()[static_cast<size_t>(w.paneIndex(Source::Heatmap))].label, w.heatmapPanel()->title());
+    QVERIFY(w.heatmapPanel()->title().contains("tiny fp32"));
     // Same range, so a pixel where both errors are equal-ish has the same colour; everywhere, the colour is
     // the shared scale's colour of that pixel's value.
     const Image& map = *w.heatmapPanel()->map();
