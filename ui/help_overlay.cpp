@@ -1,12 +1,15 @@
 #include "ui/help_overlay.h"
 
+#include <QEvent>
 #include <QPainter>
+#include <algorithm>
 
 namespace residue::ui {
 
 HelpOverlay::HelpOverlay(std::vector<std::pair<QString, QString>> shortcuts, QWidget* parent)
     : QWidget(parent), shortcuts_(std::move(shortcuts)) {
   setObjectName("helpOverlay");
+  if (parent) parent->installEventFilter(this);
   hide();
 }
 
@@ -28,21 +31,34 @@ void HelpOverlay::paintEvent(QPaintEvent*) {
   p.setFont(f);
   const QFontMetrics fm(f);
   const int line = fm.height() + 4;
-  int key_width = 0;
-  for (const auto& [k, _] : shortcuts_) key_width = std::max(key_width, fm.horizontalAdvance(k));
-  const int total_h = line * (static_cast<int>(shortcuts_.size()) + 2);
-  int y = std::max(10, (height() - total_h) / 2);
-  const int x = std::max(10, width() / 2 - key_width - 20);
+  int key_width = 0, what_width = 0;
+  for (const auto& [k, w] : shortcuts_) {
+    key_width = std::max(key_width, fm.horizontalAdvance(k));
+    what_width = std::max(what_width, fm.horizontalAdvance(w));
+  }
+  // As many rows as fit the height, in as many columns as that takes; descriptions shortened to the width.
+  const int n = static_cast<int>(shortcuts_.size());
+  const int rows = std::clamp((height() - 20) / line - 2, 1, std::max(1, n));
+  const int columns = (n + rows - 1) / rows;
+  const int column_width = std::min(key_width + 24 + what_width + 32, (width() - 20) / columns);
+  const int x0 = std::max(10, (width() - columns * column_width) / 2);
+  int y0 = std::max(10 + fm.ascent(), (height() - line * (std::min(rows, n) + 2)) / 2);
   p.setPen(Qt::white);
-  p.drawText(x, y, tr("Keyboard shortcuts (? or Esc to close)"));
-  y += 2 * line;
-  for (const auto& [keys, what] : shortcuts_) {
+  p.drawText(x0, y0, tr("Keyboard shortcuts (? or Esc to close)"));
+  y0 += 2 * line;
+  for (int i = 0; i < n; ++i) {
+    const auto& [keys, what] = shortcuts_[static_cast<size_t>(i)];
+    const int x = x0 + (i / rows) * column_width, y = y0 + (i % rows) * line;
     p.setPen(QColor(255, 220, 120));
     p.drawText(x, y, keys);
     p.setPen(Qt::white);
-    p.drawText(x + key_width + 24, y, what);
-    y += line;
+    p.drawText(x + key_width + 24, y, fm.elidedText(what, Qt::ElideRight, column_width - key_width - 32));
   }
+}
+
+bool HelpOverlay::eventFilter(QObject* watched, QEvent* event) {
+  if (watched == parentWidget() && event->type() == QEvent::Resize) setGeometry(parentWidget()->rect());
+  return false;
 }
 
 void HelpOverlay::mousePressEvent(QMouseEvent*) { hide(); }

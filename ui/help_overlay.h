@@ -16,6 +16,7 @@ class HelpOverlay : public QWidget {
 
  protected:
   void paintEvent(QPaintEvent*) override;
+  bool eventFilter(QObject* watched, QEvent* event) override;  // follows the canvas's size
   void mousePressEvent(QMouseEvent*) override;
 
  private:

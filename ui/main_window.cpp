@@ -78,6 +78,7 @@ const std::vector<std::pair<QString, QString>>& shortcutTable() {
       {"Ctrl+E", "export the denoised EXR"},
       {"Ctrl+Shift+S", "export the comparison sheet (PNG)"},
       {"Ctrl+Shift+E", "export all: results, heatmaps, metrics, sheet"},
+      {"F9", "hide / show the side bar"},
       {"?  F1", "this help"},
   };
   return table;

@@ -375,6 +375,22 @@ class TestResults : public QObject {
     const double four = w.canvas()->zoom();
     w.setLayout(ImageCanvas::Layout::Single);
     QVERIFY(w.canvas()->zoom() > four * 1.5);
+    // The shortcut overlay fits the canvas: every row is drawn inside it (two columns when one is too tall).
+    w.activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(&w));
+    QTest::keyClick(&w, Qt::Key_F1);
+    auto* help = w.canvas()->findChild<QWidget*>("helpOverlay");
+    QVERIFY(help && help->isVisible());
+    QCOMPARE(help->size(), w.canvas()->size());
+    const QImage shot = help->grab().toImage();
+    if (qEnvironmentVariableIsSet("RESIDUE_TEST_SHOTS")) shot.save(qEnvironmentVariable("RESIDUE_TEST_SHOTS") + "/help.png");
+    int lowest = 0;  // the lowest row with yellow key text
+    for (int y = 0; y < shot.height(); ++y)
+      for (int x = 0; x < shot.width(); x += 2)
+        if (const QColor c = shot.pixelColor(x, y); c.red() > 200 && c.green() > 170 && c.blue() < 140) lowest = y;
+    QVERIFY2(lowest > 0 && lowest < shot.height() - 4, qPrintable(QString::number(lowest)));
+    QTest::keyClick(&w, Qt::Key_Escape);
+    QVERIFY(!help->isVisible());
     // The side bar can be closed (F9) for the whole window.
     QTest::keyClick(&w, Qt::Key_F9);
     QVERIFY(!w.findChild<QDockWidget*>("sideDock")->isVisible());
