@@ -26,27 +26,16 @@
 #include "ui/heatmap_panel.h"
 #include "ui/histogram.h"
 #include "ui/main_window.h"
+#include "viewer_test_support.h"
 #include "ui/metrics_panel.h"
 #include "ui/pane_renderer.h"
 #include "ui/session.h"
 
 using namespace residue;
 using namespace residue::ui;
+using namespace residue::ui::viewer_test;
 
 namespace {
-const std::filesystem::path kExample = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
-
-bool settle(MainWindow& w, const std::function<bool()>& done, int ms = 60000) {
-  return QTest::qWaitFor([&] { return done() && !w.busy(); }, ms);
-}
-
-void openExample(MainWindow& w) {
-  LoadOptions o;
-  o.reference = kExample / "reference.exr";
-  w.openFiles({QString::fromStdString((kExample / "noisy.exr").string())}, o);
-  QVERIFY2(settle(w, [&] { return w.session()->hasStack(); }), qPrintable(w.lastError()));
-}
-
 // Runs `model` through the panel and waits for it.
 void runModel(MainWindow& w, const QString& model) {
   QVERIFY(w.denoisePanel()->selectModel(model));
@@ -56,22 +45,7 @@ void runModel(MainWindow& w, const QString& model) {
   QVERIFY(finished.at(0).at(0).toBool());
 }
 
-Image readExr(const QString& path) {
-  auto in = OIIO::ImageInput::open(path.toStdString());
-  if (!in) return {};
-  const auto& spec = in->spec();
-  Image img(spec.width, spec.height, spec.nchannels);
-  in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.data());
-  return img;
-}
 
-double maxAbsDiff(const Image& a, const Image& b, int channels) {
-  double m = 0;
-  for (int64_t y = 0; y < a.height(); ++y)
-    for (int64_t x = 0; x < a.width(); ++x)
-      for (int c = 0; c < channels; ++c) m = std::max(m, std::abs(double(a.at(x, y, c)) - double(b.at(x, y, c))));
-  return m;
-}
 
 void writeRgb(const QString& path, const Image& img) {
   io::ExrWriteOptions o;

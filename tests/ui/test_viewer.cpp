@@ -30,27 +30,16 @@
 #include "ui/denoise_panel.h"
 #include "ui/heatmap_panel.h"
 #include "ui/main_window.h"
+#include "viewer_test_support.h"
 #include "ui/mapping_dialog.h"
 #include "ui/metrics_panel.h"
 #include "ui/pixel_inspector.h"
 
 using namespace residue;
 using namespace residue::ui;
+using namespace residue::ui::viewer_test;
 
 namespace {
-const std::filesystem::path kExample = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
-
-// Waits until `done` holds and nothing runs on a worker any more.
-bool settle(MainWindow& w, const std::function<bool()>& done, int ms = 60000) {
-  return QTest::qWaitFor([&] { return done() && !w.busy(); }, ms);
-}
-
-void openExample(MainWindow& w) {
-  LoadOptions o;
-  o.reference = kExample / "reference.exr";
-  w.openFiles({QString::fromStdString((kExample / "noisy.exr").string())}, o);
-  QVERIFY2(settle(w, [&] { return w.session()->hasStack(); }), qPrintable(w.lastError()));
-}
 
 QAction* findAction(QWidget& w, const QKeySequence& shortcut) {
   for (QAction* a : w.findChildren<QAction*>())
@@ -58,22 +47,7 @@ QAction* findAction(QWidget& w, const QKeySequence& shortcut) {
   return nullptr;
 }
 
-Image readExr(const QString& path) {
-  auto in = OIIO::ImageInput::open(path.toStdString());
-  if (!in) return {};
-  const auto& spec = in->spec();
-  Image img(spec.width, spec.height, spec.nchannels);
-  in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, img.data());
-  return img;
-}
 
-double maxAbsDiff(const Image& a, const Image& b, int channels) {
-  double m = 0;
-  for (int64_t y = 0; y < a.height(); ++y)
-    for (int64_t x = 0; x < a.width(); ++x)
-      for (int c = 0; c < channels; ++c) m = std::max(m, std::abs(double(a.at(x, y, c)) - double(b.at(x, y, c))));
-  return m;
-}
 }  // namespace
 
 class TestViewer : public QObject {
