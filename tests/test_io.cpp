@@ -17,6 +17,7 @@
 #include "core/io/exr_writer.h"
 #include "core/io/map_writer.h"
 #include "core/io/metrics_report.h"
+#include "core/io/provenance.h"
 #include "core/util/error.h"
 #include "support/test_support.h"
 
@@ -233,6 +234,41 @@ TEST(IoExr, UnknownCompressionNamesTheAllowedOnes) {
   options.compression = "zip:fast";
   EXPECT_EQ(error_kind_of([&] { io::write_exr(dir / "x.exr", Image(2, 2, 3), options); }), ErrorKind::Usage);
   EXPECT_TRUE(folder_entries(dir.path()).empty());
+}
+
+TEST(IoExr, EveryListedCompressionIsWritten) {
+  TempDir dir;
+  const auto list = io::exr_compressions();
+  EXPECT_EQ(list.size(), size_t(10));
+  for (const auto& c : list) {
+    SCOPED_TRACE(c);
+    EXPECT_EQ(exr_round_trip(dir, testing::random_image(9, 7, 3, 1), io::PixelType::Half, c).pixels.size(), size_t(9 * 7 * 3));
+  }
+}
+
+TEST(IoProvenance, RecordsTheSetFieldsWithTheirTypes) {
+  TempDir dir;
+  io::ExrWriteOptions o;
+  io::record(o.residue_attributes, {.model = "small", .backend = "onednn fp32", .written_by = "test",
+                                    .seconds = 1.5f, .energy_correction = true, .variance_blend = false,
+                                    .strength = 0.75f});
+  io::write_exr(dir / "p.exr", Image(4, 4, 3), o);
+  auto in = OIIO::ImageInput::open((dir / "p.exr").string());
+  ASSERT_TRUE(in);
+  const auto& spec = in->spec();
+  EXPECT_EQ(spec.get_string_attribute("residue:model"), "small");
+  EXPECT_EQ(spec.get_string_attribute("residue:backend"), "onednn fp32");
+  EXPECT_EQ(spec.get_string_attribute("residue:written_by"), "test");
+  EXPECT_EQ(spec.get_string_attribute("residue:version"), RESIDUE_VERSION);
+  EXPECT_EQ(spec.find_attribute("residue:time_s")->type(), OIIO::TypeFloat);
+  EXPECT_EQ(spec.get_float_attribute("residue:time_s"), 1.5f);
+  EXPECT_EQ(spec.get_int_attribute("residue:energy_correction", -1), 1);
+  EXPECT_EQ(spec.get_int_attribute("residue:variance_blend", -1), 0);
+  EXPECT_EQ(spec.get_float_attribute("residue:strength"), 0.75f);
+  // What was not set is not written.
+  EXPECT_EQ(spec.find_attribute("residue:architecture"), nullptr);
+  EXPECT_EQ(spec.find_attribute("residue:source"), nullptr);
+  EXPECT_EQ(spec.find_attribute("residue:result"), nullptr);
 }
 
 TEST(IoExr, ChannelNames) {

@@ -6,6 +6,7 @@
 #include "core/io/atomic_file.h"
 #include "core/io/exr_writer.h"
 #include "core/io/map_writer.h"
+#include "core/io/provenance.h"
 #include "core/util/error.h"
 #include "ui/heatmap_panel.h"
 
@@ -122,12 +123,11 @@ void write_result_exr(const std::filesystem::path& path, const Image& image, con
   o.data_window = stack.data_window;
   o.display_width = stack.display_width;
   o.display_height = stack.display_height;
-  o.residue_attributes.attribute("residue:model", description.toStdString());
-  o.residue_attributes.attribute("residue:result", name.toStdString());
-  o.residue_attributes.attribute("residue:source", stack.color.source.file);
-  o.residue_attributes.attribute("residue:strength", strength);
-  o.residue_attributes.attribute("residue:version", std::string(RESIDUE_VERSION));
-  o.residue_attributes.attribute("residue:written_by", std::string("residue viewer"));
+  io::record(o.residue_attributes, {.model = description.toStdString(),
+                                    .source = stack.color.source.file,
+                                    .result = name.toStdString(),
+                                    .written_by = "residue viewer",
+                                    .strength = strength});
   o.overwrite = overwrite;
   io::write_exr(path, image, o);
 }

@@ -373,7 +373,8 @@ void MainWindow::buildActions() {
     auto* type = new QComboBox(&dlg);
     type->addItems({"half", "float"});
     auto* comp = new QComboBox(&dlg);
-    comp->addItems({"zip", "piz", "zips", "rle", "pxr24", "b44", "b44a", "dwaa", "dwab", "none"});
+    for (const auto& c : io::exr_compressions()) comp->addItem(QString::fromStdString(c));
+    comp->setCurrentText("zip");
     form->addRow(tr("Pixel type"), type);
     form->addRow(tr("Compression"), comp);
     auto* buttons = new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel, &dlg);

@@ -8,6 +8,7 @@
 #include "core/denoise/bilateral.h"
 #include "core/denoise/strength.h"
 #include "core/features/features.h"
+#include "core/io/provenance.h"
 #include "core/metrics/metrics.h"
 #include "core/util/error.h"
 
@@ -110,8 +111,7 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   w.data_window = layout.data_window;
   w.display_width = layout.display_width;
   w.display_height = layout.display_height;
-  w.residue_attributes.attribute("residue:version", RESIDUE_VERSION);
-  w.residue_attributes.attribute("residue:source", layout.color.source.file);
+  io::record(w.residue_attributes, {.source = layout.color.source.file, .written_by = "residue-cli"});
   check_output(output, layout, w);
 
   ProgressReporter progress;
@@ -140,11 +140,11 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     stats.backend = "cross-bilateral (core)";
     stats.tiles = 1;
     stats.tile_size = std::max(stack.width(), stack.height());
-    w.residue_attributes.attribute("residue:model", result.model);
-    w.residue_attributes.attribute("residue:architecture", result.architecture);
-    w.residue_attributes.attribute("residue:backend", stats.backend);
-    w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
-    w.residue_attributes.attribute("residue:strength", stats.strength);
+    io::record(w.residue_attributes, {.model = result.model,
+                                      .architecture = result.architecture,
+                                      .backend = stats.backend,
+                                      .seconds = static_cast<float>(stats.seconds),
+                                      .strength = stats.strength});
     stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
   } else {
     // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color);
@@ -155,8 +155,7 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     const nn::Model& model = it->second;
     result.model = model.name;
     result.architecture = model.architecture();
-    w.residue_attributes.attribute("residue:model", result.model);
-    w.residue_attributes.attribute("residue:architecture", result.architecture);
+    io::record(w.residue_attributes, {.model = result.model, .architecture = result.architecture});
     if (result.streamed) {  // the header, written first, says which post-steps run (core decides, as below)
       stats = denoise_to_exr(reader, model, d, output, w, on_tile);
     } else {
@@ -165,11 +164,11 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
       result.read_s = seconds_since(t0);
       const Image out = denoise(stack, model, d, on_tile, &stats);
       throw_if_cancelled(d.cancel);
-      w.residue_attributes.attribute("residue:backend", stats.backend);
-      w.residue_attributes.attribute("residue:time_s", static_cast<float>(stats.seconds));
-      w.residue_attributes.attribute("residue:energy_correction", stats.energy_corrected ? 1 : 0);
-      w.residue_attributes.attribute("residue:variance_blend", stats.variance_blended ? 1 : 0);
-      w.residue_attributes.attribute("residue:strength", stats.strength);
+      io::record(w.residue_attributes, {.backend = stats.backend,
+                                        .seconds = static_cast<float>(stats.seconds),
+                                        .energy_correction = stats.energy_corrected,
+                                        .variance_blend = stats.variance_blended,
+                                        .strength = stats.strength});
       t0 = std::chrono::steady_clock::now();
       stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
       result.write_s = seconds_since(t0);

@@ -15,6 +15,7 @@
 #include "core/denoise/variance_blend.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
+#include "core/io/provenance.h"
 #include "core/util/error.h"
 
 namespace residue {
@@ -409,10 +410,10 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     local.energy_corrected = correct;
     const float tau = tau_for(options, model);
     local.variance_blended = tau > 0 && layout.variance.has_value();
-    exr.residue_attributes.attribute("residue:backend", local.backend);
-    exr.residue_attributes.attribute("residue:energy_correction", local.energy_corrected ? 1 : 0);
-    exr.residue_attributes.attribute("residue:variance_blend", local.variance_blended ? 1 : 0);
-    exr.residue_attributes.attribute("residue:strength", options.strength);
+    io::record(exr.residue_attributes, {.backend = local.backend,
+                                        .energy_correction = local.energy_corrected,
+                                        .variance_blend = local.variance_blended,
+                                        .strength = options.strength});
 
     // Pass 1: the whole-image statistics the input needs: the depth scale (the same sample denoise() draws) or
     // OIDN's autoexposure.

@@ -199,4 +199,6 @@ WriteReport write_exr_bands(const fs::path& path, int64_t width, int64_t height,
   return report;
 }
 
+std::vector<std::string> exr_compressions() { return {kCompressions.begin(), kCompressions.end()}; }
+
 }  // namespace residue::io

@@ -34,6 +34,10 @@ struct ExrWriteOptions {
   bool overwrite = false;
 };
 
+// The compressions write_exr accepts (none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab), for menus and
+// help texts.
+std::vector<std::string> exr_compressions();
+
 // What a write changed: half holds finite values up to 65504 only, so larger finite values are written as
 // +-65504 (not as Inf, which is what float-to-half conversion makes of them) and counted here; callers say so.
 struct WriteReport {
