@@ -16,6 +16,7 @@
 #include "core/features/features.h"
 #include "core/metrics/metrics.h"
 #include "core/io/exr_writer.h"
+#include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
 #include "core/util/error.h"
 #include "support/reference_network.h"
@@ -472,7 +473,7 @@ TEST(Denoise, InteractiveTileTakesAboutHalfASecondAndKeepsTheHaloSmall) {
   for (const char* name : {"tiny", "small", "base", "paper"}) {
     SCOPED_TRACE(name);
     const nn::Model model = nn::load_model(nn::find_model_for(name, FeatureSet::Full));
-    const auto s_per_mp = model.benchmarked_seconds_per_mp(nn::Precision::FP32);
+    const auto s_per_mp = nn::model_card(model, name).seconds_per_mp(nn::Precision::FP32);
     ASSERT_TRUE(s_per_mp) << "the shipped model has its benchmark";
     const int64_t tile = interactive_tile(model.graph, *s_per_mp);
     const int64_t halo = model.graph.halo();

@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <random>
 
+#include <nlohmann/json.hpp>
+
 #include "core/aov/aov_loader.h"
 #include "core/denoise/denoiser.h"
 #include "core/denoise/oidn_filter.h"
@@ -16,6 +18,7 @@
 #include "core/metrics/metrics.h"
 #include "core/nn/arena.h"
 #include "core/nn/backend.h"
+#include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
 #include "core/nn/tza.h"
 #include "core/util/error.h"
@@ -498,6 +501,80 @@ TEST(MultiScale, BadMetadataIsRefused) {
   nn::write_safetensors(tmp / "bad.safetensors", f, false);
   EXPECT_NE(testing::error_message([&] { nn::load_model(tmp / "bad.safetensors"); }, ErrorKind::Input).find("residue.levels"),
             std::string::npos);
+}
+
+}  // namespace
+}  // namespace residue
+
+namespace residue {
+namespace {
+
+// --- model cards ------------------------------------------------------------------------------------------------
+
+TEST(ModelCard, MethodsByName) {
+  EXPECT_EQ(nn::method_of("bilateral"), nn::Method::Bilateral);
+  EXPECT_EQ(nn::method_of("oidn"), nn::Method::Oidn);
+  EXPECT_EQ(nn::method_of("oidn-cleanaux"), nn::Method::Oidn);
+  EXPECT_EQ(nn::method_of("small"), nn::Method::Residue);
+  EXPECT_EQ(nn::method_of("oidnish"), nn::Method::Residue);
+}
+
+// The shipped families in order of cost, each card's numbers read back from where they were written (the file's
+// metadata, OIDN's cards.json) and its cost from its graph.
+TEST(ModelCard, ShippedFamiliesWithTheirNumbers) {
+  std::vector<std::string> problems;
+  const auto cards = nn::list_model_cards(&problems);
+  EXPECT_TRUE(problems.empty()) << problems.front();
+  std::vector<std::string> names;
+  for (const auto& c : cards) names.push_back(c.family);
+  EXPECT_EQ(names, (std::vector<std::string>{"bilateral", "tiny", "small", "base", "paper", "oidn", "oidn-cleanaux"}));
+  EXPECT_EQ(cards.front().method, nn::Method::Bilateral);
+  for (const auto& c : cards) {
+    SCOPED_TRACE(c.family);
+    if (c.method == nn::Method::Bilateral) continue;
+    const nn::Model m = nn::load_model(c.file);
+    double flops = m.graph.flops_per_pixel();
+    for (const auto& pre : {m.albedo_prefilter, m.normal_prefilter})
+      if (pre) flops += pre->graph.flops_per_pixel();
+    EXPECT_DOUBLE_EQ(c.gflop_per_mp, flops / 1e3);
+    ASSERT_TRUE(c.validation && c.benchmark);
+    EXPECT_GT(c.validation->scenes, 30);
+    EXPECT_FALSE(c.benchmark->machine.empty());
+    if (c.method == nn::Method::Residue) {
+      const auto v = nlohmann::json::parse(m.metadata.at("validation"));
+      EXPECT_EQ(c.validation->relmse, v["relmse"].get<double>());
+      EXPECT_EQ(c.seconds_per_mp(nn::Precision::BF16),
+                nlohmann::json::parse(m.metadata.at("benchmark"))["bf16_s_per_mp"].get<double>());
+      EXPECT_NE(std::find(c.variants.begin(), c.variants.end(), "full"), c.variants.end());
+    }
+  }
+  // base ships variants for fewer AOVs and for a variance AOV; OIDN is ahead of it on the same scenes (MODELS.md).
+  const auto& base = cards[3];
+  EXPECT_EQ(base.variants.size(), size_t(4));
+  EXPECT_LT(cards[5].validation->relmse, base.validation->relmse);
+}
+
+TEST(ModelCard, MultiScaleCostComesFromItsGraph) {
+  const nn::Network net = nn::random_network(multiscale_arch(), 4);
+  testing::TempDir tmp;
+  nn::write_safetensors(tmp / "ms.safetensors",
+                        nn::to_safetensors(net, {{"validation", R"({"relmse": 0.004, "ssim": 0.96, "scenes": 3})"}}), false);
+  const nn::ModelCard c = nn::model_card(nn::load_model(tmp / "ms.safetensors"), "ms");
+  EXPECT_DOUBLE_EQ(c.gflop_per_mp, multiscale_arch().flops_per_pixel() / 1e3);
+  EXPECT_EQ(c.architecture, "ms 1,1,2/8,12,16 full");
+  ASSERT_TRUE(c.validation);
+  EXPECT_EQ(c.validation->scenes, 3);
+  EXPECT_FALSE(c.benchmark);
+}
+
+TEST(ModelCard, CliListsTheCards) {
+  std::string out;
+  ASSERT_EQ(testing::run_cli({"models", "--json"}, &out), 0) << out;
+  const auto j = nlohmann::json::parse(out.substr(out.find('[')));
+  ASSERT_EQ(j.size(), size_t(7));
+  EXPECT_EQ(j[2]["family"], "small");
+  EXPECT_EQ(j[5]["method"], "oidn");
+  EXPECT_GT(j[5]["validation"]["ssim"].get<double>(), 0.9);
 }
 
 }  // namespace

@@ -23,7 +23,7 @@ bool covered(const std::vector<Rect>& rects, const Rect& r) {
 QString precisionName(nn::Precision p) { return p == nn::Precision::BF16 ? "bf16" : "fp32"; }
 }  // namespace
 
-DenoiseController::DenoiseController(Session* session, std::vector<ModelEntry> models, QObject* parent)
+DenoiseController::DenoiseController(Session* session, std::vector<nn::ModelCard> models, QObject* parent)
     : QObject(parent), session_(session), models_(std::move(models)) {
   poll_ = new QTimer(this);
   poll_->setInterval(50);
@@ -48,14 +48,14 @@ DenoiseController::~DenoiseController() {
 }
 
 QString DenoiseController::key(const Request& r) {
-  if (r.model == "bilateral") return r.model;
+  if (nn::method_of(r.model.toStdString()) == nn::Method::Bilateral) return r.model;
   return QString("%1 %2 %3%4%5")
       .arg(r.model, precisionName(r.precision), r.backend, r.energy_correction ? "" : " raw",
            r.variance_blend ? "" : " noblend");
 }
 
 QString DenoiseController::name(const Request& r) {
-  if (r.model == "bilateral") return r.model;
+  if (nn::method_of(r.model.toStdString()) == nn::Method::Bilateral) return r.model;
   QString n = QString("%1 %2").arg(r.model, precisionName(r.precision));
   if (!r.backend.isEmpty()) n += " " + r.backend;
   if (!r.energy_correction) n += " raw";
@@ -87,21 +87,22 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
 
   std::shared_ptr<const nn::Model> net;
   QString variant, substitute;
-  if (req.model != "bilateral") {
+  const nn::Method method = nn::method_of(req.model.toStdString());
+  if (method != nn::Method::Bilateral) {
     try {
       std::filesystem::path path;
       try {
         path = nn::find_model_for(req.model.toStdString(), feature_set_for(*stack));
       } catch (const Error&) {
-        const bool known = std::any_of(models_.begin(), models_.end(), [&](const ModelEntry& m) { return m.name == req.model; });
+        const bool known = std::any_of(models_.begin(), models_.end(), [&](const nn::ModelCard& m) { return m.family == req.model.toStdString(); });
         if (!known) throw;
         // The family has no variant for this render's AOVs (a stream with colour only, say): the cheapest
         // family that has one runs instead, and its name says so.
         for (const auto& m : models_) {
-          if (m.baseline() || m.name.startsWith("oidn")) continue;
+          if (m.method != nn::Method::Residue) continue;
           try {
-            path = nn::find_model_for(m.name.toStdString(), feature_set_for(*stack));
-            substitute = m.name;
+            path = nn::find_model_for(m.family, feature_set_for(*stack));
+            substitute = QString::fromStdString(m.family);
             break;
           } catch (const Error&) {
           }
@@ -141,7 +142,7 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
     result_id_ = session_->addResult(std::move(r));
   }
 
-  if (req.model == "bilateral") {
+  if (method == nn::Method::Bilateral) {
     description_ = tr("cross-bilateral filter");
   } else {
     description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->architecture()),
@@ -160,7 +161,7 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   clock_.start();
   emit started(description_);
 
-  if (req.model == "bilateral") {
+  if (method == nn::Method::Bilateral) {
     bilateral_running_ = true;
     bilateral_->setFuture(QtConcurrent::run([stack, rect]() {
       try {
@@ -209,8 +210,8 @@ double DenoiseController::expectedSecondsPerMp(const QString& model, nn::Precisi
   if (const auto here = measured_s_per_mp_.find(key({model, precision})); here != measured_s_per_mp_.end())
     return here->second;
   for (const auto& m : models_) {
-    if (m.name != model) continue;
-    const auto bench = precision == nn::Precision::BF16 ? m.s_per_mp_bf16 : m.s_per_mp_fp32;
+    if (m.family != model.toStdString()) continue;
+    const auto bench = m.seconds_per_mp(precision);
     if (bench) return *bench;
     return m.gflop_per_mp / 50.0;  // no benchmark: 50 GFLOP/s, about what 2 cores of fp32 reach here
   }

@@ -13,7 +13,7 @@
 #include <optional>
 
 #include "core/denoise/denoise_job.h"
-#include "ui/model_catalog.h"
+#include "core/nn/model_card.h"
 
 class QTimer;
 
@@ -25,7 +25,7 @@ class DenoiseController : public QObject {
   Q_OBJECT
  public:
   struct Request {
-    QString model;  // a ModelEntry name: "small", "bilateral", "oidn", ...
+    QString model;  // a model card's family: "small", "bilateral", "oidn", ...
     nn::Precision precision = nn::Precision::FP32;
     QString backend;  // empty: the fastest
     int64_t tile = 0;  // 0: tiles of about half a second at the model's speed (interactive_tile)
@@ -38,7 +38,7 @@ class DenoiseController : public QObject {
     double elapsed = 0, left = -1;  // seconds; left < 0: not known yet
   };
 
-  DenoiseController(Session* session, std::vector<ModelEntry> models, QObject* parent = nullptr);
+  DenoiseController(Session* session, std::vector<nn::ModelCard> models, QObject* parent = nullptr);
   ~DenoiseController() override;
 
   // The settings as a key: two requests with the same key make the same image.
@@ -60,7 +60,7 @@ class DenoiseController : public QObject {
   // an estimate from its FLOPs.
   double expectedSecondsPerMp(const QString& model, nn::Precision precision) const;
   std::optional<double> measuredSecondsPerMp(const QString& model) const;
-  const std::vector<ModelEntry>& models() const { return models_; }
+  const std::vector<nn::ModelCard>& models() const { return models_; }
 
  signals:
   void started(QString description);
@@ -74,7 +74,7 @@ class DenoiseController : public QObject {
   void finish(bool ok, const QString& message = {}, const QString& state = {});
 
   Session* session_;
-  std::vector<ModelEntry> models_;
+  std::vector<nn::ModelCard> models_;
   std::map<QString, std::shared_ptr<const nn::Model>> loaded_;
   std::map<QString, double> measured_s_per_mp_;
   Request request_;

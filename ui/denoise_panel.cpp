@@ -145,7 +145,9 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   connect(cancel_, &QPushButton::clicked, this, &DenoisePanel::cancel);
 
   QStringList problems;
-  controller_ = new DenoiseController(session_, scan_models(&problems), this);
+  std::vector<std::string> card_problems;
+  controller_ = new DenoiseController(session_, nn::list_model_cards(&card_problems), this);
+  for (const auto& p : card_problems) problems << QString::fromStdString(p);
   tick_ = new QTimer(this);
   tick_->setInterval(200);
   connect(tick_, &QTimer::timeout, this, &DenoisePanel::showProgress);
@@ -186,26 +188,39 @@ DenoisePanel::~DenoisePanel() = default;
 
 void DenoisePanel::fillTable() {
   const auto& models = controller_->models();
-  const bool bf16 = precision() == nn::Precision::BF16;
   table_->setRowCount(static_cast<int>(models.size()));
   for (size_t i = 0; i < models.size(); ++i) {
     const auto& m = models[i];
     const int r = static_cast<int>(i);
-    auto* name = new QTableWidgetItem(m.name);
-    name->setToolTip(m.baseline() ? m.variants
-                                  : tr("%1 (blocks/width %2)\nvariants: %3").arg(m.path, m.architecture, m.variants));
+    const QString family = QString::fromStdString(m.family);
+    auto* name = new QTableWidgetItem(family);
+    QStringList variants;
+    for (const auto& v : m.variants) variants << QString::fromStdString(v);
+    QString tip = QString::fromStdString(m.architecture);
+    if (!m.file.empty()) tip += "\n" + QString::fromStdString(m.file.string());
+    if (!variants.isEmpty()) tip += tr("\nvariants: %1").arg(variants.join(", "));
+    if (!m.description.empty()) tip += "\n" + QString::fromStdString(m.description);
+    name->setToolTip(tip);
     table_->setItem(r, kName, name);
-    table_->setItem(r, kCost, new QTableWidgetItem(m.baseline() ? QString("-") : QString::number(m.gflop_per_mp, 'f', 0)));
-    auto* bench = new QTableWidgetItem(opt(bf16 ? m.s_per_mp_bf16 : m.s_per_mp_fp32, 3));
-    bench->setToolTip(tr("fp32 %1, bf16 %2 s/MP%3")
-                          .arg(opt(m.s_per_mp_fp32, 3), opt(m.s_per_mp_bf16, 3),
-                               m.benchmark_machine.isEmpty() ? QString() : tr(", benchmarked on %1").arg(m.benchmark_machine)));
+    const bool network = m.method != nn::Method::Bilateral;
+    table_->setItem(r, kCost, new QTableWidgetItem(network ? QString::number(m.gflop_per_mp, 'f', 0) : QString("-")));
+    auto* bench = new QTableWidgetItem(opt(m.seconds_per_mp(precision()), 3));
+    if (m.benchmark)
+      bench->setToolTip(tr("fp32 %1, bf16 %2 s/MP, benchmarked on %3")
+                            .arg(opt(m.benchmark->fp32_s_per_mp, 3), opt(m.benchmark->bf16_s_per_mp, 3),
+                                 QString::fromStdString(m.benchmark->machine)));
     table_->setItem(r, kBench, bench);
-    table_->setItem(r, kHere, new QTableWidgetItem(opt(controller_->measuredSecondsPerMp(m.name), 3)));
-    auto* rel = new QTableWidgetItem(opt(m.val_relmse, 3));
-    if (m.noisy_relmse) rel->setToolTip(tr("noisy input: %1").arg(*m.noisy_relmse, 0, 'g', 3));
+    table_->setItem(r, kHere, new QTableWidgetItem(opt(controller_->measuredSecondsPerMp(family), 3)));
+    const auto& val = m.validation;
+    auto* rel = new QTableWidgetItem(val ? QString::number(val->relmse, 'g', 3) : QString("-"));
+    auto* ssim = new QTableWidgetItem(val ? QString::number(val->ssim, 'g', 4) : QString("-"));
+    if (val) {
+      const QString scenes = tr("mean over %1 validation scenes").arg(val->scenes);
+      rel->setToolTip(val->noisy_relmse ? tr("%1; noisy input: %2").arg(scenes).arg(*val->noisy_relmse, 0, 'g', 3) : scenes);
+      ssim->setToolTip(scenes);
+    }
     table_->setItem(r, kRelMse, rel);
-    table_->setItem(r, kSsim, new QTableWidgetItem(opt(m.val_ssim, 4)));
+    table_->setItem(r, kSsim, ssim);
   }
 }
 

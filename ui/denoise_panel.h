@@ -44,7 +44,7 @@ class DenoisePanel : public QWidget {
   bool running() const { return controller_->running(); }
   double progressFraction() const;  // of the running denoise's tiles, 0 when none
   bool runningFromNoisy() const { return controller_->runningFromNoisy(); }
-  const std::vector<ModelEntry>& models() const { return controller_->models(); }
+  const std::vector<nn::ModelCard>& models() const { return controller_->models(); }
 
  public slots:
   void start();   // Denoise with the selected model (or show the result kept for these settings)

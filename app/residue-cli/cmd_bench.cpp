@@ -16,6 +16,7 @@
 #include "commands.h"
 #include "core/denoise/denoise_job.h"
 #include "core/denoise/denoiser.h"
+#include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
 #include "core/util/cpu_peak.h"
 #include "core/util/error.h"
@@ -75,7 +76,8 @@ AovStack synthetic_stack(int64_t n) {
 // Tile 0 is the viewer's automatic tile: about half a second per tile at the model's benchmarked speed.
 int64_t tile_for(int64_t tile, const nn::Model& model, nn::Precision precision, int64_t size) {
   if (tile > 0) return std::min(tile, size);
-  const double s_per_mp = model.benchmarked_seconds_per_mp(precision).value_or(model.graph.flops_per_pixel() / 50e3);
+  const double s_per_mp =
+      nn::model_card(model, model.name).seconds_per_mp(precision).value_or(model.graph.flops_per_pixel() / 50e3);
   return std::min(interactive_tile(model.graph, s_per_mp), size);
 }
 

@@ -19,6 +19,7 @@
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
 #include "core/metrics/metrics.h"
+#include "core/nn/model_card.h"
 #include "core/util/error.h"
 
 namespace residue::cli {
@@ -126,7 +127,7 @@ int run(const EvalSetOptions& o) {
   for (const auto& m : o.models) {
     // A file is labelled by its stem, a model name by itself.
     const std::string label = std::filesystem::is_regular_file(m) ? std::filesystem::path(m).stem().string() : m;
-    if (m == "bilateral") {  // no network, no precision
+    if (nn::method_of(m) == nn::Method::Bilateral) {  // no network, no precision
       columns.push_back({label, m, "fp32"});
       continue;
     }
@@ -153,7 +154,7 @@ int run(const EvalSetOptions& o) {
       std::string model_file;
       if (columns[ci].model.empty()) {
         out = stack.color.image;
-      } else if (columns[ci].model == "bilateral") {  // the baseline every model must beat
+      } else if (nn::method_of(columns[ci].model) == nn::Method::Bilateral) {  // the baseline every model must beat
         const auto t0 = std::chrono::steady_clock::now();
         out = cross_bilateral(stack);
         cell.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

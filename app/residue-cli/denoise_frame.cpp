@@ -9,6 +9,7 @@
 #include "core/denoise/strength.h"
 #include "core/features/features.h"
 #include "core/io/provenance.h"
+#include "core/nn/model_card.h"
 #include "core/metrics/metrics.h"
 #include "core/util/error.h"
 
@@ -129,8 +130,9 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   result.architecture = "cross-bilateral filter";
   // Renders that fit in --max-memory are denoised in memory; larger ones band by band from and to the files
   // (then the header cannot carry the time, which is known only at the end).
-  result.streamed = o.model != "bilateral" && whole_image_bytes(layout) > d.max_memory;
-  if (o.model == "bilateral") {  // the baseline, also a fast preview
+  const bool bilateral = nn::method_of(o.model) == nn::Method::Bilateral;
+  result.streamed = !bilateral && whole_image_bytes(layout) > d.max_memory;
+  if (bilateral) {  // the baseline, also a fast preview
     const AovStack stack = reader.read(whole);
     const auto t0 = std::chrono::steady_clock::now();
     const Image out = with_strength(stack.color.image, cross_bilateral(stack, {}, d.roi), d.strength);

@@ -139,16 +139,6 @@ FeatureSet Model::features() const {
   return oidn.albedo && oidn.normal ? FeatureSet::ColorAlbedoNormal : FeatureSet::ColorOnly;
 }
 
-std::optional<double> Model::benchmarked_seconds_per_mp(Precision precision) const {
-  const auto it = metadata.find("benchmark");
-  if (it == metadata.end()) return std::nullopt;
-  const auto bench = nlohmann::json::parse(it->second, nullptr, false);
-  const char* key = precision == Precision::BF16 ? "bf16_s_per_mp" : "fp32_s_per_mp";
-  if (!bench.is_object() || !bench.contains(key) || !bench[key].is_number()) return std::nullopt;
-  const double v = bench[key].get<double>();
-  return v > 0 ? std::optional<double>(v) : std::nullopt;
-}
-
 std::string Model::architecture() const {
   if (method == Method::Residue) return network.arch.to_string();
   return std::string("OIDN ") + oidn_network_name(graph) + " (" + name + ")";

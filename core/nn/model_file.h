@@ -26,8 +26,9 @@
 namespace residue::nn {
 
 // How a model's network is fed and read: Residue's own models (log features in, log colour out, post-steps),
-// or Open Image Denoise's networks run as OIDN runs them (core/denoise/oidn_filter.h), for comparison.
-enum class Method { Residue, Oidn };
+// or Open Image Denoise's networks run as OIDN runs them (core/denoise/oidn_filter.h), for comparison. Bilateral:
+// the cross-bilateral filter, a method with no network (only a model card has it, core/nn/model_card.h).
+enum class Method { Residue, Oidn, Bilateral };
 
 // What an OIDN network takes, from its file name (rt_hdr_alb_nrm, rt_hdr_calb_cnrm_large, rt_alb_large, ...).
 struct OidnInputs {
@@ -49,9 +50,6 @@ struct Model {
 
   FeatureSet features() const;  // the AOVs a Residue model reads (OIDN: the nearest set)
   std::string architecture() const;  // "8/32 full", "OIDN UNet (rt_hdr_alb_nrm)"
-  // Seconds per megapixel at `precision` from the file's "benchmark" metadata (residue-cli bench on the machine
-  // it names), or nothing when the file has none.
-  std::optional<double> benchmarked_seconds_per_mp(Precision precision) const;
 };
 
 // A Residue model from a network in memory (tests, benchmarks): its graph made from it.

@@ -287,7 +287,7 @@ class TestResults : public QObject {
     o.reference = kExample / "reference.exr";
     session.open({kExample / "noisy.exr"}, o);
     QVERIFY(loaded.wait(30000));
-    std::vector<ModelEntry> models = scan_models();
+    std::vector<nn::ModelCard> models = nn::list_model_cards();
     DenoiseController c(&session, models);
     DenoiseController::Request r;
     r.model = "small";
