@@ -790,6 +790,40 @@ TEST(CliDenoise, HeaderSaysWhichPostStepsRan) {
   }
 }
 
+// With a reference, the scores are taken band by band from the written file (the render never whole in memory,
+// as for the streamed denoise itself): they are core's scores of the whole images, in memory or streamed.
+TEST(CliDenoise, ScoresFromTheWrittenFileBandByBand) {
+  TempDir tmp;
+  const std::filesystem::path ex = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+  const AovStack stack = load_aov_stack({ex / "noisy.exr"}, {.reference = ex / "reference.exr"});
+  for (const char* memory : {"4096", "2"}) {
+    SCOPED_TRACE(memory);
+    const auto out = tmp / (std::string("out") + memory + ".exr");
+    std::string text;
+    ASSERT_EQ(testing::run_cli({"denoise", (ex / "noisy.exr").string(), "-r", (ex / "reference.exr").string(), "-o",
+                                out.string(), "-m", "tiny", "--max-memory", memory, "--roi", "10,20,150,140"},
+                               &text),
+              0)
+        << text;
+    LoadOptions lo;
+    lo.load_reference = false;
+    const Image denoised = load_aov_stack({out}, lo).color.image;
+    metrics::Options m;
+    m.roi = Rect{10, 20, 150, 140};
+    for (const auto& [name, img] : {std::pair<std::string, const Image*>{"noisy", &stack.color.image},
+                                    std::pair<std::string, const Image*>{"denoised", &denoised}}) {
+      const metrics::Scores e = metrics::compare(*img, stack.reference->image, m);
+      char relmse[32], ssim[32];
+      std::snprintf(relmse, sizeof relmse, "%g", e.relmse);
+      std::snprintf(ssim, sizeof ssim, "%.5f", e.ssim);
+      const auto line = text.substr(text.find("\n" + name + " ") + 1);
+      const std::string row = line.substr(0, line.find('\n'));
+      EXPECT_NE(row.find(relmse), std::string::npos) << row << " / " << relmse;
+      EXPECT_NE(row.find(ssim), std::string::npos) << row << " / " << ssim;
+    }
+  }
+}
+
 TEST(CliDenoise, ModelNamePicksTheVariantForTheAovsPresent) {
   TempDir tmp;
   nn::write_safetensors(tmp / "fam.safetensors",

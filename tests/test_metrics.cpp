@@ -858,3 +858,67 @@ TEST(MetricsFormula, StatesEpsAndSpace) {
 }
 
 }  // namespace
+
+namespace residue {
+namespace {
+
+// The rows [y0, y1) of `img` widened by SSIM's halo, as a band reader would hand them over.
+Image band_rows(const Image& img, int64_t y0, int64_t y1, int64_t* rows_y0) {
+  *rows_y0 = std::max<int64_t>(0, y0 - metrics::ScoreAccumulator::kHalo);
+  const int64_t end = std::min(img.height(), y1 + metrics::ScoreAccumulator::kHalo);
+  return crop(img, {0, *rows_y0, img.width(), end - *rows_y0});
+}
+
+metrics::Scores banded(const Image& test, const Image& ref, const metrics::Options& o, int64_t band) {
+  metrics::ScoreAccumulator acc(test.width(), test.height(), o);
+  const Rect region = acc.region();
+  for (int64_t y0 = region.y; y0 < region.y + region.height; y0 += band) {
+    const int64_t y1 = std::min(y0 + band, region.y + region.height);
+    int64_t t0 = 0, r0 = 0;
+    const Image t = band_rows(test, y0, y1, &t0), r = band_rows(ref, y0, y1, &r0);
+    acc.add(t, r, t0, y0, y1);
+  }
+  return acc.scores();
+}
+
+// Band by band gives compare()'s scores bit for bit (the same tiles summed in the same order), with NaN and Inf
+// excluded, an ROI, and heights that are and are not multiples of the band.
+TEST(MetricsBanded, EqualsWholeImageBitForBit) {
+  for (const auto& [w, h] : std::vector<std::pair<int64_t, int64_t>>{{300, 200}, {97, 128}, {40, 7}}) {
+    Image test = testing::random_image(w, h, 3, 11, 0.0f, 2.0f);
+    const Image ref = testing::random_image(w, h, 4, 12, 0.0f, 2.0f);
+    test.at(w / 2, h / 2, 1) = std::numeric_limits<float>::quiet_NaN();
+    test.at(1, h - 1, 0) = std::numeric_limits<float>::infinity();
+    for (const std::optional<Rect>& roi : {std::optional<Rect>(), std::optional<Rect>(Rect{3, 2, w / 2, h - 3})}) {
+      metrics::Options o;
+      o.roi = roi;
+      const metrics::Scores whole = metrics::compare(test, ref, o);
+      for (int64_t band : {64, 128, 256}) {
+        SCOPED_TRACE(::testing::Message() << w << "x" << h << " band " << band << (roi ? " roi" : ""));
+        const metrics::Scores b = banded(test, ref, o, band);
+        EXPECT_EQ(b.relmse, whole.relmse);
+        EXPECT_EQ(b.ssim, whole.ssim);
+        EXPECT_EQ(b.psnr, whole.psnr);
+        EXPECT_EQ(b.mse, whole.mse);
+        EXPECT_EQ(b.pixels, whole.pixels);
+        EXPECT_EQ(b.excluded_test, whole.excluded_test);
+      }
+    }
+  }
+}
+
+TEST(MetricsBanded, RefusesBandsOutOfOrderOrWithoutTheirHalo) {
+  const Image img = testing::random_image(50, 200, 3, 1);
+  metrics::ScoreAccumulator acc(50, 200);
+  int64_t r0 = 0;
+  const Image b = band_rows(img, 0, 64, &r0);
+  EXPECT_THROW(acc.add(b, b, r0, 64, 128), Error);         // not from the top
+  EXPECT_THROW(acc.add(b, b, r0, 0, 60), Error);           // not a multiple of 64
+  const Image short_band = crop(img, {0, 0, 50, 64});      // no rows below for SSIM's window
+  EXPECT_THROW(acc.add(short_band, short_band, 0, 0, 64), Error);
+  acc.add(b, b, r0, 0, 64);
+  EXPECT_THROW(acc.scores(), Error);                       // rows 64-200 never added
+}
+
+}  // namespace
+}  // namespace residue

@@ -179,16 +179,30 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   result.megapixels = static_cast<double>(d.roi ? d.roi->area() : whole.area()) / 1e6;
 
   if (layout.reference && !context.interrupt.interrupted()) {
-    // Scored from the file written, as the user will see it.
-    const AovStack stack = reader.read(whole);
-    LoadOptions lo;
-    lo.load_reference = false;
-    const Image denoised = load_aov_stack({output}, lo).color.image;
+    // Scored from the file written, as the user will see it, band by band (the noisy input, the output and the
+    // reference are never whole in memory: the streamed denoise's --max-memory holds here too).
     metrics::Options m;
     m.roi = d.roi;
+    LoadOptions lo;
+    lo.load_reference = false;
+    const AovReader written({output}, lo);
+    metrics::ScoreAccumulator noisy(whole.width, whole.height, m), denoised(whole.width, whole.height, m);
+    const Rect region = noisy.region();
+    constexpr int64_t kBand = 4 * metrics::ScoreAccumulator::kRowMultiple;
+    for (int64_t y0 = region.y; y0 < region.y + region.height; y0 += kBand) {
+      throw_if_cancelled(&context.interrupt.token());
+      const int64_t y1 = std::min(y0 + kBand, region.y + region.height);
+      const int64_t r0 = std::max<int64_t>(0, y0 - metrics::ScoreAccumulator::kHalo);
+      const int64_t r1 = std::min(whole.height, y1 + metrics::ScoreAccumulator::kHalo);
+      const Rect rows{0, r0, whole.width, r1 - r0};
+      const AovStack in = reader.read(rows);
+      const AovStack out = written.read(rows);
+      noisy.add(in.color.image, in.reference->image, r0, y0, y1);
+      denoised.add(out.color.image, in.reference->image, r0, y0, y1);
+    }
     io::MetricsReport report{layout.reference->source.file, whole.width, whole.height, m, {}, layout.notes};
-    report.rows.push_back({"noisy", layout.color.source.file, metrics::compare(stack.color.image, stack.reference->image, m)});
-    report.rows.push_back({"denoised", output, metrics::compare(denoised, stack.reference->image, m)});
+    report.rows.push_back({"noisy", layout.color.source.file, noisy.scores()});
+    report.rows.push_back({"denoised", output, denoised.scores()});
     result.metrics = std::move(report);
   }
   return result;

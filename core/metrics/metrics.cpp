@@ -129,11 +129,17 @@ void grow(std::vector<double>& buffer, size_t n) {
 
 class Evaluator {
  public:
+  // `test` and `reference` hold rows [row0, row0 + their height) of an image `height` rows tall (a band of a
+  // larger image: ScoreAccumulator), or the whole image (row0 0).
   Evaluator(const Image& test, const Image& reference, const Options& options, const Rect& region,
-            Image* ssim_map)
-      : test_(test), ref_(reference), options_(options), region_(region), map_(ssim_map) {}
+            Image* ssim_map, int64_t row0 = 0, int64_t height = -1)
+      : test_(test), ref_(reference), options_(options), region_(region), map_(ssim_map), row0_(row0),
+        height_(height < 0 ? test.height() : height) {}
 
-  Scores run() {
+  Scores run() { return finish(sum()); }
+
+  // The sums of the region's tiles (fixed 64 x 512 tiles from its corner), added in tile order.
+  TileSums sum() {
     const int64_t tiles_x = (region_.width + kTileCols - 1) / kTileCols;
     const int64_t tiles_y = (region_.height + kTileRows - 1) / kTileRows;
     const int64_t tiles = tiles_x * tiles_y;
@@ -151,18 +157,23 @@ class Evaluator {
     });
 
     TileSums total;
-    for (const TileSums& t : sums) {  // fixed order: deterministic
-      total.se += t.se;
-      total.rse += t.rse;
-      total.se_space += t.se_space;
-      total.ssim_interior += t.ssim_interior;
-      total.ssim_all += t.ssim_all;
-      total.pixels += t.pixels;
-      total.interior += t.interior;
-      total.excluded_test += t.excluded_test;
-      total.excluded_reference += t.excluded_reference;
-    }
+    for (const TileSums& t : sums) add(total, t);  // fixed order: deterministic
+    return total;
+  }
 
+  static void add(TileSums& total, const TileSums& t) {
+    total.se += t.se;
+    total.rse += t.rse;
+    total.se_space += t.se_space;
+    total.ssim_interior += t.ssim_interior;
+    total.ssim_all += t.ssim_all;
+    total.pixels += t.pixels;
+    total.interior += t.interior;
+    total.excluded_test += t.excluded_test;
+    total.excluded_reference += t.excluded_reference;
+  }
+
+  static Scores finish(const TileSums& total) {
     Scores scores;
     scores.pixels = total.pixels;
     scores.excluded_test = total.excluded_test;
@@ -186,7 +197,7 @@ class Evaluator {
   // Output pixels [x0, x1) x [y0, y1) in image coordinates.
   TileSums tile(Scratch& s, int64_t x0, int64_t x1, int64_t y0, int64_t y1) const {
     const int64_t width = test_.width();
-    const int64_t height = test_.height();
+    const int64_t height = height_;
     // The source window: every pixel any output pixel's window touches.
     const int64_t sx0 = std::max<int64_t>(0, x0 - kRadius);
     const int64_t sx1 = std::min(width, x1 + kRadius);
@@ -210,8 +221,8 @@ class Evaluator {
     const int tc = test_.channels();
     const int rc = ref_.channels();
     for (int64_t r = sy0; r < sy1; ++r) {
-      const float* trow = test_.row(r).data();
-      const float* rrow = ref_.row(r).data();
+      const float* trow = test_.row(r - row0_).data();
+      const float* rrow = ref_.row(r - row0_).data();
       const int64_t base = (r - sy0) * sw - sx0;
       for (int64_t px = sx0; px < sx1; ++px) {
         const float* pt = trow + px * tc;
@@ -229,8 +240,8 @@ class Evaluator {
     // 2. Point metrics over the tile's own pixels.
     TileSums sums;
     for (int64_t r = y0; r < y1; ++r) {
-      const float* trow = test_.row(r).data();
-      const float* rrow = ref_.row(r).data();
+      const float* trow = test_.row(r - row0_).data();
+      const float* rrow = ref_.row(r - row0_).data();
       for (int64_t px = x0; px < x1; ++px) {
         const float* pt = trow + px * tc;
         const float* pr = rrow + px * rc;
@@ -373,6 +384,7 @@ class Evaluator {
   const Options& options_;
   Rect region_;
   Image* map_;
+  int64_t row0_, height_;
 };
 
 // Per-pixel point maps (abs, se, rse), row-parallel.
@@ -417,6 +429,46 @@ Image point_map(const Image& test, const Image& reference, MapKind kind, const O
 Scores compare(const Image& test, const Image& reference, const Options& options) {
   const Rect region = checked_region(test, reference, options);
   return Evaluator(test, reference, options, region, nullptr).run();
+}
+
+struct ScoreAccumulator::Sums : TileSums {};
+
+ScoreAccumulator::ScoreAccumulator(int64_t width, int64_t height, const Options& options)
+    : width_(width), height_(height), options_(options), sums_(std::make_unique<Sums>()) {
+  if (!(options.eps > 0.0) || !std::isfinite(options.eps))
+    throw Error(ErrorKind::Usage, "metrics: eps must be a positive finite number, not " + std::to_string(options.eps));
+  region_ = options.roi.value_or(Rect{0, 0, width, height});
+  if (region_.empty() || !Rect{0, 0, width, height}.contains(region_))
+    throw Error(ErrorKind::Usage, "metrics: the region of interest " + region_.to_string() + " (x,y,w,h) is not inside the " +
+                                      std::to_string(width) + "x" + std::to_string(height) + " image");
+  next_ = region_.y;
+}
+
+ScoreAccumulator::~ScoreAccumulator() = default;
+
+void ScoreAccumulator::add(const Image& test, const Image& reference, int64_t rows_y0, int64_t y0, int64_t y1) {
+  if (y0 != next_ || y1 <= y0 || y1 > region_.y + region_.height ||
+      (y1 != region_.y + region_.height && (y1 - region_.y) % kRowMultiple != 0))
+    throw Error(ErrorKind::Usage, "metrics: bands must follow each other from the region's top in multiples of " +
+                                      std::to_string(kRowMultiple) + " rows (expected rows from " + std::to_string(next_) +
+                                      ", got " + std::to_string(y0) + "-" + std::to_string(y1) + ")");
+  const int64_t need0 = std::max<int64_t>(0, y0 - kHalo), need1 = std::min(height_, y1 + kHalo);
+  if (test.width() != width_ || reference.width() != width_ || test.height() != reference.height() ||
+      rows_y0 > need0 || rows_y0 + test.height() < need1 || test.channels() < 3 || reference.channels() < 3)
+    throw Error(ErrorKind::Usage, "metrics: a band of rows " + std::to_string(y0) + "-" + std::to_string(y1) +
+                                      " needs rows " + std::to_string(need0) + "-" + std::to_string(need1) + " of both "
+                                      "images, " + std::to_string(width_) + " wide, with RGB");
+  const Rect band{region_.x, y0, region_.width, y1 - y0};
+  Evaluator e(test, reference, options_, band, nullptr, rows_y0, height_);
+  Evaluator::add(*sums_, e.sum());
+  next_ = y1;
+}
+
+Scores ScoreAccumulator::scores() const {
+  if (next_ != region_.y + region_.height)
+    throw Error(ErrorKind::Usage, "metrics: rows " + std::to_string(next_) + "-" +
+                                      std::to_string(region_.y + region_.height) + " were never added");
+  return Evaluator::finish(*sums_);
 }
 
 Image error_map(const Image& test, const Image& reference, MapKind kind, const Options& options) {

@@ -22,6 +22,7 @@
 // of rows, so memory stays bounded (a few MiB per thread) whatever the image size.
 #pragma once
 
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -51,6 +52,30 @@ struct Scores {
 // Throws residue::Error(Usage) on size mismatch, fewer than 3 channels, an empty ROI or one outside the image,
 // or an eps that is not a positive finite number.
 Scores compare(const Image& test, const Image& reference, const Options& options = {});
+
+// compare() band by band, for images too large to hold (a streamed denoise scored against its reference): the
+// same scores, bit for bit. add() takes the rows [y0, y1) of the region, with test and reference holding rows
+// [rows_y0, rows_y0 + their height) of the full image, which must cover SSIM's window: [y0 - 5, y1 + 5] within
+// the image. Bands come in order from the region's top, each a multiple of kRowMultiple rows but the last.
+class ScoreAccumulator {
+ public:
+  static constexpr int64_t kHalo = 5;
+  static constexpr int64_t kRowMultiple = 64;
+
+  ScoreAccumulator(int64_t width, int64_t height, const Options& options = {});
+  ~ScoreAccumulator();
+  void add(const Image& test, const Image& reference, int64_t rows_y0, int64_t y0, int64_t y1);
+  Scores scores() const;  // once every row of the region was added
+  Rect region() const { return region_; }
+
+ private:
+  struct Sums;
+  int64_t width_, height_;
+  Options options_;
+  Rect region_;
+  int64_t next_ = 0;
+  std::unique_ptr<Sums> sums_;
+};
 
 enum class MapKind {
   AbsoluteError,         // mean over RGB of |x - r|
