@@ -19,11 +19,11 @@ void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<con
     DenoiseStats stats;
     Image out = denoise(
         *stack, *model, options,
-        [&](const TileEvent& e, const Image& output) {
+        [&](const TileEvent& e, const Image& pixels) {
           done_ = e.done;
           total_ = e.total;
           if (e.skipped) ++skipped_;
-          if (on_tile) on_tile(e.rect, crop(output, e.rect));
+          if (on_tile) on_tile(e.rect, pixels);
           return !cancel_.requested();
         },
         &stats);

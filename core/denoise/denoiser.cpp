@@ -267,6 +267,169 @@ nn::Backend& backend_of(const DenoiseOptions& o, const nn::Model& model, std::un
   return *owned;
 }
 
+// Where the rows of a denoise come from: a stack in memory (every row at hand, no copy), or the render's files
+// read band by band (AovReader). rows() gives a stack and the rectangle of the image it holds.
+class RowSource {
+ public:
+  virtual ~RowSource() = default;
+  virtual const AovStack& layout() const = 0;
+  virtual const AovStack* whole() const { return nullptr; }  // in memory: the statistics come from it directly
+  struct Rows {
+    AovStack owned;  // read from the files (unused in memory)
+    const AovStack* stack = nullptr;
+    Rect rect;
+  };
+  virtual Rows rows(int64_t y0, int64_t y1) const = 0;
+};
+
+class StackRows final : public RowSource {
+ public:
+  explicit StackRows(const AovStack& stack) : stack_(stack) {}
+  const AovStack& layout() const override { return stack_; }
+  const AovStack* whole() const override { return &stack_; }
+  Rows rows(int64_t, int64_t) const override { return {{}, &stack_, {0, 0, stack_.width(), stack_.height()}}; }
+
+ private:
+  const AovStack& stack_;
+};
+
+class ReaderRows final : public RowSource {
+ public:
+  explicit ReaderRows(const AovReader& reader) : reader_(reader) {}
+  const AovStack& layout() const override { return reader_.layout(); }
+  Rows rows(int64_t y0, int64_t y1) const override {
+    Rows r;
+    r.rect = {0, y0, layout().data_window.width, y1 - y0};
+    r.owned = reader_.read(r.rect);
+    r.stack = &r.owned;
+    return r;
+  }
+
+ private:
+  const AovReader& reader_;
+};
+
+// The whole-image statistics a model's input needs, before any tile runs: the depth scale (Residue's models)
+// or OIDN's autoexposure; from the stack in memory, or from one pass over the files' bands.
+residue_io_t network_io(const RowSource& source, const nn::Model& model, int64_t band, const CancelToken* cancel) {
+  const bool residue = model.method == nn::Method::Residue;
+  if (const AovStack* stack = source.whole())
+    return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, compute_feature_stats(*stack)))
+                   : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, oidn_scale(model, stack->color.image))));
+  const AovStack& layout = source.layout();
+  const int64_t W = layout.data_window.width, H = layout.data_window.height;
+  FeatureStats fstats = compute_feature_stats(layout);
+  const bool exposure = !residue && model.oidn.color && model.oidn.hdr;
+  OidnAutoexposure autoexposure(W, H);
+  if ((residue && layout.depth) || exposure) {
+    const int64_t stride = depth_sample_stride(W * H);
+    std::vector<float> samples;  // the same sample compute_feature_stats draws from a whole stack
+    for (int64_t y0 = 0; y0 < H; y0 += band) {
+      throw_if_cancelled(cancel);
+      const auto rows = source.rows(y0, std::min(H, y0 + band));
+      if (exposure) autoexposure.add(rows.stack->color.image, y0);
+      if (!residue) continue;
+      for (int64_t i = 0; i < rows.stack->depth->image.pixel_count(); ++i)
+        if ((y0 * W + i) % stride == 0) samples.push_back(rows.stack->depth->image.data()[i]);
+    }
+    if (residue) fstats.depth_scale = depth_scale_from_samples(samples);
+  }
+  return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, fstats))
+                 : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, exposure ? autoexposure.scale() : 1.0f)));
+}
+
+// The tile engine: one denoise, planned once, produced band by band (a band is one row of tiles) in order, each
+// band through the same stages: features -> network (+ output guard) -> variance blend, per tile; then the
+// energy correction (which needs the rows a few blocks below: bands are denoised that far ahead) and the
+// strength blend. The sink pulls bands: an image in memory, or a streamed EXR.
+class BandDenoiser {
+ public:
+  BandDenoiser(const RowSource& source, const nn::Model& model, const DenoiseOptions& options, nn::Backend& backend,
+               int64_t tile, const TileCallback& on_tile, DenoiseStats& stats)
+      : source_(source), model_(model), options_(options), on_tile_(on_tile), stats_(stats), tile_(tile),
+        W_(source.layout().data_window.width), H_(source.layout().data_window.height),
+        region_(checked_region(options, W_, H_)),
+        io_(network_io(source, model, tile, options.cancel)),
+        tiles_(grid_tiles({0, 0, W_, H_}, region_, tile)),
+        runner_{model, backend, *io_, options.skip_empty_tiles, options.output_guard, tau_for(options, model),
+                options.cancel, 0, {}, {}, {}},
+        correct_(correcting(options, model)), correction_(region_) {
+    stats_.tiles = static_cast<int64_t>(tiles_.size());
+    stats_.tile_size = tile;
+    stats_.backend = backend.description();
+    stats_.features = model.features();
+    stats_.energy_corrected = correct_;
+    stats_.variance_blended = runner_.blend_tau > 0 && source.layout().variance.has_value();
+  }
+
+  static bool correcting(const DenoiseOptions& o, const nn::Model& m) {
+    return o.energy_correction && m.method == nn::Method::Residue;
+  }
+  // Bands the energy correction needs denoised ahead of the one it finishes.
+  static int64_t bands_ahead(bool correct, int64_t tile) {
+    return correct ? (EnergyCorrection::kBlock * (EnergyCorrection::kRadiusBlocks + 2) + tile - 1) / tile : 0;
+  }
+
+  // Rows [y0, y0 + rows) finished, for y0 on the band grid, in order.
+  Image band(int64_t y0, int64_t rows) {
+    const int64_t needed = correct_ ? std::max(y0 + rows, correction_.rows_required(y0 + rows)) : y0 + rows;
+    while (denoised_end_ < needed) denoise_band(denoised_end_);
+    Band b = std::move(denoised_.front());
+    denoised_.pop_front();
+    if (correct_) correction_.apply(b.out, b.y0, y0, rows);
+    if (b.blend) apply_strength(b.base, b.y0, b.out, b.y0, region_, y0, rows, options_.strength);
+    stats_.guarded_values = runner_.guarded;
+    return std::move(b.out);
+  }
+
+ private:
+  struct Band {
+    int64_t y0;
+    Image out;
+    Image base;  // the band's noisy colour, for the strength blend
+    bool blend = false;
+  };
+
+  void denoise_band(int64_t y0) {
+    const int64_t rows = std::min(tile_, H_ - y0), h = model_.graph.halo();
+    const int64_t in_y0 = std::max<int64_t>(0, y0 - h), in_y1 = std::min(H_, y0 + rows + h);
+    const RowSource::Rows in = source_.rows(in_y0, in_y1);
+    const Image& base = source_image(*in.stack, model_);  // outside the region the input stays
+    Band b{y0, crop(base, {0, y0 - in.rect.y, W_, rows}), {}, false};
+    // The strength blends back towards the noisy colour; an OIDN prefilter's albedo or normal is kept whole.
+    b.blend = options_.strength < 1.0f && &base == &in.stack->color.image;
+    if (b.blend) b.base = b.out;
+    stats_.strength = &base == &in.stack->color.image ? options_.strength : 1.0f;
+    for (const Rect& t : tiles_) {
+      if (t.y < y0 || t.y >= y0 + rows) continue;
+      const bool skip = runner_.run(*in.stack, in.rect, {0, 0, W_, H_}, t, b.out, 0, y0);
+      if (skip) ++stats_.skipped;
+      ++done_;
+      if (on_tile_ && !on_tile_({t, skip, done_, stats_.tiles}, crop(b.out, {t.x, t.y - y0, t.width, t.height})))
+        throw Cancelled();
+    }
+    if (correct_) correction_.accumulate(in.stack->color.image, in.rect.y, b.out, y0, y0, rows);
+    denoised_.push_back(std::move(b));
+    denoised_end_ = y0 + rows;
+  }
+
+  const RowSource& source_;
+  const nn::Model& model_;
+  const DenoiseOptions& options_;
+  const TileCallback& on_tile_;
+  DenoiseStats& stats_;
+  int64_t tile_, W_, H_;
+  Rect region_;
+  residue_io_t io_;
+  std::vector<Rect> tiles_;
+  TileRunner runner_;
+  bool correct_;
+  EnergyCorrection correction_;
+  std::deque<Band> denoised_;  // bands denoised but not handed out yet
+  int64_t denoised_end_ = 0;   // rows denoised so far
+  int64_t done_ = 0;           // tiles
+};
+
 // The whole denoise of a stack in memory with one model (an OIDN prefilter included: its output is the image it
 // cleans, albedo or normal).
 Image denoise_stack(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
@@ -279,44 +442,23 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
                                       (&source == &stack.color.image ? std::string("colour") : std::string("auxiliary")) +
                                       " to denoise has no finite value (" + std::to_string(bad.nan) + " NaN, " +
                                       std::to_string(bad.inf) + " Inf)");
-  const Rect bounds{0, 0, stack.width(), stack.height()};
   const Rect region = checked_region(options, stack.width(), stack.height());
-  Image output = source;  // outside the region the input stays
-
   std::unique_ptr<nn::Backend> owned;
-  nn::Backend* backend = &backend_of(options, model, owned);
-  const size_t output_bytes = output.size() * sizeof(float);
+  nn::Backend& backend = backend_of(options, model, owned);
+  // The output is held whole: the tiles get the rest of the budget.
+  const size_t output_bytes = source.size() * sizeof(float);
   const size_t budget = options.max_memory > output_bytes ? options.max_memory - output_bytes : 0;
-  int64_t tile = choose_tile(options, *backend, model.graph, budget);
+  int64_t tile = choose_tile(options, backend, model.graph, budget);
   const int64_t a = model.graph.alignment();
   if (options.tile <= 0) tile = std::min(tile, (std::max(region.width, region.height) + a - 1) / a * a);
-  const residue_io_t io = model.method == nn::Method::Residue
-                              ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, compute_feature_stats(stack)))
-                              : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, oidn_scale(model, stack.color.image))));
-  const std::vector<Rect> tiles = grid_tiles(bounds, region, tile);
-  local.tiles = static_cast<int64_t>(tiles.size());
-  local.tile_size = tile;
-  local.backend = backend->description();
-  local.features = model.features();
-  const float tau = tau_for(options, model);
-  local.variance_blended = tau > 0 && stack.variance.has_value();
 
-  TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, options.cancel, 0, {}, {}, {}};
-  for (size_t i = 0; i < tiles.size(); ++i) {
-    const bool skip = runner.run(stack, bounds, bounds, tiles[i], output, 0, 0);
-    if (skip) ++local.skipped;
-    if (on_tile && !on_tile({tiles[i], skip, static_cast<int64_t>(i + 1), local.tiles}, output)) throw Cancelled();
-  }
-  local.guarded_values = runner.guarded;
-  if (options.energy_correction && model.method == nn::Method::Residue) {
-    EnergyCorrection correction(region);
-    correction.accumulate(stack.color.image, 0, output, 0, region.y, region.height);
-    correction.apply(output, 0, region.y, region.height);
-    local.energy_corrected = true;
-  }
-  if (&source == &stack.color.image) {  // an OIDN prefilter's albedo or normal is kept whole
-    apply_strength(source, 0, output, 0, region, region.y, region.height, options.strength);
-    local.strength = options.strength;
+  const StackRows rows(stack);
+  BandDenoiser engine(rows, model, options, backend, tile, on_tile, local);
+  Image output(stack.width(), stack.height(), source.channels());
+  for (int64_t y0 = 0; y0 < stack.height(); y0 += tile) {
+    const int64_t n = std::min(tile, stack.height() - y0);
+    const Image band = engine.band(y0, n);
+    std::memcpy(&output.at(0, y0, 0), band.data(), band.size() * sizeof(float));
   }
   return output;
 }
@@ -362,10 +504,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
   if (model.albedo_prefilter || model.normal_prefilter)
     throw Error(ErrorKind::Usage, model.name + " (OIDN's clean-aux mode) denoises the albedo and normal of the whole "
                                   "render first and so needs it in memory; raise --max-memory");
-  const bool residue = model.method == nn::Method::Residue;
   const int64_t W = layout.data_window.width, H = layout.data_window.height;
-  const Rect bounds{0, 0, W, H};
-  const Rect region = checked_region(options, W, H);
+  checked_region(options, W, H);  // before any work
   const int64_t stack_channels = layout.channel_count();  // floats per pixel of a band as read
 
   if (exr.data_window.empty()) exr.data_window = layout.data_window;
@@ -377,15 +517,10 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
   DenoiseStats local;
   arena.execute([&] {
     std::unique_ptr<nn::Backend> owned;
-    nn::Backend* backend = &backend_of(options, model, owned);
+    nn::Backend& backend = backend_of(options, model, owned);
     const nn::Graph& graph = model.graph;
     const int64_t h = graph.halo(), a = graph.alignment();
-    const bool correct = options.energy_correction && residue;
-    // The energy correction needs the denoised rows a few blocks below a band before it can finish the band,
-    // so bands are denoised that far ahead of the one written.
-    auto bands_ahead = [&](int64_t tile) {
-      return correct ? (EnergyCorrection::kBlock * (EnergyCorrection::kRadiusBlocks + 2) + tile - 1) / tile : 0;
-    };
+    const bool correct = BandDenoiser::correcting(options, model);
     const size_t correction_grid = correct
                                        ? static_cast<size_t>((W / EnergyCorrection::kBlock + 1) * (H / EnergyCorrection::kBlock + 1)) *
                                              EnergyCorrection::kBytesPerBlock
@@ -393,8 +528,9 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     // Memory of one band of tile rows: its input rows with halos, its output rows (and those denoised ahead),
     // and one tile's work.
     auto band_bytes = [&](int64_t tile) {
-      return static_cast<size_t>(((tile + 2 * h) * stack_channels + (1 + bands_ahead(tile)) * tile * 3) * W) * sizeof(float) +
-             tile_bytes(*backend, graph, tile) + correction_grid;
+      return static_cast<size_t>(((tile + 2 * h) * stack_channels + (1 + BandDenoiser::bands_ahead(correct, tile)) * tile * 3) * W) *
+                 sizeof(float) +
+             tile_bytes(backend, graph, tile) + correction_grid;
     };
     int64_t tile = options.tile > 0 ? align_tile(options.tile, a) : 0;
     if (tile <= 0)
@@ -404,82 +540,15 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) + " MiB cannot hold a band of " +
                                         std::to_string(std::max<int64_t>(tile, 16)) + "-pixel tiles of this " +
                                         std::to_string(W) + "-pixel-wide image");
-    local.tile_size = tile;
-    local.backend = backend->description();
-    local.features = model.features();
-    local.energy_corrected = correct;
-    const float tau = tau_for(options, model);
-    local.variance_blended = tau > 0 && layout.variance.has_value();
+    const ReaderRows rows(reader);
+    BandDenoiser engine(rows, model, options, backend, tile, on_tile, local);
     io::record(exr.residue_attributes, {.backend = local.backend,
                                         .energy_correction = local.energy_corrected,
                                         .variance_blend = local.variance_blended,
                                         .strength = options.strength});
-
-    // Pass 1: the whole-image statistics the input needs: the depth scale (the same sample denoise() draws) or
-    // OIDN's autoexposure.
-    FeatureStats fstats = compute_feature_stats(layout);
-    const bool exposure = !residue && model.oidn.color && model.oidn.hdr;
-    OidnAutoexposure autoexposure(W, H);
-    if ((residue && layout.depth) || exposure) {
-      const int64_t stride = depth_sample_stride(W * H);
-      std::vector<float> samples;
-      for (int64_t y0 = 0; y0 < H; y0 += tile) {
-        throw_if_cancelled(options.cancel);
-        const AovStack band = reader.read({0, y0, W, std::min(tile, H - y0)});
-        if (exposure) autoexposure.add(band.color.image, y0);
-        if (!residue) continue;
-        for (int64_t i = 0; i < band.depth->image.pixel_count(); ++i)
-          if ((y0 * W + i) % stride == 0) samples.push_back(band.depth->image.data()[i]);
-      }
-      if (residue) fstats.depth_scale = depth_scale_from_samples(samples);
-    }
-    const residue_io_t io = residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, fstats))
-                                    : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, exposure ? autoexposure.scale() : 1.0f)));
-
-    // Pass 2: bands of tile rows, denoised (ahead of writing when correcting) and written in order. Tiles sit
-    // on the image's grid (so each lies in one band), cut to the region.
-    const std::vector<Rect> tiles = grid_tiles(bounds, region, tile);
-    local.tiles = static_cast<int64_t>(tiles.size());
-    TileRunner runner{model, *backend, *io, options.skip_empty_tiles, options.output_guard, tau, options.cancel, 0, {}, {}, {}};
-    EnergyCorrection correction(region);
-    int64_t done = 0;
-    const bool blend = options.strength < 1.0f;
-    local.strength = options.strength;
-    struct Band {
-      int64_t y0;
-      Image out;
-      Image noisy;  // the band's noisy colour, kept for the strength blend
-    };
-    std::deque<Band> denoised;  // bands denoised but not yet written
-    int64_t denoised_end = 0;   // rows denoised so far
-    auto denoise_band = [&](int64_t y0) {
-      const int64_t rows = std::min(tile, H - y0);
-      const int64_t in_y0 = std::max<int64_t>(0, y0 - h), in_y1 = std::min(H, y0 + rows + h);
-      const Rect src_rect{0, in_y0, W, in_y1 - in_y0};
-      const AovStack src = reader.read(src_rect);
-      Image out = crop(src.color.image, {0, y0 - in_y0, W, rows});  // outside the region the noisy colour stays
-      Image noisy = blend ? out : Image();
-      for (const Rect& t : tiles) {
-        if (t.y < y0 || t.y >= y0 + rows) continue;
-        const bool skip = runner.run(src, src_rect, bounds, t, out, 0, y0);
-        if (skip) ++local.skipped;
-        ++done;
-        if (on_tile && !on_tile({t, skip, done, local.tiles}, out)) throw Cancelled();
-      }
-      if (correct) correction.accumulate(src.color.image, in_y0, out, y0, y0, rows);
-      denoised.push_back({y0, std::move(out), std::move(noisy)});
-      denoised_end = y0 + rows;
-    };
-    local.clamped_to_half = io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t rows) {
-      const int64_t needed = correct ? std::max(y0 + rows, correction.rows_required(y0 + rows)) : y0 + rows;
-      while (denoised_end < needed) denoise_band(denoised_end);
-      Band band = std::move(denoised.front());
-      denoised.pop_front();
-      if (correct) correction.apply(band.out, band.y0, y0, rows);
-      if (blend) apply_strength(band.noisy, band.y0, band.out, band.y0, region, y0, rows, options.strength);
-      return std::move(band.out);
-    }).clamped_to_half;
-    local.guarded_values = runner.guarded;
+    local.clamped_to_half =
+        io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t n) { return engine.band(y0, n); })
+            .clamped_to_half;
   });
   local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return local;

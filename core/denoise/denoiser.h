@@ -75,8 +75,8 @@ struct DenoiseStats {
   float strength = 1.0f;          // the blend towards the noisy colour applied last (strength.h)
 };
 
-// Called after every tile with the output so far; return false to cancel (stops after that tile; a CancelToken in
-// the options stops sooner).
+// Called after every tile with its denoised pixels (before the energy correction and the strength, which run per
+// band of tiles); return false to cancel (stops after that tile; a CancelToken in the options stops sooner).
 using TileCallback = std::function<bool(const TileEvent&, const Image& output)>;
 
 // The denoised colour, the stack's size. Throws Error (Input when the stack lacks the model's AOVs, Usage for
@@ -87,9 +87,9 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
 // The same denoise, streamed: the render is read band by band (rows of tiles with their halos) and the EXR is
 // written band by band, so memory stays within options.max_memory whatever the image size (a 16K x 16K render
 // in 4 GiB). `exr` says how to write (its data/display windows and metadata are taken from the reader when
-// unset). The callback's image is the current band's output (tile rectangles are in image coordinates; the
-// band starts at the tile row's y). Cancelling leaves no file. The output equals denoise()'s (tiles on the
-// image's grid; tiled output equals untiled).
+// unset). Cancelling leaves no file. Both run the same tile engine (bands of tiles pulled from a source: the
+// stack in memory, or the files), so the output equals denoise()'s (tiles on the image's grid; tiled output
+// equals untiled).
 DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, const DenoiseOptions& options,
                             const std::filesystem::path& output, io::ExrWriteOptions exr, const TileCallback& on_tile = {});
 
