@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Screenshots of the real viewer window under Xvfb, for docs/ and the README:
 #   tools/screenshots.sh [BUILD_DIR] [OUT_DIR]
-# Views, at 1280x720 (the smallest screen the viewer is made for): three results and the reference with a row of
+# Views, at 1280x720 (the smallest screen the viewer is made for): Tungsten's Cornell box with NFOR's result added
+# beside `base` and OIDN; three results and the reference with a row of
 # scores per result; a zoomed wipe between two models; the heatmap pane with its shared range and colour bar;
 # the heatmap overlaid; a denoise in progress (tiles appearing) on the example repeated 8 x 8; and the comparison
 # sheet an export-all writes. RESIDUE_SCREEN=1920x1080 takes them at that size instead.
@@ -35,6 +36,12 @@ shot viewer_wipe "$noisy" "${ref[@]}" --model small,oidn --denoise --ab 1,2 --sc
 shot viewer_heatmap "$noisy" "${ref[@]}" --model small,oidn --denoise --ab 1,2 --screenshot-when denoised \
   --tab heatmap --export-all "$tmp/export"
 cp "$tmp/export/comparison.png" "$out/viewer_comparison_sheet.png"
+# Another renderer's render with NFOR's result added beside ours and OIDN's (Tungsten's Cornell box).
+cornell=$repo/../shared/datasets/tungsten-example/cornell-box
+if [ -f "$cornell/nfor.exr" ]; then
+  shot viewer_compare_nfor "$cornell" --add "$cornell/nfor.exr" --model base,oidn --denoise --screenshot-when denoised \
+    --tab results
+fi
 
 # A denoise in progress needs a render that takes a while: the example repeated 8 x 8 (1536 x 1536; repeated,
 # not upscaled, so that the noise stays per-pixel), every channel and its name kept.
