@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
   QApplication::setDesktopFileName("residue");  // the installed .desktop entry, for the taskbar icon
 
   QCommandLineParser cli;
-  cli.setApplicationDescription("Residue viewer: noisy, denoised and reference renders side by side.");
+  cli.setApplicationDescription("Residue viewer: denoise renders and compare any results against the reference, side by side and scored.");
   cli.addHelpOption();
   cli.addVersionOption();
   cli.addPositionalArgument("files", "A render: one EXR (multilayer/multipart), a folder, or single-AOV files.");
