@@ -730,6 +730,7 @@ void MainWindow::setRoi(std::optional<Rect> roi) {
 
 std::shared_ptr<const Image> MainWindow::shared(Source s) const {
   if (s == Source::Denoised) return session_->denoisedShared();
+  if (s == Source::Compare) return session_->compareShared();  // a result's, not the stack's
   const auto stack = session_->stack();
   const Image* img = session_->image(s, AovRole::Color);
   // Aliasing: the image lives as long as the stack it belongs to.
