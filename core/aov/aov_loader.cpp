@@ -440,7 +440,7 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
 
 const AovStack& AovReader::layout() const { return impl_->layout; }
 
-AovStack AovReader::read(const Rect& rect) const {
+AovStack AovReader::read(const Rect& rect, const std::vector<AovRole>& roles) const {
   const AovStack& layout = impl_->layout;
   if (rect.empty() || !Rect{0, 0, layout.data_window.width, layout.data_window.height}.contains(rect))
     throw Error(ErrorKind::Usage, "region " + rect.to_string() + " is not inside the " +
@@ -451,7 +451,8 @@ AovStack AovReader::read(const Rect& rect) const {
   const std::map<AovRole, ReadPlan>& plans = impl_->plans;
   // 5. Read, one pass per file.
   std::map<std::string, std::vector<const ReadPlan*>> by_file;
-  for (const auto& [role, plan] : plans) by_file[plan.file].push_back(&plan);
+  for (const auto& [role, plan] : plans)
+    if (roles.empty() || std::find(roles.begin(), roles.end(), role) != roles.end()) by_file[plan.file].push_back(&plan);
   std::map<AovRole, Aov> loaded;
   for (const auto& [file, file_plans] : by_file) read_plans(impl_->opened.at(file), file_plans, grid, loaded);
 

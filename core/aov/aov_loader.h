@@ -34,7 +34,8 @@ class AovReader {
   const AovStack& layout() const;
   // The AOVs of `rect` (pixels of the data window), normalised as load_aov_stack does; the result's images are
   // rect-sized (its data_window still describes the whole image).
-  AovStack read(const Rect& rect) const;
+  // `roles`: read only these (the others stay as in layout(), without pixels); empty: every AOV.
+  AovStack read(const Rect& rect, const std::vector<AovRole>& roles = {}) const;
 
  private:
   struct Impl;

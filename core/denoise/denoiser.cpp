@@ -268,7 +268,8 @@ nn::Backend& backend_of(const DenoiseOptions& o, const nn::Model& model, std::un
 }
 
 // Where the rows of a denoise come from: a stack in memory (every row at hand, no copy), or the render's files
-// read band by band (AovReader). rows() gives a stack and the rectangle of the image it holds.
+// read band by band (AovReader). rows() gives a stack and the rectangle of the image it holds; `roles` limits
+// what a source that reads must read (empty: every AOV the denoise uses).
 class RowSource {
  public:
   virtual ~RowSource() = default;
@@ -279,7 +280,7 @@ class RowSource {
     const AovStack* stack = nullptr;
     Rect rect;
   };
-  virtual Rows rows(int64_t y0, int64_t y1) const = 0;
+  virtual Rows rows(int64_t y0, int64_t y1, const std::vector<AovRole>& roles = {}) = 0;
 };
 
 class StackRows final : public RowSource {
@@ -287,31 +288,66 @@ class StackRows final : public RowSource {
   explicit StackRows(const AovStack& stack) : stack_(stack) {}
   const AovStack& layout() const override { return stack_; }
   const AovStack* whole() const override { return &stack_; }
-  Rows rows(int64_t, int64_t) const override { return {{}, &stack_, {0, 0, stack_.width(), stack_.height()}}; }
+  Rows rows(int64_t, int64_t, const std::vector<AovRole>&) override {
+    return {{}, &stack_, {0, 0, stack_.width(), stack_.height()}};
+  }
 
  private:
   const AovStack& stack_;
 };
 
+// Reads each row once: consecutive bands overlap by their halos, and the rows a band shares with the one before
+// are taken from it instead of the files. The reference is never read (the denoise does not use it).
 class ReaderRows final : public RowSource {
  public:
-  explicit ReaderRows(const AovReader& reader) : reader_(reader) {}
+  // `keep`: rows at the bottom of a band that the next one shares (two halos).
+  ReaderRows(const AovReader& reader, int64_t keep) : reader_(reader), keep_(keep) {
+    for (AovRole r : {AovRole::Color, AovRole::Albedo, AovRole::Normal, AovRole::Depth, AovRole::Variance})
+      if (reader.layout().find(r)) used_.push_back(r);
+  }
   const AovStack& layout() const override { return reader_.layout(); }
-  Rows rows(int64_t y0, int64_t y1) const override {
+  Rows rows(int64_t y0, int64_t y1, const std::vector<AovRole>& roles) override {
+    const int64_t W = layout().data_window.width;
     Rows r;
-    r.rect = {0, y0, layout().data_window.width, y1 - y0};
-    r.owned = reader_.read(r.rect);
+    r.rect = {0, y0, W, y1 - y0};
+    const bool all = roles.empty();
+    const int64_t c0 = last_.y, c1 = last_.y + last_.height;
+    if (all && !last_.empty() && c0 <= y0 && y0 < c1 && c1 < y1) {
+      // The shared rows from the last band, the rest from the files.
+      r.owned = reader_.read({0, c1, W, y1 - c1}, used_);
+      for (AovRole role : used_) {
+        const Image& prev = cached_.find(role)->image;
+        Image& next = r.owned.find(role)->image;
+        Image joined(W, y1 - y0, next.channels());
+        const size_t row = static_cast<size_t>(W * next.channels());
+        std::memcpy(joined.data(), prev.row(y0 - c0).data(), static_cast<size_t>(c1 - y0) * row * sizeof(float));
+        std::memcpy(joined.row(c1 - y0).data(), next.data(), next.size() * sizeof(float));
+        next = std::move(joined);
+      }
+    } else {
+      r.owned = reader_.read(r.rect, all ? used_ : roles);
+    }
+    if (all) {  // the bottom rows, for the next band
+      const int64_t k = std::min(keep_, y1 - y0);
+      last_ = {0, y1 - k, W, k};
+      cached_ = AovStack();
+      for (AovRole role : used_) cached_.emplace(role).image = crop(r.owned.find(role)->image, {0, y1 - k - y0, W, k});
+    }
     r.stack = &r.owned;
     return r;
   }
 
  private:
   const AovReader& reader_;
+  int64_t keep_;
+  std::vector<AovRole> used_;
+  AovStack cached_;  // the bottom rows of the last band
+  Rect last_{};
 };
 
 // The whole-image statistics a model's input needs, before any tile runs: the depth scale (Residue's models)
 // or OIDN's autoexposure; from the stack in memory, or from one pass over the files' bands.
-residue_io_t network_io(const RowSource& source, const nn::Model& model, int64_t band, const CancelToken* cancel) {
+residue_io_t network_io(RowSource& source, const nn::Model& model, int64_t band, const CancelToken* cancel) {
   const bool residue = model.method == nn::Method::Residue;
   if (const AovStack* stack = source.whole())
     return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, compute_feature_stats(*stack)))
@@ -326,7 +362,8 @@ residue_io_t network_io(const RowSource& source, const nn::Model& model, int64_t
     std::vector<float> samples;  // the same sample compute_feature_stats draws from a whole stack
     for (int64_t y0 = 0; y0 < H; y0 += band) {
       throw_if_cancelled(cancel);
-      const auto rows = source.rows(y0, std::min(H, y0 + band));
+      // Only what the statistics read: the depth, or the colour.
+      const auto rows = source.rows(y0, std::min(H, y0 + band), {exposure ? AovRole::Color : AovRole::Depth});
       if (exposure) autoexposure.add(rows.stack->color.image, y0);
       if (!residue) continue;
       for (int64_t i = 0; i < rows.stack->depth->image.pixel_count(); ++i)
@@ -344,7 +381,7 @@ residue_io_t network_io(const RowSource& source, const nn::Model& model, int64_t
 // strength blend. The sink pulls bands: an image in memory, or a streamed EXR.
 class BandDenoiser {
  public:
-  BandDenoiser(const RowSource& source, const nn::Model& model, const DenoiseOptions& options, nn::Backend& backend,
+  BandDenoiser(RowSource& source, const nn::Model& model, const DenoiseOptions& options, nn::Backend& backend,
                int64_t tile, const TileCallback& on_tile, DenoiseStats& stats)
       : source_(source), model_(model), options_(options), on_tile_(on_tile), stats_(stats), tile_(tile),
         W_(source.layout().data_window.width), H_(source.layout().data_window.height),
@@ -413,7 +450,7 @@ class BandDenoiser {
     denoised_end_ = y0 + rows;
   }
 
-  const RowSource& source_;
+  RowSource& source_;
   const nn::Model& model_;
   const DenoiseOptions& options_;
   const TileCallback& on_tile_;
@@ -452,7 +489,7 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
   const int64_t a = model.graph.alignment();
   if (options.tile <= 0) tile = std::min(tile, (std::max(region.width, region.height) + a - 1) / a * a);
 
-  const StackRows rows(stack);
+  StackRows rows(stack);
   BandDenoiser engine(rows, model, options, backend, tile, on_tile, local);
   Image output(stack.width(), stack.height(), source.channels());
   for (int64_t y0 = 0; y0 < stack.height(); y0 += tile) {
@@ -525,10 +562,10 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
                                        ? static_cast<size_t>((W / EnergyCorrection::kBlock + 1) * (H / EnergyCorrection::kBlock + 1)) *
                                              EnergyCorrection::kBytesPerBlock
                                        : 0;
-    // Memory of one band of tile rows: its input rows with halos, its output rows (and those denoised ahead),
-    // and one tile's work.
+    // Memory of one band of tile rows: its input rows with halos (and the two halos kept for the next band), its
+    // output rows (and those denoised ahead), and one tile's work.
     auto band_bytes = [&](int64_t tile) {
-      return static_cast<size_t>(((tile + 2 * h) * stack_channels + (1 + BandDenoiser::bands_ahead(correct, tile)) * tile * 3) * W) *
+      return static_cast<size_t>(((tile + 4 * h) * stack_channels + (1 + BandDenoiser::bands_ahead(correct, tile)) * tile * 3) * W) *
                  sizeof(float) +
              tile_bytes(backend, graph, tile) + correction_grid;
     };
@@ -540,7 +577,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
       throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) + " MiB cannot hold a band of " +
                                         std::to_string(std::max<int64_t>(tile, 16)) + "-pixel tiles of this " +
                                         std::to_string(W) + "-pixel-wide image");
-    const ReaderRows rows(reader);
+    ReaderRows rows(reader, 2 * h);
     BandDenoiser engine(rows, model, options, backend, tile, on_tile, local);
     io::record(exr.residue_attributes, {.backend = local.backend,
                                         .energy_correction = local.energy_corrected,
