@@ -54,10 +54,7 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
                        const auto range = resolve_range(m, in.scale);
                        const QImage pic = map_with_color_bar(colorize(m, in.colormap, in.scale), in.colormap, range,
                                                              in.scale.log, QString("%1 of %2").arg(in.map_name, r.name));
-                       io::write_atomically(p, overwrite, [&](const std::filesystem::path& tmp) {
-                         if (!pic.save(QString::fromStdString(tmp.string()), "PNG"))
-                           throw Error(ErrorKind::Output, "could not encode the heatmap PNG " + p.string());
-                       });
+                       write_png(p, pic, overwrite, "heatmap PNG");
                      }});
       out.push_back({at(stem + ".exr"), [make](const std::filesystem::path& p, bool overwrite) {
                        io::write_map_exr(p, make(), overwrite);
@@ -77,11 +74,7 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
   }
   if (in.comparison && in.sheet) {
     out.push_back({at("comparison.png"), [&in](const std::filesystem::path& p, bool overwrite) {
-                     const QImage sheet = in.sheet();
-                     io::write_atomically(p, overwrite, [&](const std::filesystem::path& tmp) {
-                       if (sheet.isNull() || !sheet.save(QString::fromStdString(tmp.string()), "PNG"))
-                         throw Error(ErrorKind::Output, "could not encode the comparison sheet " + p.string());
-                     });
+                     write_png(p, in.sheet(), overwrite, "comparison sheet");
                    }});
   }
   return out;
@@ -111,6 +104,13 @@ QString export_all(const ExportAllInputs& in, const std::filesystem::path& folde
   } catch (const std::exception& e) {
     return QString::fromStdString(e.what());
   }
+}
+
+void write_png(const std::filesystem::path& path, const QImage& image, bool overwrite, const std::string& what) {
+  io::write_atomically(path, overwrite, [&](const std::filesystem::path& tmp) {
+    if (image.isNull() || !image.save(QString::fromStdString(tmp.string()), "PNG"))
+      throw Error(ErrorKind::Output, "could not encode the " + what + " " + path.string());
+  });
 }
 
 void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,

@@ -54,6 +54,9 @@ void write_result_exr(const std::filesystem::path& path, const Image& image, con
                       const QString& name, const QString& description, bool overwrite, bool half = true,
                       const std::string& compression = "zip", float strength = 1.0f);
 
+// Writes `image` as a PNG atomically (atomic_file.h); `what` names it in the error ("heatmap PNG").
+void write_png(const std::filesystem::path& path, const QImage& image, bool overwrite, const std::string& what);
+
 // A heatmap as a picture to keep: the coloured map with its colour bar, title and range below it.
 QImage map_with_color_bar(const QImage& colored, Colormap colormap, std::pair<double, double> range, bool log,
                           const QString& title);

@@ -1041,10 +1041,7 @@ QFuture<QString> MainWindow::exportHeatmap(const QString& path, bool overwrite) 
       if (path.endsWith(".exr", Qt::CaseInsensitive)) {
         io::write_map_exr(path.toStdString(), *map, overwrite);
       } else {
-        io::write_atomically(path.toStdString(), overwrite, [&](const std::filesystem::path& tmp) {
-          if (!picture.save(QString::fromStdString(tmp.string()), "PNG"))
-            throw Error(ErrorKind::Output, "could not encode the heatmap PNG for " + path.toStdString());
-        });
+        write_png(path.toStdString(), picture, overwrite, "heatmap PNG");
       }
       return {};
     } catch (const std::exception& e) {
@@ -1121,10 +1118,7 @@ QFuture<QString> MainWindow::exportComparison(const QString& path, bool overwrit
     try {
       const QImage sheet = in.draw();
       if (sheet.isNull()) return tr("Nothing to export: no render open.");
-      io::write_atomically(path.toStdString(), overwrite, [&](const std::filesystem::path& tmp) {
-        if (!sheet.save(QString::fromStdString(tmp.string()), "PNG"))
-          throw Error(ErrorKind::Output, "could not encode the comparison PNG for " + path.toStdString());
-      });
+      write_png(path.toStdString(), sheet, overwrite, "comparison PNG");
       return {};
     } catch (const std::exception& e) {
       return errorText(e);
