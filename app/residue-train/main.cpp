@@ -23,6 +23,7 @@
 #include "core/util/error.h"
 #include "core/util/openmp_env.h"
 #include "torch_network.h"
+#include "training_loss.h"
 #include "training_set.h"
 
 namespace fs = std::filesystem;
@@ -51,7 +52,8 @@ struct Options {
   uint32_t seed = 1;
   bool force = false;
   bool bf16 = false;  // CPU autocast: convolutions in bfloat16, weights, loss and optimiser in float
-  std::string loss = "l1-log";  // or "l1-log+mean": see training_loss
+  std::string loss = "l1-log";  // see training_loss.h
+  double ssim_weight = 1.0;      // for l1-log+ssim
   int precise_bn = 0;            // batches for recalibrating BN statistics before validation and export; 0: off
   double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
   std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
@@ -61,22 +63,6 @@ struct Validation {
   double relmse = 0, ssim = 0, noisy_relmse = 0, noisy_ssim = 0, mean_ratio = 0;
   nlohmann::json per_scene = nlohmann::json::array();
 };
-
-// The loss on log colour (prediction and target are log(1 + c)). "l1-log" is the paper's L1. L1 on log values
-// estimates the median of the noisy target's log, which for very noisy dark pixels lies below the mean: the output
-// comes out darker. "l1-log+mean" adds, per patch and channel, the L1 distance between the logs of the patch's
-// linear means, |log(1 + mean(exp(p) - 1)) - log(1 + mean(exp(t) - 1))|: a mean-matching term in the same log
-// units as the per-pixel term (a first version used the patches' relative mean error, which dark patches
-// dominated: validation relMSE 0.075 against 0.027 at 2000 steps).
-torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target) {
-  torch::Tensor loss = torch::l1_loss(prediction, target);
-  if (kind == "l1-log+mean") {
-    const auto mp = torch::log1p(torch::expm1(prediction.clamp_max(20.0)).mean({2, 3}).clamp_min(0.0));
-    const auto mt = torch::log1p(torch::expm1(target).mean({2, 3}));
-    loss = loss + (mp - mt).abs().mean();
-  }
-  return loss;
-}
 
 // Denoises every validation scene with core (the shipped inference path) and scores it.
 Validation validate(train::ResidueNet& net, const std::vector<fs::path>& scenes, const fs::path& tmp_model) {
@@ -264,7 +250,7 @@ int run(const Options& o) {
     } else {
       prediction = net->forward(x);
     }
-    const torch::Tensor loss = training_loss(o.loss, prediction, y);
+    const torch::Tensor loss = train::training_loss(o.loss, prediction, y, o.ssim_weight);
     loss.backward();
     torch::nn::utils::clip_grad_norm_(net->parameters(), 1.0);
     opt.step();
@@ -309,12 +295,13 @@ int run(const Options& o) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
-                             {"loss", o.loss == "l1-log" ? "L1 on log(1+c)" : "L1 on log(1+c) + L1 of the log patch means"}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
+                             {"loss", train::loss_description(o.loss)}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
                              {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
                              {"wall_s", wall_before + wall},
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features},
                              {"precise_bn_batches", o.precise_bn}, {"freeze_bn_after", o.freeze_bn_after}};
   if (!init_from_name.empty()) training["init_from"] = init_from_name;
+  if (o.loss == "l1-log+ssim") training["ssim_weight"] = o.ssim_weight;
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -353,8 +340,12 @@ int main(int argc, char** argv) {
   app.add_option("--threads", o.threads, "Threads")->capture_default_str();
   app.add_option("--seed", o.seed, "Random seed")->capture_default_str();
   app.add_flag("-f,--force", o.force, "Replace the output model file");
-  app.add_option("--loss", o.loss, "l1-log (the paper's), or l1-log+mean (adds the L1 of the log patch means)")
-      ->capture_default_str()->check(CLI::IsMember({"l1-log", "l1-log+mean"}));
+  app.add_option("--loss", o.loss,
+                 "l1-log (the paper's), l1-log+mean (adds the L1 of the log patch means) or l1-log+ssim (adds "
+                 "--ssim-weight x (1 - SSIM) over 3 scales, on the SSIM metric's tonemap)")
+      ->capture_default_str()->check(CLI::IsMember(train::loss_names()));
+  app.add_option("--ssim-weight", o.ssim_weight, "Weight of the SSIM term of l1-log+ssim")
+      ->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--precise-bn", o.precise_bn,
                  "Before each validation and the export, recompute BN statistics as the plain mean over N batches "
                  "(0: keep the running averages)")

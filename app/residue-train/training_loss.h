@@ -1,0 +1,36 @@
+// The training losses. Predictions and targets are log(1 + c) of linear colour (N x 3 x H x W, float).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <torch/torch.h>
+
+namespace residue::train {
+
+// The names --loss accepts, in the order --help lists them.
+const std::vector<std::string>& loss_names();
+
+// A sentence for the model file's training metadata.
+std::string loss_description(const std::string& kind);
+
+// "l1-log": the paper's L1 on log colour.
+// "l1-log+mean": adds the L1 of the log patch means (see the .cpp).
+// "l1-log+ssim": adds ssim_weight * (1 - multi-scale SSIM) on the tonemap the SSIM metric uses.
+torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target,
+                            double ssim_weight = 1.0);
+
+// Linear colour -> the metric's display values: Hable's filmic curve normalised at 11.2, clamped, then the
+// sRGB OETF (core/metrics/tonemap.h), differentiable (the OETF's power is taken above its linear segment only).
+torch::Tensor tonemap_filmic_srgb(const torch::Tensor& linear);
+
+// Mean SSIM of two N x C x H x W images in [0, 1]: core's metric (11x11 Gaussian, sigma 1.5, K1 0.01, K2 0.03,
+// population (co)variances, per channel, averaged over the pixels whose whole window is inside: a "valid"
+// convolution). H and W must be at least 11.
+torch::Tensor ssim(const torch::Tensor& x, const torch::Tensor& y);
+
+// The mean of SSIM over `scales` resolutions (each a 2x2 average of the one before); scales whose image is
+// smaller than the window are left out.
+torch::Tensor multiscale_ssim(const torch::Tensor& x, const torch::Tensor& y, int scales = 3);
+
+}  // namespace residue::train

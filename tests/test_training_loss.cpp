@@ -1,0 +1,85 @@
+// The trainer's losses: the SSIM term scores what core's SSIM metric scores (same tonemap, same window), and the
+// loss stays finite with finite gradients at numerical extremes.
+#include <gtest/gtest.h>
+#include <torch/torch.h>
+
+#include <cmath>
+#include <limits>
+
+#include "core/aov/dataset.h"
+#include "core/metrics/metrics.h"
+#include "core/metrics/tonemap.h"
+#include "support/test_support.h"
+#include "training_loss.h"
+
+namespace residue {
+namespace {
+
+// An interleaved H x W x C image as a 1 x C x H x W tensor of the given type (a copy).
+torch::Tensor to_tensor(const Image& image, torch::ScalarType type) {
+  const auto hwc = torch::from_blob(const_cast<float*>(image.data()),
+                                    {image.height(), image.width(), image.channels()}, torch::kFloat32);
+  return hwc.permute({2, 0, 1}).unsqueeze(0).to(type).contiguous();
+}
+
+TEST(TrainLoss, TonemapIsCoresCurve) {
+  const std::vector<double> xs = {-5.0, 0.0, 1e-6, 1e-4, 0.0021, 0.01, 0.18, 0.5, 1.0, 3.0, 11.19, 11.2, 40.0, 1e6};
+  const auto t = train::tonemap_filmic_srgb(torch::tensor(xs, torch::kFloat64));
+  for (size_t i = 0; i < xs.size(); ++i)
+    EXPECT_NEAR(t[static_cast<int64_t>(i)].item<double>(), tonemap_filmic_srgb_f64(xs[i]), 1e-12) << "x = " << xs[i];
+}
+
+// On a real render (a noisy Cycles image against its 512-spp reference) the loss's single-scale SSIM is core's
+// float64 metric: in float64 to rounding, in float32 (as training runs it) to 1e-5.
+TEST(TrainLoss, SsimIsCoresMetricOnARealRender) {
+  const auto starter = testing::shared_dataset("cycles-starter");
+  RESIDUE_REQUIRE_SHARED(starter);
+  const AovStack scene = load_dataset_scene(starter / "s158");
+  const Image& noisy = scene.color.image;
+  const Image& reference = scene.reference->image;
+  const double expected = metrics::compare(noisy, reference).ssim;
+  ASSERT_LT(expected, 0.95) << "a noisy image, so that the check is not near the trivial 1";
+  for (const auto type : {torch::kFloat64, torch::kFloat32}) {
+    const auto x = train::tonemap_filmic_srgb(to_tensor(noisy, type).slice(1, 0, 3));
+    const auto y = train::tonemap_filmic_srgb(to_tensor(reference, type).slice(1, 0, 3));
+    EXPECT_NEAR(train::ssim(x, y).item<double>(), expected, type == torch::kFloat64 ? 1e-10 : 1e-5);
+    const double ms = train::multiscale_ssim(x, y, 3).item<double>();
+    EXPECT_GT(ms, expected) << "coarser scales average the noise away";
+    EXPECT_LT(ms, 1.0);
+  }
+}
+
+TEST(TrainLoss, SsimTermIsZeroAtTheTargetAndGrowsWithTheError) {
+  torch::manual_seed(5);
+  const auto target = torch::log1p(torch::rand({2, 3, 64, 64}) * 4.0);
+  EXPECT_NEAR(train::training_loss("l1-log+ssim", target, target).item<double>(), 0.0, 1e-6);
+  const auto slightly = target + 0.02 * torch::randn_like(target);
+  const auto more = target + 0.2 * torch::randn_like(target);
+  const double l1_slight = train::training_loss("l1-log", slightly, target).item<double>();
+  const double ssim_slight = train::training_loss("l1-log+ssim", slightly, target).item<double>() - l1_slight;
+  const double l1_more = train::training_loss("l1-log", more, target).item<double>();
+  const double ssim_more = train::training_loss("l1-log+ssim", more, target).item<double>() - l1_more;
+  EXPECT_GT(ssim_slight, 0.0);
+  EXPECT_GT(ssim_more, 2.0 * ssim_slight);
+  EXPECT_NEAR(train::training_loss("l1-log+ssim", more, target, 3.0).item<double>(), l1_more + 3.0 * ssim_more, 1e-5)
+      << "the weight scales the SSIM term only";
+  EXPECT_THROW(train::training_loss("l2", more, target), std::invalid_argument);
+}
+
+// Black patches, values at and far beyond the tonemap's white point, a prediction far outside the data: the loss
+// and every gradient stay finite (a NaN here would poison the weights on the first such patch).
+TEST(TrainLoss, FiniteWithFiniteGradientsAtExtremes) {
+  auto target = torch::zeros({1, 3, 32, 32}, torch::kFloat32);
+  target.index_put_({0, 0}, std::log1p(1e4f));  // a light in one channel
+  target.index_put_({0, 1, torch::indexing::Slice(0, 16)}, std::log1p(11.2f));
+  for (const float fill : {0.0f, 1e-7f, 2.5f, 40.0f, -3.0f}) {
+    auto prediction = torch::full({1, 3, 32, 32}, fill, torch::requires_grad());
+    const auto loss = train::training_loss("l1-log+ssim", prediction, target);
+    loss.backward();
+    EXPECT_TRUE(std::isfinite(loss.item<double>())) << "prediction " << fill;
+    EXPECT_TRUE(torch::isfinite(prediction.grad()).all().item<bool>()) << "prediction " << fill;
+  }
+}
+
+}  // namespace
+}  // namespace residue
