@@ -62,6 +62,27 @@ TEST(Cli, EvalTableOnTungstenWithDenoised) {
   EXPECT_GT(j["rows"][1]["ssim"].get<double>(), j["rows"][0]["ssim"].get<double>());
 }
 
+// libgomp reads OMP_WAIT_POLICY once, when it is loaded; the program sets it before that (core/util/openmp_env.h)
+// without starting a second time: OMP_DISPLAY_ENV makes libgomp print its settings once per process start.
+TEST(Cli, OpenMpWaitsPassivelyFromASingleStart) {
+#if defined(RESIDUE_HAVE_ONEDNN)
+  std::string text;
+  ASSERT_EQ(testing::run_program("/usr/bin/env", {"-u", "OMP_WAIT_POLICY", "OMP_DISPLAY_ENV=true", RESIDUE_CLI_PATH,
+                                                  "--version"}, &text), 0) << text;
+  size_t starts = 0;
+  for (size_t at = text.find("OPENMP DISPLAY ENVIRONMENT BEGIN"); at != std::string::npos;
+       at = text.find("OPENMP DISPLAY ENVIRONMENT BEGIN", at + 1))
+    ++starts;
+  EXPECT_EQ(starts, 1u) << text;
+  EXPECT_NE(text.find("OMP_WAIT_POLICY = 'PASSIVE'"), std::string::npos) << text;
+  ASSERT_EQ(testing::run_program("/usr/bin/env", {"OMP_WAIT_POLICY=active", "OMP_DISPLAY_ENV=true", RESIDUE_CLI_PATH,
+                                                  "--version"}, &text), 0) << text;
+  EXPECT_NE(text.find("OMP_WAIT_POLICY = 'ACTIVE'"), std::string::npos) << "the user's own setting is kept: " << text;
+#else
+  GTEST_SKIP() << "built without oneDNN: nothing runs on OpenMP";
+#endif
+}
+
 TEST(Cli, InfoShowsTheMapping) {
   const auto dir = testing::shared_dataset("cycles-starter/s101");
   RESIDUE_REQUIRE_SHARED(dir);
