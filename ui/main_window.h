@@ -102,6 +102,7 @@ class MainWindow : public QMainWindow {
   void keyPressEvent(QKeyEvent*) override;
 
  private:
+  static const std::vector<std::pair<QString, QString>>& shortcuts();  // key, what it does (main_window_actions.cpp)
   void buildActions();
   void buildDocks();
   void buildToolBar();

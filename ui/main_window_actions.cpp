@@ -1,0 +1,320 @@
+// MainWindow's furniture: the side bar of tabs, the toolbar, the menus with their actions and shortcuts, and the
+// shortcut table the help overlay lists.
+#include "ui/main_window.h"
+
+#include <QAction>
+#include <QApplication>
+#include <QComboBox>
+#include <QDialog>
+#include <QDialogButtonBox>
+#include <QDockWidget>
+#include <QDoubleSpinBox>
+#include <QFileDialog>
+#include <QFormLayout>
+#include <QMenuBar>
+#include <QMessageBox>
+#include <QStatusBar>
+#include <QTabWidget>
+#include <QToolBar>
+
+#include "core/io/exr_writer.h"
+#include "core/util/error.h"
+#include "ui/denoise_panel.h"
+#include "ui/help_overlay.h"
+#include "ui/mapping_dialog.h"
+#include "ui/metrics_panel.h"
+#include "ui/pane_renderer.h"
+#include "ui/pixel_inspector.h"
+#include "ui/tev_server.h"
+
+namespace residue::ui {
+
+// The shortcuts, in one table: the actions use them and the help overlay lists them.
+const std::vector<std::pair<QString, QString>>& MainWindow::shortcuts() {
+  static const std::vector<std::pair<QString, QString>> table = {
+      {"1 - 9", "show result 1-9 (rows of the Results tab) as A"},
+      {"Ctrl+1 - 9", "show result 1-9 as B, beside A"},
+      {"Tab  Shift+Tab", "single layout: next / previous pane"},
+      {"A", "all panes, in a grid"},
+      {"S", "A and B side by side"},
+      {"W", "wipe between A and B (drag the line)"},
+      {"Space", "flip between A and B"},
+      {"D", "difference: the map of A against B"},
+      {"[  ]", "previous / next AOV of the noisy input"},
+      {"E  Shift+E", "exposure up / down half a stop"},
+      {"R", "reset exposure and offset"},
+      {"F", "fit"},
+      {"Ctrl+0", "1:1 (one image pixel per screen pixel)"},
+      {"+  -  wheel", "zoom (the wheel zooms about the cursor)"},
+      {"drag", "pan"},
+      {"Shift+drag, right-drag", "region of interest (metrics, ROI denoise)"},
+      {"Backspace", "clear the region of interest"},
+      {"H", "heatmap: own pane / overlay / off"},
+      {"Ctrl+D", "denoise with the selected model"},
+      {"Esc", "cancel the denoise, close this help"},
+      {"Ctrl+O  Ctrl+Shift+O", "open render / open reference"},
+      {"Ctrl+Shift+A", "add a result to compare (or drop files on the image)"},
+      {"F5", "reload"},
+      {"Ctrl+E", "export the denoised EXR"},
+      {"Ctrl+Shift+S", "export the comparison sheet (PNG)"},
+      {"Ctrl+Shift+E", "export all: results, heatmaps, metrics, sheet"},
+      {"F9", "hide / show the side bar"},
+      {"?  F1", "this help"},
+  };
+  return table;
+}
+
+void MainWindow::buildDocks() {
+  // One side bar of tabs: the canvas keeps most of the window, and the bar can be closed (View > Side Bar).
+  denoise_ = new DenoisePanel(session_, this);
+  metrics_ = new MetricsPanel(this);
+  heatmap_ = new HeatmapPanel(this);
+  inspector_ = new PixelInspector(this);
+  tabs_ = new QTabWidget(this);
+  tabs_->setObjectName("sideTabs");
+  tabs_->addTab(metrics_, tr("Results"));
+  tabs_->addTab(denoise_, tr("Denoise"));
+  tabs_->addTab(heatmap_, tr("Heatmap"));
+  tabs_->addTab(inspector_, tr("Pixel"));
+  tabs_->setCurrentWidget(denoise_);
+  auto* dock = new QDockWidget(tr("Residue"), this);
+  dock->setObjectName("sideDock");
+  dock->setWidget(tabs_);
+  dock->setFeatures(QDockWidget::DockWidgetClosable | QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
+  dock->setTitleBarWidget(new QWidget(dock));  // the tabs are the title
+  addDockWidget(Qt::RightDockWidgetArea, dock);
+  resizeDocks({dock}, {400}, Qt::Horizontal);
+}
+
+void MainWindow::buildToolBar() {
+  auto* bar = addToolBar(tr("View"));
+  bar->setObjectName("viewToolBar");
+  layout_box_ = new QComboBox(this);
+  layout_box_->setObjectName("layoutBox");
+  layout_box_->addItems({tr("All"), tr("Single"), tr("A | B"), tr("Wipe A | B")});
+  layout_box_->setToolTip(tr("All panes in a grid (A), one pane (Tab cycles, Space flips A and B), A and B side "
+                             "by side (S), or a wipe between them (W)"));
+  bar->addWidget(layout_box_);
+  connect(layout_box_, &QComboBox::currentIndexChanged, this, [this](int i) {
+    constexpr ImageCanvas::Layout layouts[] = {ImageCanvas::Layout::SideBySide, ImageCanvas::Layout::Single,
+                                               ImageCanvas::Layout::Pair, ImageCanvas::Layout::Wipe};
+    canvas_->setLayout(layouts[std::clamp(i, 0, 3)]);
+  });
+  aov_box_ = new QComboBox(this);
+  aov_box_->setObjectName("aovBox");
+  for (AovRole v : kViewableAovs) aov_box_->addItem(display_name(v), static_cast<int>(v));
+  aov_box_->setToolTip(tr("The AOV the noisy pane shows ([ and ])"));
+  bar->addWidget(aov_box_);
+  connect(aov_box_, &QComboBox::currentIndexChanged, this,
+          [this] { setAov(static_cast<AovRole>(aov_box_->currentData().toInt())); });
+
+  exposure_box_ = new QDoubleSpinBox(this);
+  exposure_box_->setObjectName("exposureBox");
+  exposure_box_->setRange(-20, 20);
+  exposure_box_->setSingleStep(0.5);
+  exposure_box_->setDecimals(1);
+  exposure_box_->setToolTip(tr("Exposure in stops (E / Shift+E)"));
+  exposure_box_->setPrefix(tr("EV "));
+  bar->addWidget(exposure_box_);
+  offset_box_ = new QDoubleSpinBox(this);
+  offset_box_->setObjectName("offsetBox");
+  offset_box_->setRange(-10, 10);
+  offset_box_->setSingleStep(0.01);
+  offset_box_->setDecimals(3);
+  offset_box_->setToolTip(tr("Offset added after the exposure"));
+  offset_box_->setPrefix(tr("+ "));
+  bar->addWidget(offset_box_);
+  connect(exposure_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
+  connect(offset_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
+
+  display_box_ = new QComboBox(this);
+  display_box_->setObjectName("displayBox");
+  view_box_ = new QComboBox(this);
+  view_box_->setObjectName("viewBox");
+  for (const auto& d : display_->displays()) display_box_->addItem(QString::fromStdString(d));
+  display_box_->setCurrentText(QString::fromStdString(display_->default_display()));
+  const auto fill_views = [this] {
+    const std::string d = display_box_->currentText().toStdString();
+    QSignalBlocker block(view_box_);
+    view_box_->clear();
+    for (const auto& v : display_->views(d)) view_box_->addItem(QString::fromStdString(v));
+    view_box_->setCurrentText(QString::fromStdString(display_->default_view(d)));
+  };
+  fill_views();
+  connect(display_box_, &QComboBox::currentIndexChanged, this, [this, fill_views] {
+    fill_views();
+    refreshPanes();
+  });
+  connect(view_box_, &QComboBox::currentIndexChanged, this, &MainWindow::refreshPanes);
+  bar->addWidget(display_box_);
+  bar->addWidget(view_box_);
+  display_box_->setToolTip(tr("OpenColorIO display and view (%1)").arg(QString::fromStdString(display_->source())));
+  view_box_->setToolTip(display_box_->toolTip());
+}
+
+void MainWindow::buildActions() {
+  const auto action = [this](QMenu* menu, const QString& text, const QKeySequence& key, auto slot) {
+    auto* a = new QAction(text, this);
+    if (!key.isEmpty()) a->setShortcut(key);
+    a->setShortcutContext(Qt::WindowShortcut);
+    connect(a, &QAction::triggered, this, slot);
+    menu->addAction(a);
+    addAction(a);
+    return a;
+  };
+  auto* file = menuBar()->addMenu(tr("&File"));
+  action(file, tr("&Open..."), QKeySequence::Open, [this] {
+    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Open a render (AOV stack)"), QString(),
+                                                            tr("OpenEXR (*.exr);;All files (*)"));
+    if (!files.isEmpty()) openFiles(files);
+  });
+  action(file, tr("Open &Reference..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O), [this] {
+    const QString f = QFileDialog::getOpenFileName(this, tr("Open a reference image"), QString(),
+                                                   tr("OpenEXR (*.exr);;All files (*)"));
+    if (!f.isEmpty()) openReferenceFile(f);
+  });
+  action(file, tr("&Add Result..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_A), [this] {
+    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), QString(),
+                                                            tr("Images (*.exr *.hdr *.pfm *.tif *.tiff *.png);;All files (*)"));
+    addResultFiles(files);
+  });
+  recent_menu_ = file->addMenu(tr("Open Re&cent"));
+  action(file, tr("Re&load"), QKeySequence(Qt::Key_F5), [this] { session_->reload(); });
+  auto_reload_ = action(file, tr("Reload When the Files Change"), QKeySequence(), [this] { watchInputs(); });
+  auto_reload_->setCheckable(true);
+  auto_reload_->setChecked(true);
+  live_denoise_ = action(file, tr("Denoise Streamed Images When They Pause"), QKeySequence(), [] {});
+  live_denoise_->setCheckable(true);
+  live_denoise_->setChecked(true);
+  file->addSeparator();
+  auto* exp = file->addMenu(tr("&Export"));
+  action(exp, tr("Export &All..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_E), [this] { exportAllDialog(); });
+  exp->addSeparator();
+  action(exp, tr("Denoised image (EXR)..."), QKeySequence(Qt::CTRL | Qt::Key_E), [this] {
+    if (!session_->denoised()) return void(QMessageBox::information(this, tr("Export"), tr("Denoise first.")));
+    // Pixel type and compression, as residue-cli offers them.
+    QDialog dlg(this);
+    dlg.setWindowTitle(tr("EXR options"));
+    auto* form = new QFormLayout(&dlg);
+    auto* type = new QComboBox(&dlg);
+    type->addItems({"half", "float"});
+    auto* comp = new QComboBox(&dlg);
+    for (const auto& c : io::exr_compressions()) comp->addItem(QString::fromStdString(c));
+    comp->setCurrentText("zip");
+    form->addRow(tr("Pixel type"), type);
+    form->addRow(tr("Compression"), comp);
+    auto* buttons = new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel, &dlg);
+    form->addRow(buttons);
+    connect(buttons, &QDialogButtonBox::accepted, &dlg, &QDialog::accept);
+    connect(buttons, &QDialogButtonBox::rejected, &dlg, &QDialog::reject);
+    if (dlg.exec() != QDialog::Accepted) return;
+    const QString path = askSavePath(tr("Export the denoised image"), tr("OpenEXR (*.exr)"), "exr");
+    if (!path.isEmpty())
+      runExport(tr("denoised EXR"), exportDenoisedExr(path, true, type->currentIndex() == 0, comp->currentText()));
+  });
+  action(exp, tr("Heatmap (PNG)..."), QKeySequence(), [this] {
+    const QString path = askSavePath(tr("Export the heatmap"), tr("PNG (*.png)"), "png");
+    if (!path.isEmpty()) runExport(tr("heatmap PNG"), exportHeatmap(path, true));
+  });
+  action(exp, tr("Heatmap values (EXR)..."), QKeySequence(), [this] {
+    const QString path = askSavePath(tr("Export the heatmap values"), tr("OpenEXR (*.exr)"), "exr");
+    if (!path.isEmpty()) runExport(tr("heatmap EXR"), exportHeatmap(path, true));
+  });
+  action(exp, tr("Comparison sheet (PNG)..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S), [this] {
+    const QString path = askSavePath(tr("Export the comparison"), tr("PNG (*.png)"), "png");
+    if (!path.isEmpty()) runExport(tr("comparison PNG"), exportComparison(path, true));
+  });
+  action(exp, tr("Metrics (JSON or CSV)..."), QKeySequence(), [this] {
+    const QString path = askSavePath(tr("Export the metrics"), tr("JSON (*.json);;CSV (*.csv)"), "json");
+    if (!path.isEmpty()) runExport(tr("metrics"), exportMetrics(path, true));
+  });
+  file->addSeparator();
+  action(file, tr("&Quit"), QKeySequence::Quit, [this] { close(); });
+
+  auto* view = menuBar()->addMenu(tr("&View"));
+  action(view, tr("All panes"), QKeySequence(Qt::Key_A), [this] { layout_box_->setCurrentIndex(0); });
+  action(view, tr("A | B side by side"), QKeySequence(Qt::Key_S), [this] { layout_box_->setCurrentIndex(2); });
+  action(view, tr("Wipe A | B"), QKeySequence(Qt::Key_W), [this] { layout_box_->setCurrentIndex(3); });
+  action(view, tr("Flip A / B"), QKeySequence(Qt::Key_Space), [this] {
+    if (canvas_->layout() != ImageCanvas::Layout::Single) canvas_->setCurrent(canvas_->wipeA());
+    layout_box_->setCurrentIndex(1);
+    canvas_->flipAB();
+  });
+  action(view, tr("Difference: A against B"), QKeySequence(Qt::Key_D), [this] {
+    if (session_->b() < 0) return statusBar()->showMessage(tr("Pick a result B first (Ctrl+1-9)"), 5000);
+    heatmap_->setOf(HeatmapPanel::Of::AgainstB);
+    heatmap_->setDisplay(HeatmapPanel::Display::Pane);
+    tabs_->setCurrentWidget(heatmap_);
+    if (paneIndex(Source::Heatmap) >= 0) showPane(Source::Heatmap);
+    else pending_pane_ = Source::Heatmap;  // once the panes are drawn with it
+  });
+  auto* next = action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); });
+  next->setShortcutContext(Qt::ApplicationShortcut);
+  auto* prev = action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Backtab), [this] { cyclePane(-1); });
+  prev->setShortcuts({QKeySequence(Qt::SHIFT | Qt::Key_Backtab), QKeySequence(Qt::Key_Backtab)});
+  auto* pick = view->addMenu(tr("Wipe pair"));
+  const Source pairable[] = {Source::Noisy, Source::Denoised, Source::Compare, Source::Reference};
+  for (Source sa : pairable) {
+    for (Source sb : pairable) {
+      if (sb <= sa) continue;
+      const auto label = [](Source x) { return x == Source::Denoised ? QString("A") : x == Source::Compare ? QString("B")
+                                                                                       : QString::fromLatin1(to_string(x)); };
+      action(pick, QString("%1 | %2").arg(label(sa), label(sb)), QKeySequence(), [this, sa, sb] {
+        setWipePair(sa, sb);
+        layout_box_->setCurrentIndex(3);
+      });
+    }
+  }
+  view->addSeparator();
+  auto* results = view->addMenu(tr("Results"));
+  for (int i = 1; i <= 9; ++i) {
+    action(results, tr("Result %1 as A").arg(i), QKeySequence(Qt::Key_0 + i), [this, i] { pickResult(i - 1, false); });
+    action(results, tr("Result %1 as B").arg(i), QKeySequence(Qt::CTRL | (Qt::Key_0 + i)), [this, i] { pickResult(i - 1, true); });
+  }
+  action(view, tr("Side Bar"), QKeySequence(Qt::Key_F9), [this] {
+    if (auto* d = findChild<QDockWidget*>("sideDock")) d->setVisible(!d->isVisible());
+  });
+  view->addSeparator();
+  action(view, tr("Fit"), QKeySequence(Qt::Key_F), [this] { canvas_->fit(); });
+  action(view, tr("1:1"), QKeySequence(Qt::CTRL | Qt::Key_0), [this] { canvas_->oneToOne(); });
+  auto* zin = action(view, tr("Zoom in"), QKeySequence(Qt::Key_Plus), [this] { canvas_->zoomBy(2.0); });
+  zin->setShortcuts({QKeySequence(Qt::Key_Plus), QKeySequence(Qt::Key_Equal), QKeySequence::ZoomIn});
+  auto* zout = action(view, tr("Zoom out"), QKeySequence(Qt::Key_Minus), [this] { canvas_->zoomBy(0.5); });
+  zout->setShortcuts({QKeySequence(Qt::Key_Minus), QKeySequence::ZoomOut});
+  view->addSeparator();
+  action(view, tr("Exposure +1/2 stop"), QKeySequence(Qt::Key_E), [this] { setExposure(exposure() + 0.5); });
+  action(view, tr("Exposure -1/2 stop"), QKeySequence(Qt::SHIFT | Qt::Key_E), [this] { setExposure(exposure() - 0.5); });
+  action(view, tr("Reset exposure and offset"), QKeySequence(Qt::Key_R), [this] {
+    setExposure(0);
+    offset_box_->setValue(0);
+  });
+  action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); });
+  action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); });
+  action(view, tr("Heatmap: pane / overlay / off"), QKeySequence(Qt::Key_H), [this] {
+    const auto d = heatmap_->display();
+    heatmap_->setDisplay(d == HeatmapPanel::Display::Pane      ? HeatmapPanel::Display::Overlay
+                         : d == HeatmapPanel::Display::Overlay ? HeatmapPanel::Display::Off
+                                                               : HeatmapPanel::Display::Pane);
+  });
+  action(view, tr("Clear region of interest"), QKeySequence(Qt::Key_Backspace), [this] { setRoi(std::nullopt); });
+
+  auto* den = menuBar()->addMenu(tr("&Denoise"));
+  action(den, tr("&Denoise"), QKeySequence(Qt::CTRL | Qt::Key_D), [this] { denoise_->start(); });
+  action(den, tr("&Cancel"), QKeySequence(), [this] { denoise_->cancel(); });
+
+  auto* help = menuBar()->addMenu(tr("&Help"));
+  auto* keys = action(help, tr("Keyboard shortcuts"), QKeySequence(Qt::Key_Question), [this] { help_->toggle(); });
+  // "?" arrives as Shift+? on most layouts and platforms; F1 is the usual help key.
+  keys->setShortcuts({QKeySequence(Qt::Key_Question), QKeySequence(Qt::SHIFT | Qt::Key_Question), QKeySequence(Qt::Key_F1)});
+  action(help, tr("About Residue"), QKeySequence(), [this] {
+    QMessageBox::about(this, tr("About Residue"),
+                       tr("<b>Residue %1</b><p>Monte Carlo render denoising with a direct residual network "
+                          "(Wong &amp; Wong 2019), and the tools to judge it.</p><p>Colour: %2</p>")
+                           .arg(RESIDUE_VERSION, QString::fromStdString(display_->source()).toHtmlEscaped()));
+  });
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Opening
+
+}  // namespace residue::ui

@@ -1,0 +1,235 @@
+// MainWindow's exports: the denoised EXR, the heatmap, the comparison sheet, the metrics and "export all". Each
+// gathers what it needs on the UI thread and writes on a worker (runExport reports the result in the status bar).
+#include <QDir>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QFutureWatcher>
+#include <QMessageBox>
+#include <QSettings>
+#include <QStatusBar>
+#include <QtConcurrent/QtConcurrentRun>
+
+#include "core/io/map_writer.h"
+#include "core/io/metrics_report.h"
+#include "ui/comparison_sheet.h"
+#include "ui/denoise_panel.h"
+#include "ui/export_all.h"
+#include "ui/main_window.h"
+#include "ui/metrics_panel.h"
+
+namespace residue::ui {
+
+namespace {
+QString errorText(const std::exception& e) { return QString::fromStdString(e.what()); }
+}  // namespace
+
+QString MainWindow::askSavePath(const QString& title, const QString& filter, const QString& suffix) {
+  QFileDialog dlg(this, title, QString(), filter);
+  dlg.setAcceptMode(QFileDialog::AcceptSave);
+  dlg.setDefaultSuffix(suffix);
+  // The dialog asks before replacing an existing file (ConfirmOverwrite is on by default).
+  if (dlg.exec() != QDialog::Accepted || dlg.selectedFiles().isEmpty()) return {};
+  return dlg.selectedFiles().front();
+}
+
+void MainWindow::runExport(const QString& what, QFuture<QString> future) {
+  ++exports_running_;
+  statusBar()->showMessage(tr("Writing %1...").arg(what));
+  auto* w = new QFutureWatcher<QString>(this);
+  connect(w, &QFutureWatcherBase::finished, this, [this, w, what] {
+    --exports_running_;
+    const QString error = w->result();
+    if (error.isEmpty()) statusBar()->showMessage(tr("Wrote the %1").arg(what), 8000);
+    else if (interactive_) QMessageBox::warning(this, tr("Export failed"), error);
+    else statusBar()->showMessage(error, 15000);
+    w->deleteLater();
+  });
+  w->setFuture(future);
+}
+
+QFuture<QString> MainWindow::exportDenoisedExr(const QString& path, bool overwrite, bool half,
+                                               const QString& compression) {
+  const auto denoised = session_->denoisedShared();
+  const auto stack = session_->stack();
+  const QString name = session_->resultName(session_->a());
+  const QString description = session_->denoisedDescription();
+  const float strength = session_->strength();
+  return QtConcurrent::run([=]() -> QString {
+    if (!denoised || !stack) return tr("Nothing to export: no denoised image.");
+    try {
+      write_result_exr(path.toStdString(), *denoised, *stack, name, description, overwrite, half,
+                       compression.toStdString(), strength);
+      return {};
+    } catch (const std::exception& e) {
+      return errorText(e);
+    }
+  });
+}
+
+QFuture<QString> MainWindow::exportHeatmap(const QString& path, bool overwrite) {
+  const auto map = heatmap_->map();
+  const QImage picture = heatmap_->imageWithBar();
+  return QtConcurrent::run([=]() -> QString {
+    if (!map) return tr("Nothing to export: no heatmap (it needs a reference).");
+    try {
+      if (path.endsWith(".exr", Qt::CaseInsensitive)) {
+        io::write_map_exr(path.toStdString(), *map, overwrite);
+      } else {
+        write_png(path.toStdString(), picture, overwrite, "heatmap PNG");
+      }
+      return {};
+    } catch (const std::exception& e) {
+      return errorText(e);
+    }
+  });
+}
+
+// What a comparison sheet shows, gathered on the UI thread and drawn on a worker.
+struct MainWindow::SheetInputs {
+  struct Item {
+    QString label;
+    std::shared_ptr<const Image> image;
+    QStringList lines;
+  };
+  std::vector<Item> items;
+  std::shared_ptr<const DisplayTransform> display;
+  DisplaySettings settings;
+  SheetOptions options;
+
+  QImage draw() const {
+    std::vector<SheetPanel> panels;
+    for (const auto& it : items) {
+      SheetPanel p{it.label, {}, it.lines};
+      try {
+        if (it.image) p.image = display->render(*it.image, 0, 3, it.image->bounds(), settings, Encoding::SceneLinear);
+      } catch (const std::exception&) {
+        // drawn as "(no image)"
+      }
+      panels.push_back(std::move(p));
+    }
+    return comparison_sheet(panels, options);
+  }
+};
+
+MainWindow::SheetInputs MainWindow::sheetInputs() const {
+  SheetInputs in;
+  in.display = display_;
+  in.settings = displaySettings();
+  const auto stack = session_->stack();
+  if (!stack) return in;
+  const auto& report = metrics_->wholeReport();
+  const auto scores = [&](const QString& name) {
+    for (const auto& row : report.rows)
+      if (QString::fromStdString(row.name) == name)
+        return QStringList{QString("relMSE %1   SSIM %2").arg(row.scores.relmse, 0, 'g', 4).arg(row.scores.ssim, 0, 'f', 4),
+                           QString("PSNR %1 dB").arg(row.scores.psnr, 0, 'f', 2)};
+    return QStringList{};
+  };
+  in.items.push_back({tr("Noisy input"), shared(Source::Noisy), scores("noisy")});
+  for (const auto& r : session_->results()) {
+    const QString name = session_->resultName(r.id);
+    QStringList lines = scores(name);
+    if (r.seconds > 0 && !lines.isEmpty()) lines.back() += tr("   %1 s here").arg(r.seconds, 0, 'f', 2);
+    else if (r.seconds > 0) lines << tr("%1 s here").arg(r.seconds, 0, 'f', 2);
+    if (!r.state.isEmpty()) lines << r.state;
+    in.items.push_back({name, r.id == session_->a() ? session_->denoisedShared() : r.image, lines});
+  }
+  if (const auto ref = shared(Source::Reference)) in.items.push_back({tr("Reference"), ref, {}});
+  in.options.title = tr("%1   %2 x %3   reference: %4   display: %5 / %6, %7 EV")
+                         .arg(session_->title())
+                         .arg(stack->width())
+                         .arg(stack->height())
+                         .arg(stack->reference ? QFileInfo(QString::fromStdString(stack->reference->source.file)).fileName()
+                                               : tr("none"))
+                         .arg(QString::fromStdString(in.settings.display), QString::fromStdString(in.settings.view))
+                         .arg(in.settings.exposure, 0, 'f', 1);
+  return in;
+}
+
+QFuture<QString> MainWindow::exportComparison(const QString& path, bool overwrite) {
+  const SheetInputs in = sheetInputs();
+  return QtConcurrent::run([=]() -> QString {
+    try {
+      const QImage sheet = in.draw();
+      if (sheet.isNull()) return tr("Nothing to export: no render open.");
+      write_png(path.toStdString(), sheet, overwrite, "comparison PNG");
+      return {};
+    } catch (const std::exception& e) {
+      return errorText(e);
+    }
+  });
+}
+
+QFuture<QString> MainWindow::exportMetrics(const QString& path, bool overwrite) {
+  const io::MetricsReport report = metrics_->report();
+  return QtConcurrent::run([=]() -> QString {
+    if (report.rows.empty()) return tr("Nothing to export: no metrics (they need a reference).");
+    try {
+      io::write_metrics(path.toStdString(), report, overwrite);
+      return {};
+    } catch (const std::exception& e) {
+      return errorText(e);
+    }
+  });
+}
+
+QFuture<QString> MainWindow::exportAll(const QString& folder, bool overwrite) {
+  ExportAllInputs in;
+  in.stack = session_->stack();
+  for (const auto& r : session_->results()) {
+    if (r.id == denoise_->controller()->runningResult()) continue;
+    Result copy = r;
+    copy.name = session_->resultName(r.id);
+    if (r.id == session_->a()) {  // as shown: at its strength
+      copy.image = std::const_pointer_cast<Image>(session_->denoisedShared());
+      copy.description = session_->denoisedDescription();
+    }
+    in.results.push_back(std::move(copy));
+  }
+  in.reference = shared(Source::Reference);
+  in.options = metrics_->options();
+  in.map_kind = heatmap_->kind();
+  in.map_name = heatmap_->title().section(" of ", 0, 0);
+  in.colormap = heatmap_->colormap();
+  in.scale = heatmap_->scale();
+  in.whole = metrics_->wholeReport();
+  if (canvas_->roi()) in.roi = metrics_->report();
+  const SheetInputs sheet = sheetInputs();
+  in.sheet = [sheet] { return sheet.draw(); };
+  const std::filesystem::path dir = folder.toStdString();
+  return QtConcurrent::run([in, dir, overwrite]() { return export_all(in, dir, overwrite); });
+}
+
+void MainWindow::exportAllDialog() {
+  if (!session_->hasStack()) return void(QMessageBox::information(this, tr("Export All"), tr("Open a render first.")));
+  QSettings settings;
+  const QString start = settings.value("exportFolder", QDir::homePath() + "/residue-export").toString();
+  const QString folder = QFileDialog::getExistingDirectory(this, tr("Export all into a folder"),
+                                                           QFileInfo(start).exists() ? start : QDir::homePath());
+  if (folder.isEmpty()) return;
+  settings.setValue("exportFolder", folder);
+  // Ask once before replacing anything.
+  ExportAllInputs probe;
+  probe.stack = session_->stack();
+  probe.results = session_->results();
+  probe.reference = shared(Source::Reference);
+  probe.whole = metrics_->wholeReport();
+  if (canvas_->roi()) probe.roi = metrics_->report();
+  probe.sheet = [] { return QImage(); };
+  QStringList existing;
+  for (const auto& f : planned_files(probe, folder.toStdString()))
+    if (std::filesystem::exists(f)) existing << QString::fromStdString(f.filename().string());
+  bool overwrite = false;
+  if (!existing.isEmpty()) {
+    if (QMessageBox::question(this, tr("Export All"),
+                              tr("%1 already holds %n of these file(s):\n%2\n\nReplace them?", nullptr,
+                                 static_cast<int>(existing.size()))
+                                  .arg(folder, existing.mid(0, 12).join("\n") + (existing.size() > 12 ? "\n..." : "")),
+                              QMessageBox::Yes | QMessageBox::Cancel, QMessageBox::Cancel) != QMessageBox::Yes)
+      return;
+    overwrite = true;
+  }
+  runExport(tr("export into %1").arg(folder), exportAll(folder, overwrite));
+}
+
+}  // namespace residue::ui
