@@ -331,6 +331,59 @@ TEST(Denoise, MatchesTheFloat64ReferenceThroughFeatures) {
     EXPECT_NEAR(out.data()[i], expand_color(static_cast<float>(ref.v[i])), 1e-5 * std::max(1.0f, out.data()[i]));
 }
 
+// A demodulated model (issue 16, lever 4): the colour planes are log(1 + c / (a + 0.01)) and the output is the
+// network's times (a + 0.01), checked against the float64 network with the division and product done here, on
+// albedo that is black, NaN, negative and emissive (30) somewhere; tiled equals untiled; the flag travels in the
+// model file and a colour-only demodulated model is refused.
+TEST(Denoise, DemodulatedModelDividesByTheAlbedoAndMultipliesBack) {
+  nn::Architecture arch{1, 8, FeatureSet::Full};
+  arch.demodulate = true;
+  const nn::Model model = nn::model_from_network(nn::random_network(arch, 3), "demod");
+  AovStack s = random_stack(9, 7, 8);
+  Image& albedo = s.albedo->image;
+  albedo.at(1, 1, 0) = 0.0f;
+  albedo.at(2, 3, 1) = std::numeric_limits<float>::quiet_NaN();
+  albedo.at(4, 2, 2) = -0.5f;
+  albedo.at(5, 5, 0) = 30.0f;
+  const auto factor = [&](int64_t x, int64_t y, int c) {
+    const double a = albedo.at(x, y, c);
+    return (std::isfinite(a) && a > 0 ? a : 0.0) + static_cast<double>(0.01f);
+  };
+  FeatureStats stats = compute_feature_stats(s);
+  stats.demodulate = true;
+  Image f;
+  make_features(s, FeatureSet::Full, stats, {0, 0, 9, 7}, f);
+  for (int64_t y = 0; y < 7; ++y)
+    for (int64_t x = 0; x < 9; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double colour = std::max(0.0, static_cast<double>(s.color.image.at(x, y, c)));
+        EXPECT_NEAR(f.at(x, y, c), std::log1p(colour / factor(x, y, c)), 2e-6 * (1 + f.at(x, y, c)));
+      }
+  const Image out = denoise(s, model, eigen_options(9));
+  const auto ref = testing::naive_forward(model.network, f);
+  for (int64_t y = 0; y < 7; ++y)
+    for (int64_t x = 0; x < 9; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double expected = std::expm1(std::max(0.0, ref.at(y, x, c))) * factor(x, y, c);
+        EXPECT_NEAR(out.at(x, y, c), expected, 1e-5 * std::max(1.0, expected)) << x << "," << y << "," << c;
+      }
+  EXPECT_LT(max_rel_diff(denoise(s, model, eigen_options(4)), out), 1e-5) << "tiled equals untiled";
+
+  TempDir tmp;
+  nn::write_safetensors(tmp / "d.safetensors", nn::to_safetensors(model.network), false);
+  EXPECT_TRUE(nn::load_model(tmp / "d.safetensors").network.arch.demodulate);
+  EXPECT_NE(nn::load_model(tmp / "d.safetensors").architecture().find("demodulated"), std::string::npos);
+  auto colour_only = nn::to_safetensors(nn::random_network({1, 8, FeatureSet::ColorOnly}, 2));
+  colour_only.metadata["residue.demodulate"] = "1";
+  nn::write_safetensors(tmp / "c.safetensors", colour_only, false);
+  try {
+    nn::load_model(tmp / "c.safetensors");
+    ADD_FAILURE() << "a colour-only demodulated model loaded";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("albedo"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Denoise, RegionOfInterestOnly) {
   const nn::Model model = small_model();
   const AovStack s = random_stack(30, 20, 4);
@@ -584,6 +637,17 @@ TEST(DenoiseJob, ErrorsAreValues) {
     EXPECT_EQ(stats.energy_corrected, c.energy);
     const Image streamed = testing::read_exr_float(tmp / c.file);
     EXPECT_LT(max_rel_diff(streamed, in_memory), 1e-5) << c.file;
+  }
+  {  // a demodulated model reads the albedo of the rows it multiplies back, band by band
+    nn::Architecture arch{2, 8, FeatureSet::Full};
+    arch.demodulate = true;
+    const nn::Model demod = nn::model_from_network(nn::random_network(arch, 4), "demod");
+    DenoiseOptions o = eigen_options(24);
+    o.energy_correction = true;
+    io::ExrWriteOptions exr;
+    exr.pixel_type = io::PixelType::Float;
+    denoise_to_exr(reader, demod, o, tmp / "demod.exr", exr);
+    EXPECT_LT(max_rel_diff(testing::read_exr_float(tmp / "demod.exr"), denoise(whole, demod, o)), 1e-5);
   }
   // The written file keeps the source's metadata and says which backend ran.
   OIIO::ImageBuf img((tmp / "all.exr").string());

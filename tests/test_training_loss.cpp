@@ -66,6 +66,19 @@ TEST(TrainLoss, SsimTermIsZeroAtTheTargetAndGrowsWithTheError) {
   EXPECT_THROW(train::training_loss("l2", more, target), std::invalid_argument);
 }
 
+// A demodulated network's output goes back to log colour as core multiplies it back: log(1 + c / f) -> log(1 + c)
+// with f = a + 0.01 and a from the albedo planes log(1 + a).
+TEST(TrainLoss, RemodulationUndoesTheDemodulation) {
+  const auto colour = torch::tensor({0.0, 0.3, 2.0, 150.0}, torch::kFloat64).reshape({1, 1, 2, 2}).expand({1, 3, 2, 2});
+  const auto albedo = torch::tensor({0.0, 0.5, 0.02, 30.0}, torch::kFloat64).reshape({1, 1, 2, 2}).expand({1, 3, 2, 2});
+  const auto demodulated = torch::log1p(colour / (albedo + 0.01));
+  const auto back = train::remodulate(demodulated, torch::log1p(albedo));
+  EXPECT_LT((back - torch::log1p(colour)).abs().max().item<double>(), 1e-12);
+  auto negative = torch::full({1, 3, 2, 2}, -3.0, torch::requires_grad());
+  const auto clamped = train::remodulate(negative, torch::log1p(albedo));
+  EXPECT_TRUE(torch::isfinite(clamped).all().item<bool>()) << "a negative prediction times an emissive albedo";
+}
+
 // Black patches, values at and far beyond the tonemap's white point, a prediction far outside the data: the loss
 // and every gradient stay finite (a NaN here would poison the weights on the first such patch).
 TEST(TrainLoss, FiniteWithFiniteGradientsAtExtremes) {

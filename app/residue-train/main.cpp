@@ -38,6 +38,7 @@ struct Options {
   std::string features = "full";
   std::string dilations;  // per ResBlock, repeated; empty: none (the paper)
   bool input_skip = false;  // variant: the network predicts the correction to the log noisy colour
+  bool demodulate = false;  // variant: colour divided by the albedo in, multiplied back out
   int steps = 3000;
   int batch = 8;
   int patch = 64;
@@ -135,6 +136,10 @@ int run(const Options& o) {
   }
   arch.features = *feature_set_from_string(o.features);
   arch.input_skip = o.input_skip;
+  arch.demodulate = o.demodulate;
+  const int albedo_at = train::albedo_plane(arch.features);
+  if (arch.demodulate && albedo_at < 0)
+    throw Error(ErrorKind::Usage, "--demodulate needs a feature set with the albedo, not \"" + o.features + "\"");
   if (!o.dilations.empty()) {
     const auto d = nn::parse_dilations(o.dilations);
     if (!d) throw Error(ErrorKind::Usage, "--dilations: expected integers from 1 to 64, e.g. 1,2,4,8");
@@ -158,7 +163,7 @@ int run(const Options& o) {
   std::printf("residue-train: %s, %zu training scenes, %zu validation scenes\n", arch.to_string().c_str(),
               train_scenes.size(), val_scenes.size());
   const auto t_load = std::chrono::steady_clock::now();
-  const train::TrainingSet set(train_scenes, arch.features, o.patch);
+  const train::TrainingSet set(train_scenes, arch.features, o.patch, arch.demodulate);
   std::printf("loaded in %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count());
 
   train::ResidueNet net(arch);
@@ -250,6 +255,7 @@ int run(const Options& o) {
     } else {
       prediction = net->forward(x);
     }
+    if (arch.demodulate) prediction = train::remodulate(prediction, x.slice(1, albedo_at, albedo_at + 3));
     const torch::Tensor loss = train::training_loss(o.loss, prediction, y, o.ssim_weight);
     loss.backward();
     torch::nn::utils::clip_grad_norm_(net->parameters(), 1.0);
@@ -325,6 +331,8 @@ int main(int argc, char** argv) {
                  "Dilation per ResBlock, repeated over the blocks, e.g. 1,2,4,8 (default: none, as in the paper)");
   app.add_flag("--input-skip", o.input_skip,
                "Add the input's log colour to the output: the network learns the correction (a variant)");
+  app.add_flag("--demodulate", o.demodulate,
+               "Divide the colour by the albedo before the network and multiply its output back (a variant)");
   app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color", "full+variance"}));
   app.add_option("--steps", o.steps, "Training steps")->capture_default_str();
   app.add_option("--batch", o.batch, "Patches per step")->capture_default_str();

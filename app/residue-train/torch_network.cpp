@@ -192,6 +192,7 @@ nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::str
   f.metadata["residue.features"] = to_string(net->arch.features);
   if (net->arch.max_dilation() > 1) f.metadata["residue.dilations"] = nn::dilations_to_string(net->arch.dilations);
   if (net->arch.input_skip) f.metadata["residue.input_skip"] = "1";
+  if (net->arch.demodulate) f.metadata["residue.demodulate"] = "1";
   if (net->arch.multiscale()) {
     f.metadata["residue.levels"] = nn::ints_to_string(net->arch.levels);
     f.metadata["residue.widths"] = nn::ints_to_string(net->arch.widths);

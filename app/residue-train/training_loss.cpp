@@ -50,6 +50,11 @@ std::string loss_description(const std::string& kind) {
   return "L1 on log(1+c)";
 }
 
+torch::Tensor remodulate(const torch::Tensor& prediction, const torch::Tensor& albedo_planes) {
+  const auto factor = torch::expm1(albedo_planes).clamp_min(0.0) + 0.01;
+  return torch::log1p((torch::expm1(prediction.clamp_max(20.0)) * factor).clamp_min(-0.99));
+}
+
 torch::Tensor tonemap_filmic_srgb(const torch::Tensor& linear) {
   constexpr double kWhite = 11.2;
   const auto x = linear.clamp(0.0, kWhite);

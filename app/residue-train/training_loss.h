@@ -20,6 +20,11 @@ std::string loss_description(const std::string& kind);
 torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target,
                             double ssim_weight = 1.0);
 
+// A demodulated network's output, log(1 + c / f), back to log(1 + c): f = a + 0.01 as core multiplies back
+// (core/features/features.h), the albedo a recovered from its input planes log(1 + a). Products below -0.99 (a
+// negative prediction times an emissive albedo) are clamped there, so the log stays finite.
+torch::Tensor remodulate(const torch::Tensor& prediction, const torch::Tensor& albedo_planes);
+
 // Linear colour -> the metric's display values: Hable's filmic curve normalised at 11.2, clamped, then the
 // sRGB OETF (core/metrics/tonemap.h), differentiable (the OETF's power is taken above its linear segment only).
 torch::Tensor tonemap_filmic_srgb(const torch::Tensor& linear);

@@ -41,8 +41,24 @@ Image noise_map(const AovStack& a, const AovStack* b, const Image& reference) {
 
 }  // namespace
 
-TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet features, int patch)
+int albedo_plane(FeatureSet set) {
+  switch (set) {
+    case FeatureSet::Full:
+    case FeatureSet::FullVariance: return 6;
+    case FeatureSet::ColorAlbedoNormal: return 5;
+    case FeatureSet::ColorOnly: return -1;
+  }
+  return -1;
+}
+
+TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet features, int patch, bool demodulate)
     : features_(features), channels_(feature_channels(features)), patch_(patch) {
+  // The stats of each half, with the model's colour encoding.
+  auto stats = [demodulate](const AovStack& s) {
+    FeatureStats f = compute_feature_stats(s);
+    f.demodulate = demodulate;
+    return f;
+  };
   for (const auto& dir : scenes) {
     const AovStack a = load_dataset_scene(dir);  // with the variance from the two halves when there are two
     if (a.width() < patch || a.height() < patch)
@@ -51,7 +67,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet feature
     s.name = dir.filename().string();
     const Rect all{0, 0, a.width(), a.height()};
     Image f;
-    make_features(a, features, compute_feature_stats(a), all, f);
+    make_features(a, features, stats(a), all, f);
     s.inputs.push_back(std::move(f));
     std::optional<AovStack> b;
     if (fs::exists(dir / "noisy_b.exr")) {
@@ -60,7 +76,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet feature
       b = load_aov_stack({dir / "noisy_b.exr"}, lb);
       b->variance = a.variance;  // (a - b)^2 / 2 is the estimate for either half
       Image fb;
-      make_features(*b, features, compute_feature_stats(*b), all, fb);
+      make_features(*b, features, stats(*b), all, fb);
       s.inputs.push_back(std::move(fb));
     }
     s.target = Image(a.width(), a.height(), 3);

@@ -27,7 +27,8 @@ struct TrainingScene {
 
 class TrainingSet {
  public:
-  TrainingSet(const std::vector<std::filesystem::path>& scenes, FeatureSet features, int patch);
+  // demodulate: colour planes divided by the albedo (a demodulated model's input, core/features/features.h).
+  TrainingSet(const std::vector<std::filesystem::path>& scenes, FeatureSet features, int patch, bool demodulate = false);
 
   // A batch: inputs B x C x P x P, targets B x 3 x P x P. Patches from random scenes, corners drawn by
   // the noise weights, one of the 8 flips/rotations applied (normals turned with the image).
@@ -45,5 +46,7 @@ class TrainingSet {
 
 // Index of the view-space normal's x plane in a feature set (y follows); -1 when it has none.
 int normal_plane(FeatureSet set);
+// Index of the albedo's r plane (log(1 + a); g, b follow); -1 when it has none.
+int albedo_plane(FeatureSet set);
 
 }  // namespace residue::train

@@ -1,6 +1,7 @@
 #include "core/denoise/denoiser.h"
 
 #include <algorithm>
+#include <cfloat>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -63,7 +64,8 @@ class NetworkIO {
   virtual ~NetworkIO() = default;
   // The input planes of rectangle r of `src` (its pixel coordinates).
   virtual void input(const AovStack& src, const Rect& r, Image& planes) const = 0;
-  virtual float output(float raw) const = 0;
+  // The linear value of raw output `raw` at pixel (x, y), channel c of `src`.
+  virtual float output(float raw, const AovStack& src, int64_t x, int64_t y, int c) const = 0;
 };
 
 // Residue's models: log features (core/features), log colour out.
@@ -73,7 +75,10 @@ class ResidueIO final : public NetworkIO {
   void input(const AovStack& src, const Rect& r, Image& planes) const override {
     make_features(src, set_, stats_, r, planes);
   }
-  float output(float raw) const override { return expand_color(raw); }
+  float output(float raw, const AovStack& src, int64_t x, int64_t y, int c) const override {
+    if (!stats_.demodulate) return expand_color(raw);
+    return std::min(expand_color(raw) * demodulation_factor(src.albedo->image.at(x, y, c)), FLT_MAX);
+  }
 
  private:
   FeatureSet set_;
@@ -85,7 +90,7 @@ class OidnIO final : public NetworkIO {
  public:
   explicit OidnIO(OidnTransform t) : t_(std::move(t)) {}
   void input(const AovStack& src, const Rect& r, Image& planes) const override { t_.input(src, r, planes); }
-  float output(float raw) const override { return t_.output(raw); }
+  float output(float raw, const AovStack&, int64_t, int64_t, int) const override { return t_.output(raw); }
 
  private:
   OidnTransform t_;
@@ -159,7 +164,7 @@ struct TileRunner {
         for (int c = 0; c < oc; ++c) {
           const float raw = result.at(tx - in.x + x, ty - in.y + y, c);
           non_finite += !std::isfinite(raw);
-          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = io.output(raw);
+          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = io.output(raw, src, tx + x, ty + y, c);
         }
     // Output is finite or the run fails: a network whose weights or inputs overflow does not get written as a
     // black or saturated image with success (the output transforms would turn NaN into 0 and Inf into FLT_MAX).
@@ -345,12 +350,18 @@ class ReaderRows final : public RowSource {
   Rect last_{};
 };
 
+FeatureStats with_encoding(FeatureStats stats, const nn::Model& model) {
+  stats.demodulate = model.network.arch.demodulate;
+  return stats;
+}
+
 // The whole-image statistics a model's input needs, before any tile runs: the depth scale (Residue's models)
 // or OIDN's autoexposure; from the stack in memory, or from one pass over the files' bands.
 residue_io_t network_io(RowSource& source, const nn::Model& model, int64_t band, const CancelToken* cancel) {
   const bool residue = model.method == nn::Method::Residue;
   if (const AovStack* stack = source.whole())
-    return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, compute_feature_stats(*stack)))
+    return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features,
+                                                              with_encoding(compute_feature_stats(*stack), model)))
                    : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, oidn_scale(model, stack->color.image))));
   const AovStack& layout = source.layout();
   const int64_t W = layout.data_window.width, H = layout.data_window.height;
@@ -371,7 +382,7 @@ residue_io_t network_io(RowSource& source, const nn::Model& model, int64_t band,
     }
     if (residue) fstats.depth_scale = depth_scale_from_samples(samples);
   }
-  return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, fstats))
+  return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, with_encoding(fstats, model)))
                  : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, exposure ? autoexposure.scale() : 1.0f)));
 }
 

@@ -24,6 +24,8 @@ float expand_color(float y) {
   return std::min(std::expm1(std::min(y, kMaxLog)), FLT_MAX);
 }
 
+float demodulation_factor(float albedo) { return sanitize_nonnegative(albedo) + 0.01f; }
+
 int64_t depth_sample_stride(int64_t pixel_count) { return std::max<int64_t>(1, pixel_count / (int64_t{1} << 20)); }
 
 double depth_scale_from_samples(std::vector<float>& samples) {
@@ -80,6 +82,8 @@ void check_features_available(const AovStack& stack, FeatureSet set) {
 
 void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& stats, const Rect& rect, Image& out) {
   check_features_available(stack, set);
+  if (stats.demodulate && !stack.albedo)
+    throw Error(ErrorKind::Input, "a demodulated model needs an albedo AOV; '" + stack.color.source.file + "' has none");
   const int channels = feature_channels(set);
   if (out.width() != rect.width || out.height() != rect.height || out.channels() != channels)
     out = Image(rect.width, rect.height, channels);
@@ -90,7 +94,12 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
     for (int64_t x = 0; x < rect.width; ++x) {
       const int64_t sx = rect.x + x;
       float* f = &out.at(x, y, 0);
-      for (int c = 0; c < 3; ++c) *f++ = compress_color(stack.color.image.at(sx, sy, c));
+      if (stats.demodulate) {
+        for (int c = 0; c < 3; ++c)
+          *f++ = compress_color(stack.color.image.at(sx, sy, c) / demodulation_factor(stack.albedo->image.at(sx, sy, c)));
+      } else {
+        for (int c = 0; c < 3; ++c) *f++ = compress_color(stack.color.image.at(sx, sy, c));
+      }
       if (set == FeatureSet::ColorOnly) continue;
       const bool depth = set == FeatureSet::Full || set == FeatureSet::FullVariance;
       if (depth) *f++ = std::log1p(sanitize_nonnegative(stack.depth->image.at(sx, sy)) * inv_depth_mean);

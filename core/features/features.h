@@ -13,6 +13,9 @@
 //                                            halves, load_dataset_scene);
 //                                            the standard deviation in the colour's units, log-compressed alike
 // Output: c = exp(y) - 1, clamped to [0, FLT_MAX], NaN -> 0: always finite and non-negative.
+// Demodulated models (Architecture::demodulate, issue 16's lever 4) see the colour divided by the albedo,
+// log(1 + c / (a + 0.01)) per channel (a sanitised like colour), and their output is multiplied back by (a + 0.01):
+// texture comes back from the albedo by construction; 0.01 bounds the gain where the albedo is black.
 #pragma once
 
 #include <array>
@@ -30,6 +33,7 @@ struct FeatureStats {
   double depth_scale = 1.0;  // median depth of hits, rounded to 1/8 octave (1 when none)
   bool rotate_normals = false;  // world-space normals and a known camera
   std::array<double, 9> normal_rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};  // world -> camera, row-major 3x3
+  bool demodulate = false;  // not a statistic: the model's colour encoding, set by the caller from the model
 };
 
 FeatureStats compute_feature_stats(const AovStack& stack);
@@ -53,5 +57,7 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
 // Colour transform and its inverse, exposed for training and tests.
 float compress_color(float linear);
 float expand_color(float network_output);
+// What a demodulated model's colour is divided by, and its output multiplied by: sanitised albedo + 0.01.
+float demodulation_factor(float albedo);
 
 }  // namespace residue

@@ -191,6 +191,13 @@ Model load_model(const std::filesystem::path& path) {
     if (v != "0" && v != "1") throw Error(ErrorKind::Input, where + ": metadata \"residue.input_skip\" must be 0 or 1, not \"" + v + "\"");
     arch.input_skip = v == "1";
   }
+  if (md.count("residue.demodulate")) {
+    const std::string v = md.at("residue.demodulate");
+    if (v != "0" && v != "1") throw Error(ErrorKind::Input, where + ": metadata \"residue.demodulate\" must be 0 or 1, not \"" + v + "\"");
+    arch.demodulate = v == "1";
+    if (arch.demodulate && arch.features == FeatureSet::ColorOnly)
+      throw Error(ErrorKind::Input, where + ": a demodulated model needs the albedo, but its feature set is \"color\"");
+  }
   const float eps = md.count("residue.bn_eps") ? metadata_eps(md.at("residue.bn_eps"), where) : kBnEps;
 
   Model m;
@@ -318,6 +325,7 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   f.metadata["residue.features"] = to_string(n.arch.features);
   if (n.arch.max_dilation() > 1) f.metadata["residue.dilations"] = dilations_to_string(n.arch.dilations);
   if (n.arch.input_skip) f.metadata["residue.input_skip"] = "1";
+  if (n.arch.demodulate) f.metadata["residue.demodulate"] = "1";
   if (n.arch.multiscale()) {
     f.metadata["residue.levels"] = ints_to_string(n.arch.levels);
     f.metadata["residue.widths"] = ints_to_string(n.arch.widths);

@@ -41,6 +41,7 @@ struct Architecture {
   // Multi-scale variant: ResBlocks per level (level 0 first; the encoder and the decoder each have that many
   // at levels above the bottom) and each level's width. Empty: the paper's flat network (blocks, width).
   std::vector<int> levels, widths;
+  bool demodulate = false;     // variant: colour divided by the albedo in, multiplied back out (core/features)
 
   bool multiscale() const { return !levels.empty(); }
   int level_width(int l) const { return widths.empty() ? width : widths[static_cast<size_t>(l)]; }
