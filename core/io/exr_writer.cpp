@@ -157,19 +157,13 @@ std::vector<fs::path> prepare_exr_output(const fs::path& path, const ExrWriteOpt
   return removed;
 }
 
+// Written as bands of rows, like a streamed output: OpenImageIO converts to half one band at a time (a whole
+// image at once needed a second full-size buffer, and its page faults), and the zip chunks of a band are still
+// compressed in parallel.
 WriteReport write_exr(const fs::path& path, const Image& image, const ExrWriteOptions& options) {
-  prepare_exr_output(path, options);
-  const OIIO::ImageSpec spec = make_spec(path, image.width(), image.height(), image.channels(), options);
-  WriteReport report;
-  Image copy;
-  const Image& pixels = fit_to_half(image, options, copy, report);
-  write_atomically(path, options.overwrite, [&](const fs::path& temp) {
-    auto out = OIIO::ImageOutput::create("openexr");
-    if (!out) throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + OIIO::geterror());
-    if (!out->open(temp.string(), spec) || !out->write_image(OIIO::TypeFloat, pixels.data()) || !out->close())
-      throw Error(ErrorKind::Output, "cannot write " + quoted(path) + ": " + out->geterror());
-  });
-  return report;
+  constexpr int64_t kBandRows = 256;  // a multiple of every compression's chunk height (at most 32 rows)
+  return write_exr_bands(path, image.width(), image.height(), image.channels(), kBandRows, options,
+                         [&](int64_t y0, int64_t rows) { return crop(image, {0, y0, image.width(), rows}); });
 }
 
 WriteReport write_exr_bands(const fs::path& path, int64_t width, int64_t height, int channels, int64_t band_rows,
