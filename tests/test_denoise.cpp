@@ -384,6 +384,67 @@ TEST(Denoise, DemodulatedModelDividesByTheAlbedoAndMultipliesBack) {
   }
 }
 
+// A post-correction model (issue 16, lever 6) refines OIDN's denoise: OIDN runs first, its log colour comes in
+// as planes 9-11, and input_skip adds those. With a zero output convolution the model returns OIDN's image (up to
+// the log/exp round trip); with random weights it equals the float64 network on those 12 planes. The file records
+// the prior and loads it; the streamed path refuses (OIDN needs the whole render first).
+TEST(Denoise, PostCorrectionRefinesOidnsOutput) {
+  const nn::Model oidn = nn::load_model(testing::oidn_dir() / "rt_hdr_alb_nrm.tza");
+  nn::Architecture arch{1, 8, FeatureSet::Full};
+  arch.prior = "oidn";
+  arch.input_skip = true;
+  ASSERT_EQ(arch.in_channels(), 12);
+  nn::Network net = nn::random_network(arch, 5);
+  const AovStack s = random_stack(21, 18, 4);
+  DenoiseOptions o = eigen_options(64);
+  o.output_guard = false;
+  const Image by_oidn = denoise(s, oidn, o);
+
+  nn::Network zero = net;
+  std::fill(zero.out.weight.begin(), zero.out.weight.end(), 0.0f);
+  std::fill(zero.out.bias.begin(), zero.out.bias.end(), 0.0f);
+  nn::Model identity = nn::model_from_network(zero, "zero-correction");
+  identity.prior = std::make_shared<const nn::Model>(oidn);
+  EXPECT_LT(max_rel_diff(denoise(s, identity, o), by_oidn), 1e-5);
+
+  nn::Model model = nn::model_from_network(net, "post");
+  model.prior = identity.prior;
+  const Image out = denoise(s, model, o);
+  AovStack with = s;
+  with.prior = Aov{by_oidn, {}, {}, 0};
+  FeatureStats stats = compute_feature_stats(s);
+  stats.prior = true;
+  Image f;
+  make_features(with, FeatureSet::Full, stats, {0, 0, 21, 18}, f);
+  ASSERT_EQ(f.channels(), 12);
+  EXPECT_NEAR(f.at(3, 4, 10), std::log1p(by_oidn.at(3, 4, 1)), 1e-6);
+  const auto ref = testing::naive_forward(model.network, f);
+  for (size_t i = 0; i < ref.v.size(); ++i)
+    EXPECT_NEAR(out.data()[i], expand_color(static_cast<float>(ref.v[i])), 1e-4 * std::max(1.0f, out.data()[i]));
+  EXPECT_LT(max_rel_diff(denoise(s, model, eigen_options(16)), denoise(s, model, eigen_options(64))), 1e-5)
+      << "tiled equals untiled (OIDN's pass and the correction both tiled)";
+
+  TempDir tmp;
+  nn::write_safetensors(tmp / "p.safetensors", nn::to_safetensors(net), false);
+  const nn::Model loaded = nn::load_model(tmp / "p.safetensors");
+  ASSERT_TRUE(loaded.prior);
+  EXPECT_EQ(loaded.prior->name, "rt_hdr_alb_nrm");
+  EXPECT_NE(loaded.architecture().find("refines oidn"), std::string::npos) << loaded.architecture();
+  auto bad = nn::to_safetensors(net);
+  bad.metadata["residue.prior"] = "bilateral";
+  nn::write_safetensors(tmp / "bad.safetensors", bad, false);
+  EXPECT_NE(testing::error_message([&] { nn::load_model(tmp / "bad.safetensors"); }, ErrorKind::Input).find("residue.prior"),
+            std::string::npos);
+  const auto dir = testing::shared_dataset("cycles-starter/s104");
+  if (!dir.empty()) {
+    const AovReader reader({dir / "noisy_a.exr"});
+    EXPECT_NE(testing::error_message([&] { denoise_to_exr(reader, loaded, o, tmp / "s.exr", {}); }, ErrorKind::Usage)
+                  .find("in memory"),
+              std::string::npos);
+    EXPECT_FALSE(std::filesystem::exists(tmp / "s.exr"));
+  }
+}
+
 TEST(Denoise, RegionOfInterestOnly) {
   const nn::Model model = small_model();
   const AovStack s = random_stack(30, 20, 4);

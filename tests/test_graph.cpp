@@ -29,7 +29,7 @@
 namespace residue {
 namespace {
 
-const std::filesystem::path kOidnDir = std::filesystem::path(RESIDUE_TEST_FIXTURES "/../../resources/models/oidn");
+const std::filesystem::path kOidnDir = testing::oidn_dir();
 
 const nn::Model& oidn_model(const std::string& name) {
   static std::map<std::string, nn::Model> cache;

@@ -136,7 +136,7 @@ TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
   // A scene-free check of the dihedral transforms: build a TrainingSet on the starter data when present.
   const auto dir = testing::shared_dataset("cycles-starter");
   RESIDUE_REQUIRE_SHARED(dir);
-  const train::TrainingSet set({dir / "s100"}, FeatureSet::Full, 64);
+  const train::TrainingSet set({dir / "s100"}, nn::Architecture{1, 8, FeatureSet::Full}, 64);
   std::mt19937 rng(5);
   torch::Tensor x, y;
   set.sample(rng, 16, x, y);

@@ -17,7 +17,7 @@
 namespace residue {
 namespace {
 
-const std::filesystem::path kOidnDir = std::filesystem::path(RESIDUE_TEST_FIXTURES "/../../resources/models/oidn");
+const std::filesystem::path kOidnDir = testing::oidn_dir();
 
 // --- a small TZA writer, with hooks to break the result ----------------------------------------------------------
 

@@ -39,6 +39,7 @@ struct Options {
   std::string dilations;  // per ResBlock, repeated; empty: none (the paper)
   bool input_skip = false;  // variant: the network predicts the correction to the log noisy colour
   bool demodulate = false;  // variant: colour divided by the albedo in, multiplied back out
+  std::string prior;        // post-correction: refine this model's output ("oidn")
   int steps = 3000;
   int batch = 8;
   int patch = 64;
@@ -137,6 +138,9 @@ int run(const Options& o) {
   arch.features = *feature_set_from_string(o.features);
   arch.input_skip = o.input_skip;
   arch.demodulate = o.demodulate;
+  arch.prior = o.prior;
+  if (!arch.prior.empty() && arch.features != FeatureSet::Full)
+    throw Error(ErrorKind::Usage, "--prior needs --features full");
   const int albedo_at = train::albedo_plane(arch.features);
   if (arch.demodulate && albedo_at < 0)
     throw Error(ErrorKind::Usage, "--demodulate needs a feature set with the albedo, not \"" + o.features + "\"");
@@ -163,7 +167,9 @@ int run(const Options& o) {
   std::printf("residue-train: %s, %zu training scenes, %zu validation scenes\n", arch.to_string().c_str(),
               train_scenes.size(), val_scenes.size());
   const auto t_load = std::chrono::steady_clock::now();
-  const train::TrainingSet set(train_scenes, arch.features, o.patch, arch.demodulate);
+  std::optional<nn::Model> prior;
+  if (!arch.prior.empty()) prior = nn::load_model(nn::find_model_for(arch.prior, FeatureSet::Full));
+  const train::TrainingSet set(train_scenes, arch, o.patch, prior ? &*prior : nullptr);
   std::printf("loaded in %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count());
 
   train::ResidueNet net(arch);
@@ -333,6 +339,10 @@ int main(int argc, char** argv) {
                "Add the input's log colour to the output: the network learns the correction (a variant)");
   app.add_flag("--demodulate", o.demodulate,
                "Divide the colour by the albedo before the network and multiply its output back (a variant)");
+  app.add_option("--prior", o.prior,
+                 "Post-correction: refine this model's output (its log colour as 3 more inputs; with --input-skip "
+                 "the network learns the correction to it)")
+      ->check(CLI::IsMember({"oidn"}));
   app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color", "full+variance"}));
   app.add_option("--steps", o.steps, "Training steps")->capture_default_str();
   app.add_option("--batch", o.batch, "Patches per step")->capture_default_str();

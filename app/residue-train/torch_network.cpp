@@ -93,7 +93,7 @@ torch::Tensor ResidueNetImpl::forward(const torch::Tensor& x) {
     }
   }
   y = tail->bn(tail->conv(y)) + h;
-  if (arch.input_skip) return out->conv(y) + x.slice(1, 0, 3);  // the input's log colour planes
+  if (arch.input_skip) return out->conv(y) + x.slice(1, arch.skip_plane(), arch.skip_plane() + 3);  // log colour planes
   return out->conv(y);
 }
 
@@ -193,6 +193,7 @@ nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::str
   if (net->arch.max_dilation() > 1) f.metadata["residue.dilations"] = nn::dilations_to_string(net->arch.dilations);
   if (net->arch.input_skip) f.metadata["residue.input_skip"] = "1";
   if (net->arch.demodulate) f.metadata["residue.demodulate"] = "1";
+  if (!net->arch.prior.empty()) f.metadata["residue.prior"] = net->arch.prior;
   if (net->arch.multiscale()) {
     f.metadata["residue.levels"] = nn::ints_to_string(net->arch.levels);
     f.metadata["residue.widths"] = nn::ints_to_string(net->arch.widths);

@@ -4,6 +4,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/dataset.h"
+#include "core/denoise/denoiser.h"
 #include "core/features/features.h"
 #include "core/util/error.h"
 
@@ -51,16 +52,22 @@ int albedo_plane(FeatureSet set) {
   return -1;
 }
 
-TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, FeatureSet features, int patch, bool demodulate)
-    : features_(features), channels_(feature_channels(features)), patch_(patch) {
-  // The stats of each half, with the model's colour encoding.
-  auto stats = [demodulate](const AovStack& s) {
+TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architecture& arch, int patch,
+                         const nn::Model* prior)
+    : features_(arch.features), channels_(arch.in_channels()), patch_(patch) {
+  if (!arch.prior.empty() && !prior)
+    throw Error(ErrorKind::Usage, "a post-correction network (" + arch.to_string() + ") needs its prior model");
+  const FeatureSet features = arch.features;
+  // The stats of each half, with the model's encoding; a post-correction model's prior computed here.
+  auto stats = [&](AovStack& s) {
     FeatureStats f = compute_feature_stats(s);
-    f.demodulate = demodulate;
+    f.demodulate = arch.demodulate;
+    f.prior = !arch.prior.empty();
+    if (f.prior) s.prior = Aov{denoise(s, *prior, {}), {}, {}, 0};
     return f;
   };
   for (const auto& dir : scenes) {
-    const AovStack a = load_dataset_scene(dir);  // with the variance from the two halves when there are two
+    AovStack a = load_dataset_scene(dir);  // with the variance from the two halves when there are two
     if (a.width() < patch || a.height() < patch)
       throw Error(ErrorKind::Input, "scene '" + dir.string() + "' is smaller than one " + std::to_string(patch) + " px patch");
     TrainingScene s;

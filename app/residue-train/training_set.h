@@ -13,6 +13,8 @@
 #include "core/aov/aov_stack.h"
 #include "core/features/feature_set.h"
 #include "core/image/image.h"
+#include "core/nn/model_file.h"
+#include "core/nn/network.h"
 
 namespace residue::train {
 
@@ -27,8 +29,10 @@ struct TrainingScene {
 
 class TrainingSet {
  public:
-  // demodulate: colour planes divided by the albedo (a demodulated model's input, core/features/features.h).
-  TrainingSet(const std::vector<std::filesystem::path>& scenes, FeatureSet features, int patch, bool demodulate = false);
+  // The input planes of `arch` (its feature set, demodulated or not, with its prior's output: `prior`, run once
+  // per noisy half by core's denoiser, as inference runs it).
+  TrainingSet(const std::vector<std::filesystem::path>& scenes, const nn::Architecture& arch, int patch,
+              const nn::Model* prior = nullptr);
 
   // A batch: inputs B x C x P x P, targets B x 3 x P x P. Patches from random scenes, corners drawn by
   // the noise weights, one of the 8 flips/rotations applied (normals turned with the image).

@@ -57,6 +57,8 @@ struct AovStack {
   std::string convention;  // how the inputs were recognised: "Blender Cycles", "Tungsten file set", ...
   Aov color;
   std::optional<Aov> albedo, normal, depth, variance, reference;
+  // Another model's denoised colour, which a post-correction model refines (set by the denoiser, never loaded).
+  std::optional<Aov> prior;
 
   NormalSpace normal_space = NormalSpace::Unknown;
   DepthKind depth_kind = DepthKind::Unknown;

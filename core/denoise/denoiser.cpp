@@ -352,6 +352,7 @@ class ReaderRows final : public RowSource {
 
 FeatureStats with_encoding(FeatureStats stats, const nn::Model& model) {
   stats.demodulate = model.network.arch.demodulate;
+  stats.prior = !model.network.arch.prior.empty();
   return stats;
 }
 
@@ -522,7 +523,18 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
   DenoiseStats local;
   Image output;
   arena.execute([&] {
-    if (model.albedo_prefilter || model.normal_prefilter) {
+    if (model.prior && !stack.prior) {
+      // Post-correction: the prior model's denoise of the whole render (the main pass reads it around its
+      // region too), then this model with it.
+      AovStack with = stack;
+      DenoiseOptions whole = options;
+      whole.roi.reset();
+      whole.strength = 1.0f;
+      DenoiseStats ignored;
+      with.prior = Aov{denoise(stack, *model.prior, whole, {}, &ignored), {}, {}, 0};
+      with.prior->source.layer = model.prior->name;
+      output = denoise_stack(with, model, options, on_tile, local);
+    } else if (model.albedo_prefilter || model.normal_prefilter) {
       // OIDN's final-frame mode: albedo and normal denoised first (whole image: the main pass reads them
       // around its region too), then the colour with them.
       check_inputs(stack, model);
@@ -552,6 +564,9 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
   if (model.albedo_prefilter || model.normal_prefilter)
     throw Error(ErrorKind::Usage, model.name + " (OIDN's clean-aux mode) denoises the albedo and normal of the whole "
                                   "render first and so needs it in memory; raise --max-memory");
+  if (model.prior)
+    throw Error(ErrorKind::Usage, model.name + " refines " + model.prior->name + "'s denoise of the whole render and so "
+                                  "needs it in memory; raise --max-memory");
   const int64_t W = layout.data_window.width, H = layout.data_window.height;
   checked_region(options, W, H);  // before any work
   const int64_t stack_channels = layout.channel_count();  // floats per pixel of a band as read

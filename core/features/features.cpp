@@ -84,7 +84,10 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
   check_features_available(stack, set);
   if (stats.demodulate && !stack.albedo)
     throw Error(ErrorKind::Input, "a demodulated model needs an albedo AOV; '" + stack.color.source.file + "' has none");
-  const int channels = feature_channels(set);
+  if (stats.prior && (!stack.prior || set != FeatureSet::Full))
+    throw Error(ErrorKind::Usage, "a post-correction model reads the full AOV set and its prior model's output; "
+                                  "the prior was not computed or the set is not \"full\"");
+  const int channels = feature_channels(set) + (stats.prior ? 3 : 0);
   if (out.width() != rect.width || out.height() != rect.height || out.channels() != channels)
     out = Image(rect.width, rect.height, channels);
   const float inv_depth_mean = static_cast<float>(1.0 / stats.depth_scale);
@@ -124,6 +127,11 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
         for (int c = 0; c < nv; ++c) sum += sanitize_nonnegative(var.at(sx, sy, c));
         *f++ = static_cast<float>(std::log1p(std::sqrt(sum / nv)));
       }
+      if (stats.prior)
+        for (int c = 0; c < 3; ++c) {
+          const float p = stack.prior->image.at(sx, sy, c);
+          *f++ = compress_color(stats.demodulate ? p / demodulation_factor(stack.albedo->image.at(sx, sy, c)) : p);
+        }
     }
   });
 }

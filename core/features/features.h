@@ -12,6 +12,8 @@
 //                                            estimate, from the variance AOV (for a data set's scenes: from the two
 //                                            halves, load_dataset_scene);
 //                                            the standard deviation in the colour's units, log-compressed alike
+//   prior   log(1 + p)                       (post-correction models only, after the set's planes) p: the prior
+//                                            model's denoised colour (stack.prior), sanitised like colour
 // Output: c = exp(y) - 1, clamped to [0, FLT_MAX], NaN -> 0: always finite and non-negative.
 // Demodulated models (Architecture::demodulate, issue 16's lever 4) see the colour divided by the albedo,
 // log(1 + c / (a + 0.01)) per channel (a sanitised like colour), and their output is multiplied back by (a + 0.01):
@@ -33,7 +35,9 @@ struct FeatureStats {
   double depth_scale = 1.0;  // median depth of hits, rounded to 1/8 octave (1 when none)
   bool rotate_normals = false;  // world-space normals and a known camera
   std::array<double, 9> normal_rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};  // world -> camera, row-major 3x3
-  bool demodulate = false;  // not a statistic: the model's colour encoding, set by the caller from the model
+  // Not statistics: the model's encoding, set by the caller from its Architecture.
+  bool demodulate = false;  // colour (and prior) divided by the albedo
+  bool prior = false;       // 3 more planes: the prior model's colour (stack.prior)
 };
 
 FeatureStats compute_feature_stats(const AovStack& stack);
@@ -51,7 +55,8 @@ FeatureSet feature_set_for(const AovStack& stack);
 // Throws Error(Input) naming what is missing when `stack` cannot feed `set`.
 void check_features_available(const AovStack& stack, FeatureSet set);
 
-// Fills `out` with the feature planes of `rect` (inside the stack): rect.width x rect.height x channels.
+// Fills `out` with the feature planes of `rect` (inside the stack): rect.width x rect.height x channels (+ 3 with
+// stats.prior).
 void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& stats, const Rect& rect, Image& out);
 
 // Colour transform and its inverse, exposed for training and tests.

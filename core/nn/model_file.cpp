@@ -198,6 +198,13 @@ Model load_model(const std::filesystem::path& path) {
     if (arch.demodulate && arch.features == FeatureSet::ColorOnly)
       throw Error(ErrorKind::Input, where + ": a demodulated model needs the albedo, but its feature set is \"color\"");
   }
+  if (md.count("residue.prior")) {
+    arch.prior = md.at("residue.prior");
+    if (arch.prior != "oidn" || arch.features != FeatureSet::Full)
+      throw Error(ErrorKind::Input, where + ": metadata \"residue.prior\" must be \"oidn\" (a full-AOV model refining Open "
+                                    "Image Denoise's rt_hdr_alb_nrm), not \"" + arch.prior + "\" with feature set \"" +
+                                    to_string(arch.features) + "\"");
+  }
   const float eps = md.count("residue.bn_eps") ? metadata_eps(md.at("residue.bn_eps"), where) : kBnEps;
 
   Model m;
@@ -242,6 +249,13 @@ Model load_model(const std::filesystem::path& path) {
   n.out = r.conv("out.conv", w, 3, true);
   r.expect_empty();
   m.graph = to_graph(n);
+  if (!arch.prior.empty()) {
+    try {
+      m.prior = std::make_shared<const Model>(load_model(find_model_for(arch.prior, FeatureSet::Full)));
+    } catch (const Error& e) {
+      throw Error(ErrorKind::Input, where + " refines the output of \"" + arch.prior + "\", which cannot be loaded: " + e.what());
+    }
+  }
   return m;
 }
 
@@ -326,6 +340,7 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   if (n.arch.max_dilation() > 1) f.metadata["residue.dilations"] = dilations_to_string(n.arch.dilations);
   if (n.arch.input_skip) f.metadata["residue.input_skip"] = "1";
   if (n.arch.demodulate) f.metadata["residue.demodulate"] = "1";
+  if (!n.arch.prior.empty()) f.metadata["residue.prior"] = n.arch.prior;
   if (n.arch.multiscale()) {
     f.metadata["residue.levels"] = ints_to_string(n.arch.levels);
     f.metadata["residue.widths"] = ints_to_string(n.arch.widths);

@@ -47,6 +47,8 @@ struct Model {
   OidnInputs oidn;    // OIDN models
   // OIDN's final-frame mode (clean_aux): the networks that denoise the albedo and the normal first.
   std::shared_ptr<const Model> albedo_prefilter, normal_prefilter;
+  // A post-correction model's prior (Architecture::prior): the network whose output it refines, run first.
+  std::shared_ptr<const Model> prior;
 
   FeatureSet features() const;  // the AOVs a Residue model reads (OIDN: the nearest set)
   std::string architecture() const;  // "8/32 full", "OIDN UNet (rt_hdr_alb_nrm)"

@@ -83,11 +83,12 @@ std::optional<std::vector<int>> parse_ints(const std::string& text, int lo, int 
 std::string Architecture::to_string() const {
   if (multiscale())
     return "ms " + ints_to_string(levels) + "/" + ints_to_string(widths) + " " + residue::to_string(features) +
-           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "");
+           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "") + (prior.empty() ? "" : " refines " + prior);
   std::string s = std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
   if (max_dilation() > 1) s += " dilated " + dilations_to_string(dilations);
   if (input_skip) s += " input-skip";
   if (demodulate) s += " demodulated";
+  if (!prior.empty()) s += " refines " + prior;
   return s;
 }
 
@@ -151,7 +152,7 @@ Graph to_graph(const Network& n) {
   if (n.arch.input_skip) {
     const int c = n.arch.in_channels();
     std::vector<float> select(static_cast<size_t>(3 * c), 0.0f);
-    for (int k = 0; k < 3; ++k) select[static_cast<size_t>(k * c + k)] = 1.0f;
+    for (int k = 0; k < 3; ++k) select[static_cast<size_t>(k * c + n.arch.skip_plane() + k)] = 1.0f;
     skip = g.conv("input_skip", {input}, 3, 1, select, {}, Activation::None);
   }
   conv("out", y, n.out, {}, 1, skip);

@@ -42,11 +42,15 @@ struct Architecture {
   // at levels above the bottom) and each level's width. Empty: the paper's flat network (blocks, width).
   std::vector<int> levels, widths;
   bool demodulate = false;     // variant: colour divided by the albedo in, multiplied back out (core/features)
+  // Post-correction: the model ("oidn") whose output this one refines. Its log colour comes in as 3 more input
+  // planes after the feature set's, and input_skip adds those planes instead of the noisy colour. Empty: none.
+  std::string prior;
 
   bool multiscale() const { return !levels.empty(); }
   int level_width(int l) const { return widths.empty() ? width : widths[static_cast<size_t>(l)]; }
 
-  int in_channels() const { return feature_channels(features); }
+  int in_channels() const { return feature_channels(features) + (prior.empty() ? 0 : 3); }
+  int skip_plane() const { return prior.empty() ? 0 : feature_channels(features); }  // first plane input_skip adds
   int conv_layers() const;
   int dilation(int block) const {
     return dilations.empty() ? 1 : dilations[static_cast<size_t>(block) % dilations.size()];

@@ -56,7 +56,8 @@ Tensor64 naive_forward(const nn::Network& net, const Image& input) {
   Tensor64 out = naive_conv3x3(tail, net.out);
   if (net.arch.input_skip)
     for (int64_t p = 0; p < out.h * out.w; ++p)
-      for (int k = 0; k < 3; ++k) out.v[static_cast<size_t>(p * 3 + k)] += input.data()[p * input.channels() + k];
+      for (int k = 0; k < 3; ++k)
+        out.v[static_cast<size_t>(p * 3 + k)] += input.data()[p * input.channels() + net.arch.skip_plane() + k];
   return out;
 }
 

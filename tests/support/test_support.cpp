@@ -36,6 +36,10 @@ std::filesystem::path shared_dataset(const std::string& relative) {
   return std::filesystem::exists(p) ? p : std::filesystem::path();
 }
 
+std::filesystem::path oidn_dir() {
+  return std::filesystem::path(RESIDUE_TEST_FIXTURES).parent_path().parent_path() / "resources" / "models" / "oidn";
+}
+
 Image random_image(int64_t width, int64_t height, int channels, unsigned seed, float lo, float hi) {
   Image img(width, height, channels);
   std::mt19937 rng(seed);

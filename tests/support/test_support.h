@@ -30,6 +30,9 @@ class TempDir {
 // ../shared/datasets/... beside the checkout; empty path when the data set is not there.
 std::filesystem::path shared_dataset(const std::string& relative);
 
+// Open Image Denoise's weights as the repository ships them (resources/models/oidn).
+std::filesystem::path oidn_dir();
+
 // An image filled with deterministic pseudo-random values in [lo, hi).
 Image random_image(int64_t width, int64_t height, int channels, unsigned seed, float lo = 0.0f,
                    float hi = 1.0f);
