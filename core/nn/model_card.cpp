@@ -44,9 +44,9 @@ nlohmann::json oidn_cards(const std::filesystem::path& dir) {
   return nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
 }
 
-double gflop_per_mp(const Model& m) {
+double gflop_per_mp(const Model& m) {  // every network a denoise with `m` runs
   double flops = m.graph.flops_per_pixel();
-  for (const auto& pre : {m.albedo_prefilter, m.normal_prefilter})
+  for (const auto& pre : {m.albedo_prefilter, m.normal_prefilter, m.prior})  // networks run before this one
     if (pre) flops += pre->graph.flops_per_pixel();
   return flops * 1e6 / 1e9;
 }
