@@ -132,6 +132,28 @@ TEST(TrainInitFrom, AVariantStartsAsItsSourceWithTheMissingPlanesZero) {
   }
 }
 
+// A fresh post-correction network is the identity on its prior's planes (its output conv starts at zero), and it
+// still learns: the output conv gets a gradient.
+TEST(TrainInit, PostCorrectionStartsAsItsPrior) {
+  torch::manual_seed(2);
+  nn::Architecture arch{2, 8, FeatureSet::Full};
+  arch.prior = "oidn";
+  arch.input_skip = true;
+  train::ResidueNet net(arch);
+  train::initialise(net);
+  net->train();
+  const auto x = torch::randn({2, 12, 16, 16});
+  const auto y = net->forward(x);
+  EXPECT_TRUE(torch::equal(y, x.slice(1, 9, 12)));
+  (y - 1.0).abs().mean().backward();
+  EXPECT_GT(net->out->conv->weight.grad().abs().sum().item<double>(), 0.0);
+  nn::Architecture plain{2, 8, FeatureSet::Full};
+  plain.input_skip = true;
+  train::ResidueNet other(plain);
+  train::initialise(other);
+  EXPECT_GT(other->out->conv->weight.abs().sum().item<double>(), 0.0) << "only post-correction starts at zero";
+}
+
 TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
   // A scene-free check of the dihedral transforms: build a TrainingSet on the starter data when present.
   const auto dir = testing::shared_dataset("cycles-starter");

@@ -106,6 +106,12 @@ void initialise(ResidueNet& net) {
       if (conv->options.bias()) conv->bias.zero_();
     }
   }
+  // A post-correction network that adds its prior's output starts as that output: its correction (the output
+  // conv) at zero, so training can only move away from the prior where that lowers the loss.
+  if (!net->arch.prior.empty() && net->arch.input_skip) {
+    net->out->conv->weight.zero_();
+    if (net->out->conv->options.bias()) net->out->conv->bias.zero_();
+  }
 }
 
 void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path) {
