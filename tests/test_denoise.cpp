@@ -423,6 +423,15 @@ TEST(Denoise, PostCorrectionRefinesOidnsOutput) {
     EXPECT_NEAR(out.data()[i], expand_color(static_cast<float>(ref.v[i])), 1e-4 * std::max(1.0f, out.data()[i]));
   EXPECT_LT(max_rel_diff(denoise(s, model, eigen_options(16)), denoise(s, model, eigen_options(64))), 1e-5)
       << "tiled equals untiled (OIDN's pass and the correction both tiled)";
+  {  // the variance blend does not apply to a post-correction model (its prior is cleaner than the noisy input)
+    AovStack v = s;
+    v.variance = Aov{Image(21, 18, 3, 0.0f), {}, {}, 0};  // zero variance: the blend would keep every input pixel
+    DenoiseOptions blend = o;
+    blend.variance_blend = true;
+    DenoiseStats run;
+    EXPECT_LT(max_rel_diff(denoise(v, model, blend, {}, &run), out), 1e-6);
+    EXPECT_FALSE(run.variance_blended);
+  }
 
   TempDir tmp;
   nn::write_safetensors(tmp / "p.safetensors", nn::to_safetensors(net), false);

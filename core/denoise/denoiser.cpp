@@ -54,7 +54,9 @@ Rect expand(const Rect& r, int64_t halo, const Rect& bounds, int64_t align) {
 
 // The variance blend's tau for this denoise; 0 when it is off.
 float tau_for(const DenoiseOptions& o, const nn::Model& model) {
-  if (!o.variance_blend || model.method != nn::Method::Residue) return 0.0f;
+  // Not for a post-correction model: where the blend would keep the noisy input, its prior (OIDN) is already
+  // cleaner (measured: mean relMSE 0.00311 with the blend, 0.00306 without, on the starter validation scenes).
+  if (!o.variance_blend || model.method != nn::Method::Residue || !model.network.arch.prior.empty()) return 0.0f;
   return o.blend_tau > 0 ? o.blend_tau : blend_tau(model.metadata);
 }
 
