@@ -134,6 +134,17 @@ TEST(TrainInitFrom, AVariantStartsAsItsSourceWithTheMissingPlanesZero) {
 
 // A fresh post-correction network is the identity on its prior's planes (its output conv starts at zero), and it
 // still learns: the output conv gets a gradient.
+TEST(TrainPlanes, NormalAndAlbedoPlanesFollowTheFeatureSet) {
+  EXPECT_EQ(train::normal_plane(FeatureSet::Full), 4);
+  EXPECT_EQ(train::normal_plane(FeatureSet::FullVariance), 4);
+  EXPECT_EQ(train::normal_plane(FeatureSet::ColorAlbedoNormal), 3);
+  EXPECT_EQ(train::normal_plane(FeatureSet::ColorOnly), -1);
+  EXPECT_EQ(train::albedo_plane(FeatureSet::Full), 6);
+  EXPECT_EQ(train::albedo_plane(FeatureSet::FullVariance), 6);
+  EXPECT_EQ(train::albedo_plane(FeatureSet::ColorAlbedoNormal), 5);
+  EXPECT_EQ(train::albedo_plane(FeatureSet::ColorOnly), -1);
+}
+
 TEST(TrainInit, PostCorrectionStartsAsItsPrior) {
   torch::manual_seed(2);
   nn::Architecture arch{2, 8, FeatureSet::Full};

@@ -11,15 +11,15 @@
 namespace residue::train {
 namespace fs = std::filesystem;
 
-int normal_plane(FeatureSet set) {
-  switch (set) {
-    case FeatureSet::Full:
-    case FeatureSet::FullVariance: return 4;
-    case FeatureSet::ColorAlbedoNormal: return 3;
-    case FeatureSet::ColorOnly: return -1;
-  }
-  return -1;
+// The index of a named plane (core/features/feature_set.h) in a feature set; -1 when the set has none.
+static int plane_of(FeatureSet set, const std::string& name) {
+  const std::vector<std::string> planes = feature_planes(set);
+  const auto it = std::find(planes.begin(), planes.end(), name);
+  return it == planes.end() ? -1 : static_cast<int>(it - planes.begin());
 }
+
+int normal_plane(FeatureSet set) { return plane_of(set, "normal.x"); }
+int albedo_plane(FeatureSet set) { return plane_of(set, "albedo.r"); }
 
 namespace {
 
@@ -41,16 +41,6 @@ Image noise_map(const AovStack& a, const AovStack* b, const Image& reference) {
 }
 
 }  // namespace
-
-int albedo_plane(FeatureSet set) {
-  switch (set) {
-    case FeatureSet::Full:
-    case FeatureSet::FullVariance: return 6;
-    case FeatureSet::ColorAlbedoNormal: return 5;
-    case FeatureSet::ColorOnly: return -1;
-  }
-  return -1;
-}
 
 TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architecture& arch, int patch,
                          const nn::Model* prior)
