@@ -525,28 +525,27 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
   DenoiseStats local;
   Image output;
   arena.execute([&] {
-    if (model.prior && !stack.prior) {
-      // Post-correction: the prior model's denoise of the whole render (the main pass reads it around its
-      // region too), then this model with it.
-      AovStack with = stack;
+    // A network that runs before this one, on the whole image (the main pass reads its output around its region
+    // too), at full strength.
+    auto whole_image = [&](const nn::Model& first) {
       DenoiseOptions whole = options;
       whole.roi.reset();
       whole.strength = 1.0f;
       DenoiseStats ignored;
-      with.prior = Aov{denoise(stack, *model.prior, whole, {}, &ignored), {}, {}, 0};
+      return denoise(stack, first, whole, {}, &ignored);
+    };
+    if (model.prior && !stack.prior) {
+      // Post-correction: the prior model's denoise, then this model with it.
+      AovStack with = stack;
+      with.prior = Aov{whole_image(*model.prior), {}, {}, 0};
       with.prior->source.layer = model.prior->name;
       output = denoise_stack(with, model, options, on_tile, local);
     } else if (model.albedo_prefilter || model.normal_prefilter) {
-      // OIDN's final-frame mode: albedo and normal denoised first (whole image: the main pass reads them
-      // around its region too), then the colour with them.
+      // OIDN's final-frame mode: albedo and normal denoised first, then the colour with them.
       check_inputs(stack, model);
       AovStack clean = stack;
-      DenoiseOptions whole = options;
-      whole.roi.reset();
-      whole.strength = 1.0f;
-      DenoiseStats ignored;
-      if (model.albedo_prefilter) clean.albedo->image = denoise_stack(stack, *model.albedo_prefilter, whole, {}, ignored);
-      if (model.normal_prefilter) clean.normal->image = denoise_stack(stack, *model.normal_prefilter, whole, {}, ignored);
+      if (model.albedo_prefilter) clean.albedo->image = whole_image(*model.albedo_prefilter);
+      if (model.normal_prefilter) clean.normal->image = whole_image(*model.normal_prefilter);
       output = denoise_stack(clean, model, options, on_tile, local);
     } else {
       output = denoise_stack(stack, model, options, on_tile, local);
