@@ -83,6 +83,30 @@ TEST(Cli, OpenMpWaitsPassivelyFromASingleStart) {
 #endif
 }
 
+// bench names the CPU its figures come from and times the cold first run (primitive creation, weight reorders,
+// fresh arena pages) apart from the warm runs that reuse the backend, which are the ones it rates.
+TEST(Cli, BenchNamesTheCpuAndSeparatesTheColdRun) {
+  std::string out;
+  ASSERT_EQ(run_cli({"bench", "--models", "2/16", "--size", "64", "--tiles", "32", "--backends", "eigen",
+                     "--precisions", "fp32", "--repeat", "1", "--json"}, &out), 0) << out;
+  const auto j = nlohmann::json::parse(out);
+  const std::string cpu = j["cpu"];
+  EXPECT_FALSE(cpu.empty());
+  std::ifstream info("/proc/cpuinfo");
+  const std::string text{std::istreambuf_iterator<char>(info), std::istreambuf_iterator<char>()};
+  if (text.find("cpu family") != std::string::npos && text.find("model name") != std::string::npos) {
+    EXPECT_NE(cpu.find("(family "), std::string::npos) << cpu;
+  }
+  ASSERT_EQ(j["rows"].size(), 1u) << out;
+  const auto& row = j["rows"][0];
+  const double warm = row["seconds_per_megapixel"], cold = row["first_run_seconds_per_megapixel"];
+  EXPECT_TRUE(std::isfinite(warm) && warm > 0) << out;
+  EXPECT_TRUE(std::isfinite(cold) && cold > 0) << out;
+  // 2/16: head 9->16, four block convs and the tail 16->16, output 16->3; 2 x 9 taps x multiply-adds per pixel.
+  EXPECT_NEAR(row["gflops"].get<double>() * warm, 2 * 9.0 * (9 * 16 + 5 * 16 * 16 + 16 * 3) / 1e3, 1e-6)
+      << "GFLOP/s counts the useful work of the timed (warm) run";
+}
+
 TEST(Cli, InfoShowsTheMapping) {
   const auto dir = testing::shared_dataset("cycles-starter/s101");
   RESIDUE_REQUIRE_SHARED(dir);

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <fstream>
+#include <map>
 
 #include <immintrin.h>
 #include <tbb/parallel_for.h>
@@ -91,6 +93,24 @@ CpuPeak measure_fp32_peak(int threads, double seconds) {
     peak.gflops = std::max(peak.gflops, flops / elapsed / 1e9);
   }
   return peak;
+}
+
+std::string cpu_description() {
+  std::ifstream in("/proc/cpuinfo");
+  std::map<std::string, std::string> first;  // the first processor's fields
+  for (std::string line; std::getline(in, line) && !line.empty();) {
+    const auto colon = line.find(':');
+    if (colon == std::string::npos) continue;
+    std::string key = line.substr(0, colon);
+    key.erase(key.find_last_not_of(" \t") + 1);
+    const auto v = line.find_first_not_of(' ', colon + 1);
+    first.emplace(key, v == std::string::npos ? "" : line.substr(v));
+  }
+  if (!first.count("model name")) return "unknown CPU";
+  std::string out = first["model name"];
+  if (first.count("cpu family") && first.count("model"))
+    out += " (family " + first["cpu family"] + " model " + first["model"] + ")";
+  return out;
 }
 
 }  // namespace residue
