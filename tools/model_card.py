@@ -61,7 +61,8 @@ def main():
         out.append(f"- **Curve**: ![{label} training]({a.curve})")
     if bench:
         speeds = ", ".join(f"{k[:-len('_s_per_mp')]} {v:.3g} s/MP" for k, v in bench.items() if k.endswith("_s_per_mp"))
-        out.append(f"- **Speed** (`tools/stamp_benchmark.py`): {speeds}.")
+        machine = f" on {bench['machine']}" if bench.get("machine") else ""
+        out.append(f"- **Speed** (`tools/stamp_benchmark.py`, warm runs): {speeds}{machine}.")
 
     scenes = ev["scenes"]
     if not scenes or label not in scenes[0]["results"]:

@@ -5,7 +5,7 @@ over the same 36 scenes the shipped models' cards use (30 validation scenes of r
 scenes), from evaluate-set JSON; benchmark: seconds per megapixel from `residue-cli bench --json` output.
 
   /usr/bin/python3 tools/oidn_cards.py docs/models/eval_project_val_oidn.json docs/models/eval_starter_val_oidn.json \\
-      --bench oidn=docs/PERFORMANCE.md:1.27:0.74:"AMD EPYC, 2 cores" --bench-json docs/models/bench_oidn_zen4.json
+      --bench-json docs/benchmarks/2026-11-26-amd-epyc-f26m2/oidn_cards.json --machine "AMD EPYC (family 26 model 2), 2 cores"
 
 --bench FAMILY=SOURCE:FP32:BF16:MACHINE records a measurement written down elsewhere (PERFORMANCE.md's tile-512
 column, measured on the machine the shipped models were benchmarked on); --bench-json takes the best row per

@@ -6,7 +6,8 @@ speed-versus-accuracy table reads it.
   /usr/bin/python3 tools/stamp_benchmark.py [--cli build/release/app/residue-cli/residue-cli] [MODEL.safetensors ...]
 
 Only the JSON header changes (the tensors are copied byte for byte); the file is replaced atomically.
-Run it on an idle machine: the numbers are what users compare models by.
+Run it on an idle machine: the numbers are what users compare models by. The figure is the warm speed (bench's
+fastest run after the cold first one), as in a viewer's runs and every tile after a CLI run's first.
 """
 import argparse, glob, json, os, platform, subprocess, sys
 
@@ -14,13 +15,20 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from safetensors_meta import read_header, write_header  # noqa: E402
 
 def cpu_name():
+    """The CPU as residue-cli bench names it: model name (family F model M)."""
+    fields = {}
     try:
         for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
+            if not line.strip():
+                break
+            key, _, value = line.partition(":")
+            fields.setdefault(key.strip(), value.strip())
     except OSError:
         pass
-    return platform.processor() or "unknown CPU"
+    name = fields.get("model name") or platform.processor() or "unknown CPU"
+    if "cpu family" in fields and "model" in fields:
+        name += f" (family {fields['cpu family']} model {fields['model']})"
+    return name
 
 def main():
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
