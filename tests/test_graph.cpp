@@ -130,7 +130,82 @@ TEST_P(GraphBackend, OidnUNetMatchesFloat64Graph) {
   EXPECT_LT(testing::max_relative_error(y, testing::naive_graph(g, x)), GetParam().tolerance) << backend->description();
 }
 
+// A backend told which part of the output is needed (the tile without its halo) may compute less, but what it
+// gives there is the whole tile's output, bit for bit, and the float64 graph's: rectangles inside, touching an
+// edge, at a corner, at odd offsets and sizes (pool and upsample pairs cut in half).
+TEST_P(GraphBackend, NeededRegionIsTheWholeTilesOutput) {
+  const nn::Graph every = every_op_graph(7);
+  const nn::Graph& oidn = oidn_model("rt_hdr_alb_nrm").graph;
+  for (const nn::Graph* g : {&every, &oidn}) {
+    auto backend = make(GetParam(), *g);
+    const int64_t w = 80, h = 48;
+    const Image x = testing::random_image(w, h, g->input_channels(), 13, 0.0f, 1.0f);
+    Image whole;
+    backend->run(x, whole);
+    const testing::Tensor64 ref = testing::naive_graph(*g, x);
+    for (const Rect& needed : {Rect{17, 9, 30, 21}, Rect{0, 0, 16, 16}, Rect{61, 0, 19, 48}, Rect{33, 31, 1, 1},
+                               Rect{0, 0, w, h}}) {
+      Image part;
+      backend->run(x, part, nullptr, needed);
+      ASSERT_EQ(part.width(), w);
+      int64_t differ = 0;
+      double from_whole = 0, from_ref = 0;
+      for (int64_t y = needed.y; y < needed.y + needed.height; ++y)
+        for (int64_t xx = needed.x; xx < needed.x + needed.width; ++xx)
+          for (int c = 0; c < part.channels(); ++c) {
+            const float v = part.at(xx, y, c), u = whole.at(xx, y, c);
+            const double r = ref.at(y, xx, c);
+            differ += v != u;
+            from_whole = std::max(from_whole, static_cast<double>(std::abs(v - u) / std::max(std::abs(u), 1.0f)));
+            from_ref = std::max(from_ref, std::abs(v - r) / std::max(std::abs(r), 1.0));
+          }
+      const std::string what = needed.to_string() + " " + backend->description();
+      // Each pixel's sums run in the same order either way; only Eigen's GEMM (the portable path) blocks them by
+      // the matrix's shape, so it rounds differently by an ulp or so.
+      if (GetParam().portable) {
+        EXPECT_LT(from_whole, 1e-5) << what;
+      } else {
+        EXPECT_EQ(differ, 0) << what;
+      }
+      if (GetParam().precision == nn::Precision::FP32) {
+        EXPECT_LT(from_ref, GetParam().tolerance) << what;
+      }
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(All, GraphBackend, ::testing::ValuesIn(backend_cases()), case_name);
+
+// What each value must hold for a needed part of the output, worked out by hand on a small UNet: 3x3 convs reach
+// one pixel, a pool needs the 2x2 blocks, an upsample the source pixels (rounded outwards); clipped to the tile.
+TEST(Graph, NeededRegionsFollowTheTaps) {
+  nn::Graph g;
+  auto conv = [&](std::vector<int> in, int out) {
+    int cin = 0;
+    for (int x : in) cin += g.op(x).channels;
+    return g.conv("c", std::move(in), out, 3, std::vector<float>(static_cast<size_t>(out * cin * 9), 0.1f),
+                  std::vector<float>(static_cast<size_t>(out), 0.0f), nn::Activation::ReLU);
+  };
+  const int in = g.input(2);
+  const int a = conv({in}, 4);               // level 0
+  const int p = g.pool(a);                   // level 1
+  const int b = conv({p}, 4);                // level 1
+  const int u = g.upsample(b);               // level 0
+  const int out = conv({u, a}, 3);           // the concat conv, level 0
+  auto regions = g.needed_regions(64, 64, {20, 21, 8, 7});
+  EXPECT_EQ(regions[static_cast<size_t>(out)], (Rect{20, 21, 8, 7}));
+  EXPECT_EQ(regions[static_cast<size_t>(u)], (Rect{19, 20, 10, 9}));
+  EXPECT_EQ(regions[static_cast<size_t>(b)], (Rect{9, 10, 6, 5}));   // [19, 29) / 2 -> [9, 15); [20, 29) -> [10, 15)
+  EXPECT_EQ(regions[static_cast<size_t>(p)], (Rect{8, 9, 8, 7}));
+  EXPECT_EQ(regions[static_cast<size_t>(a)], (Rect{16, 18, 16, 14}));  // the pool's 2x2 blocks hold the conv's taps
+  EXPECT_EQ(regions[static_cast<size_t>(in)], (Rect{15, 17, 18, 16}));
+  // At a corner the regions stop at the tile's edge (zero padding there, as in the whole tile).
+  regions = g.needed_regions(64, 64, {0, 0, 4, 4});
+  EXPECT_EQ(regions[static_cast<size_t>(in)], (Rect{0, 0, 9, 9}));
+  EXPECT_EQ(regions[static_cast<size_t>(b)], (Rect{0, 0, 3, 3}));
+  // A needed rectangle outside the tile needs nothing.
+  EXPECT_TRUE(g.needed_regions(64, 64, {64, 0, 8, 8})[static_cast<size_t>(in)].empty());
+}
 
 TEST(Graph, ResNetGraphMatchesItsArchitecture) {
   for (const nn::Architecture& arch : {nn::Architecture{2, 8, FeatureSet::Full}, nn::Architecture{3, 8, FeatureSet::Full, {1, 4}},

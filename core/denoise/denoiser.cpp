@@ -158,8 +158,9 @@ struct TileRunner {
         std::memcpy(&padded.at(0, y, 0), features.row(y).data(), static_cast<size_t>(in.width * features.channels()) * sizeof(float));
       net_in = &padded;
     }
-    backend.run(*net_in, result, cancel);
-    if (residue && guard) guarded += guard_output(features, {tx - in.x, ty - in.y, t.width, t.height}, halo, result);
+    const Rect core{tx - in.x, ty - in.y, t.width, t.height};  // the tile in the network's input, without its halo
+    backend.run(*net_in, result, cancel, core);
+    if (residue && guard) guarded += guard_output(features, core, halo, result);
     int64_t non_finite = 0;
     for (int64_t y = 0; y < t.height; ++y)
       for (int64_t x = 0; x < t.width; ++x)

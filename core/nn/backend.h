@@ -6,6 +6,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,12 +35,18 @@ class Backend {
   // Threads: whatever oneTBB's current arena allows (the caller limits it).
   // `cancel`, when raised, stops the run between layers (and between rows of a layer where the backend can),
   // throwing Cancelled.
-  void run(const Image& input, Image& output, const CancelToken* cancel = nullptr) { execute(input, output, cancel); }
+  // `needed`: the part of the output the caller reads (the tile without its halo); a backend may then leave the
+  // rest of `output` unspecified (eigen computes each layer only where `needed` depends on it and leaves zeros).
+  void run(const Image& input, Image& output, const CancelToken* cancel = nullptr,
+           const std::optional<Rect>& needed = std::nullopt) {
+    execute(input, output, cancel, needed);
+  }
   // Scratch memory run() allocates for a tile of this size, in bytes (for memory-bounded tiling).
   virtual size_t scratch_bytes(int64_t width, int64_t height) const = 0;
 
  private:
-  virtual void execute(const Image& input, Image& output, const CancelToken* cancel) = 0;
+  virtual void execute(const Image& input, Image& output, const CancelToken* cancel,
+                       const std::optional<Rect>& needed) = 0;
 };
 
 // Throws residue::Error(Usage) for an unknown or unavailable backend / precision, saying what is available.

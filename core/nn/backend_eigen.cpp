@@ -280,7 +280,7 @@ class EigenBackend final : public Backend {
     return bytes;
   }
 
-  void execute(const Image& input, Image& output, const CancelToken* cancel) override {
+  void execute(const Image& input, Image& output, const CancelToken* cancel, const std::optional<Rect>& needed) override {
     const int64_t h = input.height(), w = input.width();
     if (input.channels() != graph_.input_channels())
       throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
@@ -302,11 +302,15 @@ class EigenBackend final : public Backend {
     }
     Value& out = values[static_cast<size_t>(graph_.output())];
     out.base = output.data();  // the output value is the caller's image (no border: nothing reads it)
+    // Each op computes only the pixels that what is needed of the output depends on (all of them by default).
+    const std::vector<Rect> regions = graph_.needed_regions(h, w, needed.value_or(Rect{0, 0, w, h}));
 
     for (int i = 0; i < graph_.size(); ++i) {
       throw_if_cancelled(cancel);
       const GraphOp& op = graph_.op(i);
       const Value& dst = values[static_cast<size_t>(i)];
+      const Rect& region = regions[static_cast<size_t>(i)];
+      if (region.empty() && op.kind != OpKind::Input) continue;  // nothing needed reads it
       if (plan.arena.in_place[static_cast<size_t>(i)] < 0) dst.zero_border();
       switch (op.kind) {
         case OpKind::Input:
@@ -317,12 +321,14 @@ class EigenBackend final : public Backend {
           const Value* add = op.residual >= 0 ? &values[static_cast<size_t>(op.residual)] : nullptr;
           std::vector<const Value*> srcs;
           for (int x : op.inputs) srcs.push_back(&values[static_cast<size_t>(x)]);
-          conv(convs_[static_cast<size_t>(i)], srcs, dst, add, cancel);
+          conv(convs_[static_cast<size_t>(i)], srcs, dst, add, region, cancel);
           break;
         }
-        case OpKind::Pool: pool(values[static_cast<size_t>(op.inputs[0])], dst); break;
-        case OpKind::Upsample: upsample(values[static_cast<size_t>(op.inputs[0])], dst); break;
-        case OpKind::Add: add(values[static_cast<size_t>(op.inputs[0])], values[static_cast<size_t>(op.inputs[1])], dst); break;
+        case OpKind::Pool: pool(values[static_cast<size_t>(op.inputs[0])], dst, region); break;
+        case OpKind::Upsample: upsample(values[static_cast<size_t>(op.inputs[0])], dst, region); break;
+        case OpKind::Add:
+          add(values[static_cast<size_t>(op.inputs[0])], values[static_cast<size_t>(op.inputs[1])], dst, region);
+          break;
       }
     }
     throw_if_cancelled(cancel);  // a conv stopped part-way leaves rows unwritten
@@ -354,37 +360,39 @@ class EigenBackend final : public Backend {
     return plans_.emplace(key, std::move(p)).first->second;
   }
 
-  // dst = act(conv(cat(srcs)) + bias) (+ add). `dst` may alias `add` (the residual), never a source. Once
-  // `cancel` is raised the remaining rows are left undone (the caller throws).
+  // dst = act(conv(cat(srcs)) + bias) (+ add) over `region` of dst. `dst` may alias `add` (the residual), never a
+  // source. Once `cancel` is raised the remaining rows are left undone (the caller throws).
   void conv(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add,
-            const CancelToken* cancel) {
+            const Rect& region, const CancelToken* cancel) {
 #ifdef RESIDUE_HAVE_AVX512_KERNEL
     if (avx512_) {
       const int r = c.dilation * (c.kernel / 2);
-      tbb::parallel_for(tbb::blocked_range<int64_t>(0, dst.h), [&](const tbb::blocked_range<int64_t>& rows) {
+      const int64_t x0 = region.x;
+      tbb::parallel_for(tbb::blocked_range<int64_t>(region.y, region.y + region.height),
+                        [&](const tbb::blocked_range<int64_t>& rows) {
         for (int64_t y = rows.begin(); y < rows.end(); ++y) {
           if (cancel != nullptr && cancel->requested()) return;
           for (size_t p = 0; p < srcs.size(); ++p)
-            conv_row_avx512(c, p, srcs[p]->at(y - r, -r), srcs[p]->row(), dst.w, dst.at(y, 0), dst.c,
-                            add ? add->at(y, 0) : nullptr, add ? add->c : 0);
+            conv_row_avx512(c, p, srcs[p]->at(y - r, x0 - r), srcs[p]->row(), region.width, dst.at(y, x0), dst.c,
+                            add ? add->at(y, x0) : nullptr, add ? add->c : 0);
         }
       });
       return;
     }
 #endif
-    conv_eigen(c, srcs, dst, add, cancel);
+    conv_eigen(c, srcs, dst, add, region, cancel);
   }
 
   void conv_eigen(const PackedConv& c, const std::vector<const Value*>& srcs, const Value& dst, const Value* add,
-                  const CancelToken* cancel) {
-    const int64_t h = dst.h, w = dst.w;
+                  const Rect& region, const CancelToken* cancel) {
+    const int64_t w = region.width, x0 = region.x;
     const int k = c.kernel, r = c.dilation * (k / 2);
     const auto cols = static_cast<int64_t>(c.weights.rows());
     const int64_t rows_per_strip = std::max<int64_t>(1, kStripPixels / std::max<int64_t>(w, 1));
-    const int64_t strips = (h + rows_per_strip - 1) / rows_per_strip;
+    const int64_t strips = (region.height + rows_per_strip - 1) / rows_per_strip;
     tbb::parallel_for(int64_t{0}, strips, [&](int64_t s) {
       if (cancel != nullptr && cancel->requested()) return;
-      const int64_t y0 = s * rows_per_strip, y1 = std::min(h, y0 + rows_per_strip);
+      const int64_t y0 = region.y + s * rows_per_strip, y1 = std::min(region.y + region.height, y0 + rows_per_strip);
       const int64_t pixels = (y1 - y0) * w;
       Scratch& scratch = scratch_.local();
       scratch.cols.resize(static_cast<size_t>(pixels * cols));
@@ -396,14 +404,14 @@ class EigenBackend final : public Backend {
           for (const Value* v : srcs)
             for (int ky = 0; ky < k; ++ky)
               for (int kx = 0; kx < k; ++kx, to += v->c)
-                std::memcpy(to, v->at(y - r + ky * c.dilation, x - r + kx * c.dilation),
+                std::memcpy(to, v->at(y - r + ky * c.dilation, x0 + x - r + kx * c.dilation),
                             static_cast<size_t>(v->c) * sizeof(float));
         }
       Eigen::Map<const RowMatrix> patches(scratch.cols.data(), pixels, cols);
       Eigen::Map<RowMatrix> result(scratch.result.data(), pixels, c.out);
       result.noalias() = patches * c.weights;
       for (int64_t p = 0; p < pixels; ++p) {
-        const int64_t y = y0 + p / w, x = p % w;
+        const int64_t y = y0 + p / w, x = x0 + p % w;
         const float* res = scratch.result.data() + p * c.out;
         const float* a = add ? add->at(y, x) : nullptr;
         float* v = dst.at(y, x);
@@ -418,9 +426,9 @@ class EigenBackend final : public Backend {
     });
   }
 
-  static void pool(const Value& src, const Value& dst) {
-    tbb::parallel_for(int64_t{0}, dst.h, [&](int64_t y) {
-      for (int64_t x = 0; x < dst.w; ++x) {
+  static void pool(const Value& src, const Value& dst, const Rect& region) {
+    tbb::parallel_for(region.y, region.y + region.height, [&](int64_t y) {
+      for (int64_t x = region.x; x < region.x + region.width; ++x) {
         const float *a = src.at(2 * y, 2 * x), *b = src.at(2 * y, 2 * x + 1);
         const float *c = src.at(2 * y + 1, 2 * x), *d = src.at(2 * y + 1, 2 * x + 1);
         float* o = dst.at(y, x);
@@ -429,16 +437,16 @@ class EigenBackend final : public Backend {
     });
   }
 
-  static void upsample(const Value& src, const Value& dst) {
+  static void upsample(const Value& src, const Value& dst, const Rect& region) {
     const size_t bytes = static_cast<size_t>(dst.c) * sizeof(float);
-    tbb::parallel_for(int64_t{0}, dst.h, [&](int64_t y) {
-      for (int64_t x = 0; x < dst.w; ++x) std::memcpy(dst.at(y, x), src.at(y / 2, x / 2), bytes);
+    tbb::parallel_for(region.y, region.y + region.height, [&](int64_t y) {
+      for (int64_t x = region.x; x < region.x + region.width; ++x) std::memcpy(dst.at(y, x), src.at(y / 2, x / 2), bytes);
     });
   }
 
-  static void add(const Value& a, const Value& b, const Value& dst) {
-    tbb::parallel_for(int64_t{0}, dst.h, [&](int64_t y) {
-      for (int64_t x = 0; x < dst.w; ++x) {
+  static void add(const Value& a, const Value& b, const Value& dst, const Rect& region) {
+    tbb::parallel_for(region.y, region.y + region.height, [&](int64_t y) {
+      for (int64_t x = region.x; x < region.x + region.width; ++x) {
         const float *p = a.at(y, x), *q = b.at(y, x);
         float* o = dst.at(y, x);
         for (int k = 0; k < dst.c; ++k) o[k] = p[k] + q[k];

@@ -161,7 +161,8 @@ class OneDnnBackend final : public Backend {
     return aligned(p.arena.bytes) + aligned(p.scratchpad);
   }
 
-  void execute(const Image& input, Image& output, const CancelToken* cancel) override {
+  // Computes the whole tile whatever is `needed`: a conv over part of a value would need a primitive per region.
+  void execute(const Image& input, Image& output, const CancelToken* cancel, const std::optional<Rect>&) override {
     if (input.channels() != graph_.input_channels())
       throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
                                         " input channels, the tile has " + std::to_string(input.channels()));

@@ -159,6 +159,58 @@ double Graph::flops_per_pixel() const {
   return f;
 }
 
+namespace {
+Rect intersect(const Rect& a, const Rect& b) {
+  const int64_t x0 = std::max(a.x, b.x), y0 = std::max(a.y, b.y);
+  const int64_t x1 = std::min(a.x + a.width, b.x + b.width), y1 = std::min(a.y + a.height, b.y + b.height);
+  return x1 > x0 && y1 > y0 ? Rect{x0, y0, x1 - x0, y1 - y0} : Rect{};
+}
+
+// `a` grown to the bounding box of a and b (an empty rectangle adds nothing).
+void unite(Rect& a, const Rect& b) {
+  if (b.empty()) return;
+  if (a.empty()) {
+    a = b;
+    return;
+  }
+  const int64_t x0 = std::min(a.x, b.x), y0 = std::min(a.y, b.y);
+  const int64_t x1 = std::max(a.x + a.width, b.x + b.width), y1 = std::max(a.y + a.height, b.y + b.height);
+  a = {x0, y0, x1 - x0, y1 - y0};
+}
+}  // namespace
+
+std::vector<Rect> Graph::needed_regions(int64_t h, int64_t w, const Rect& needed) const {
+  std::vector<Rect> region(ops_.size());
+  if (ops_.empty()) return region;
+  auto extent = [&](int i) { return Rect{0, 0, w >> op(i).level, h >> op(i).level}; };
+  auto need = [&](int x, const Rect& r) { unite(region[static_cast<size_t>(x)], intersect(r, extent(x))); };
+  region[static_cast<size_t>(output())] = intersect(needed, extent(output()));
+  for (int i = size() - 1; i >= 0; --i) {
+    const Rect r = region[static_cast<size_t>(i)];
+    if (r.empty()) continue;
+    const GraphOp& o = op(i);
+    switch (o.kind) {
+      case OpKind::Input: break;
+      case OpKind::Conv: {
+        const int64_t p = o.dilation * (o.kernel / 2);
+        for (int x : o.inputs) need(x, {r.x - p, r.y - p, r.width + 2 * p, r.height + 2 * p});
+        if (o.residual >= 0) need(o.residual, r);
+        break;
+      }
+      case OpKind::Pool: need(o.inputs[0], {2 * r.x, 2 * r.y, 2 * r.width, 2 * r.height}); break;
+      case OpKind::Upsample: {
+        const int64_t x0 = r.x / 2, y0 = r.y / 2, x1 = (r.x + r.width + 1) / 2, y1 = (r.y + r.height + 1) / 2;
+        need(o.inputs[0], {x0, y0, x1 - x0, y1 - y0});
+        break;
+      }
+      case OpKind::Add:
+        for (int x : o.inputs) need(x, r);
+        break;
+    }
+  }
+  return region;
+}
+
 std::vector<int> Graph::last_uses() const {
   std::vector<int> last(ops_.size(), -1);
   for (size_t i = 0; i < ops_.size(); ++i) {

@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include "core/image/image.h"
+
 namespace residue::nn {
 
 enum class OpKind { Input, Conv, Pool, Upsample, Add };
@@ -74,6 +76,11 @@ class Graph {
   int halo() const;
   // Multiply-adds x 2 per input pixel (a value at level k counts 1/4^k of a pixel).
   double flops_per_pixel() const;
+  // For each op, the part of its value (in its level's pixels, within an h x w tile) that the `needed` part of the
+  // output depends on: a conv needs its taps' reach around what is needed of it, a pool the 2x2 blocks, an
+  // upsample the source pixels; empty where nothing needed reads the value. A UNet's decoder needs a few pixels
+  // around the tile's core, not the whole halo, so a backend computing only these regions skips most of it.
+  std::vector<Rect> needed_regions(int64_t h, int64_t w, const Rect& needed) const;
   // For each op, the last op that reads its value (-1: none, i.e. the output).
   std::vector<int> last_uses() const;
   // For each op, the zero border its value needs for the convs that read it: max dilation * (kernel / 2).
