@@ -5,11 +5,12 @@ over the same 36 scenes the shipped models' cards use (30 validation scenes of r
 scenes), from evaluate-set JSON; benchmark: seconds per megapixel from `residue-cli bench --json` output.
 
   /usr/bin/python3 tools/oidn_cards.py docs/models/eval_project_val_oidn.json docs/models/eval_starter_val_oidn.json \\
-      --bench-json docs/benchmarks/2026-11-26-amd-epyc-f26m2/oidn_cards.json --machine "AMD EPYC (family 26 model 2), 2 cores"
+      --bench-json docs/benchmarks/2026-11-26-amd-epyc-f26m2/oidn_cards.json
 
 --bench FAMILY=SOURCE:FP32:BF16:MACHINE records a measurement written down elsewhere (PERFORMANCE.md's tile-512
 column, measured on the machine the shipped models were benchmarked on); --bench-json takes the best row per
-precision for each family not given by --bench.
+precision for each family not given by --bench, naming the machine by the CPU the JSON records (--machine for older
+JSON without it).
 """
 import argparse, json, os, sys
 
@@ -19,7 +20,7 @@ def main():
     p.add_argument("evals", nargs="+")
     p.add_argument("--bench", action="append", default=[])
     p.add_argument("--bench-json")
-    p.add_argument("--machine", default="AMD EPYC (family 25 model 17), 2 cores")
+    p.add_argument("--machine", help="the machine of a --bench-json that does not name its CPU")
     p.add_argument("--out", default=os.path.join(root, "resources/models/oidn/cards.json"))
     a = p.parse_args()
     scenes = []
@@ -44,6 +45,12 @@ def main():
                                       "machine": machine, "source": source}
     if a.bench_json:
         bench = json.load(open(a.bench_json))
+        if a.machine:
+            machine = a.machine
+        elif "cpu" in bench:
+            machine = f"{bench['cpu']}, {bench['threads']} cores"
+        else:
+            sys.exit(f"oidn_cards: {a.bench_json} does not name its CPU; pass --machine")
         for family in cards:
             if "benchmark" in cards[family]:
                 continue
@@ -56,7 +63,7 @@ def main():
                 cards[family]["benchmark"] = {
                     "fp32_s_per_mp": round(best["fp32"]["seconds_per_megapixel"], 4),
                     "bf16_s_per_mp": round(best["bf16"]["seconds_per_megapixel"], 4) if "bf16" in best else None,
-                    "machine": f"{a.machine}, fp32 peak {bench['fp32_peak_gflops']:.0f} GFLOP/s",
+                    "machine": f"{machine}, fp32 peak {bench['fp32_peak_gflops']:.0f} GFLOP/s",
                     "image": bench["image"], "source": os.path.relpath(a.bench_json, root)}
     with open(a.out + ".tmp", "w") as f:
         json.dump(cards, f, indent=1, sort_keys=True)

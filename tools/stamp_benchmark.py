@@ -9,26 +9,10 @@ Only the JSON header changes (the tensors are copied byte for byte); the file is
 Run it on an idle machine: the numbers are what users compare models by. The figure is the warm speed (bench's
 fastest run after the cold first one), as in a viewer's runs and every tile after a CLI run's first.
 """
-import argparse, glob, json, os, platform, subprocess, sys
+import argparse, glob, json, os, subprocess, sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from safetensors_meta import read_header, write_header  # noqa: E402
-
-def cpu_name():
-    """The CPU as residue-cli bench names it: model name (family F model M)."""
-    fields = {}
-    try:
-        for line in open("/proc/cpuinfo"):
-            if not line.strip():
-                break
-            key, _, value = line.partition(":")
-            fields.setdefault(key.strip(), value.strip())
-    except OSError:
-        pass
-    name = fields.get("model name") or platform.processor() or "unknown CPU"
-    if "cpu family" in fields and "model" in fields:
-        name += f" (family {fields['cpu family']} model {fields['model']})"
-    return name
 
 def main():
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -44,9 +28,9 @@ def main():
         arch = f"{meta['residue.blocks']}/{meta['residue.width']}"
         cmd = [a.cli, "bench", "--models", arch, "--precisions", "fp32,bf16", "--size", str(a.size),
                "--repeat", "2", "--json"]
-        rows = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)["rows"]
+        result = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
         best = {}
-        for r in rows:
+        for r in result["rows"]:
             s = r["seconds_per_megapixel"]
             if r["precision"] not in best or s < best[r["precision"]]["seconds_per_megapixel"]:
                 best[r["precision"]] = r
@@ -55,7 +39,7 @@ def main():
             "bf16_s_per_mp": round(best["bf16"]["seconds_per_megapixel"], 4) if "bf16" in best else None,
             "fp32_implementation": best["fp32"]["implementation"],
             "bf16_implementation": best["bf16"]["implementation"] if "bf16" in best else None,
-            "machine": f"{cpu_name()}, {os.cpu_count()} cores",
+            "machine": f"{result['cpu']}, {os.cpu_count()} cores",  # the CPU as bench names it
             "image": a.size,
             "command": " ".join(["residue-cli"] + cmd[1:]),
         }, separators=(",", ":"))
