@@ -221,5 +221,18 @@ TEST(NnBackendChoice, EigenRefusesBf16AndUnknownNamesListTheAvailable) {
   }
 }
 
+// The default for each precision can run it: fp32 on the reference backend, bf16 on oneDNN when it is built (the
+// only one with bf16), so a caller naming no backend never gets eigen's bf16 refusal.
+TEST(NnBackendChoice, TheDefaultRunsEachPrecision) {
+  const nn::Network net = nn::random_network({1, 8, FeatureSet::Full}, 1);
+  EXPECT_EQ(nn::default_backend(nn::Precision::FP32), "eigen");
+  auto fp32 = nn::make_backend(nn::default_backend(nn::Precision::FP32), net, {nn::Precision::FP32});
+  EXPECT_NE(fp32->description().find("fp32"), std::string::npos) << fp32->description();
+  const auto names = nn::available_backends();
+  if (std::find(names.begin(), names.end(), "onednn") == names.end()) GTEST_SKIP() << "built without oneDNN";
+  auto bf16 = nn::make_backend(nn::default_backend(nn::Precision::BF16), net, {nn::Precision::BF16});
+  EXPECT_NE(bf16->description().find("bf16"), std::string::npos) << bf16->description();
+}
+
 }  // namespace
 }  // namespace residue

@@ -49,6 +49,8 @@ def end_to_end(folder):
             _, model, precision, _, _ = line.split()
             key = (model, precision)
             runs.setdefault(key, []).append({})
+        elif line.startswith("backend"):
+            runs[key][-1]["backend"] = line.split()[1]
         elif line.startswith("time"):
             runs[key][-1]["denoise"] = float(re.search(r"time\s+([\d.]+) s", line).group(1))
         elif line.startswith("files"):
@@ -56,12 +58,13 @@ def end_to_end(folder):
             runs[key][-1]["read"], runs[key][-1]["write"] = float(m.group(1)), float(m.group(2))
         elif line.startswith("wall"):
             runs[key][-1]["wall"] = float(re.search(r"wall ([\d.]+) s", line).group(1))
-    out = ["| model | precision | `denoise()` | read | write | wall (whole process) | wall / denoise - 1 (median) |",
-           "|---|---|---|---|---|---|---|"]
+    out = ["| model | precision | backend | `denoise()` | read | write | wall (whole process) | wall / denoise - 1 (median) |",
+           "|---|---|---|---|---|---|---|---|"]
     for (model, precision), rs in runs.items():
         over = [r["wall"] / r["denoise"] - 1 for r in rs]
         fmt = lambda k: " / ".join(f"{r[k]:.2f}" for r in rs)
-        out.append(f"| {model} | {precision} | {fmt('denoise')} s | {fmt('read')} s | {fmt('write')} s | "
+        backend = rs[0].get("backend", "onednn")  # runs before 2026-11-26 named no backend: all were onednn
+        out.append(f"| {model} | {precision} | {backend} | {fmt('denoise')} s | {fmt('read')} s | {fmt('write')} s | "
                    f"{fmt('wall')} s | +{100 * statistics.median(over):.0f} % |")
     return "\n".join(out)
 
@@ -74,7 +77,7 @@ def main():
             print(f"### {name}: {header(j)}\n\n{by_model(j)}\n")
     e = end_to_end(folder)
     if e:
-        print(f"### end to end (2048^2, onednn)\n\n{e}\n")
+        print(f"### end to end (2048^2, default backend)\n\n{e}\n")
 
 
 if __name__ == "__main__":

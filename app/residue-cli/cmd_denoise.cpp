@@ -63,7 +63,7 @@ Command add_denoise_command(CLI::App& app) {
   o->input.add_to(*cmd, true);
   cmd->add_option("-o,--output", o->output, "The denoised EXR to write (for a sequence: a pattern, out.####.exr)")->required();
   cmd->add_option("-m,--model", o->model, "A model name (see resources/models), a .safetensors file, \"bilateral\" (the baseline filter), or \"oidn\" / \"oidn-cleanaux\" (Open Image Denoise's networks, for comparison)")->required();
-  cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest available)")
+  cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)")
       ->check(CLI::IsMember(nn::available_backends()));
   cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")
       ->capture_default_str()

@@ -255,7 +255,7 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("dataset", o->dataset, "Data set folder (s<seed>/noisy_a.exr, reference.exr)")->required();
   cmd->add_option("--models", o->models, "Model names or files; \"bilateral\" is the cross-bilateral baseline")->required()->delimiter(',');
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
-  cmd->add_option("--backend", o->backend, "Inference backend (default: the fastest)");
+  cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)");
   cmd->add_option("--last", o->last, "Only the last N scenes by name (the starter set's validation scenes)");
   cmd->add_option("--perturb", o->perturb,
                   "Study other renderers' conventions: normals-world, normals-zero, depth-x100, no-variance")

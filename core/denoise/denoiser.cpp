@@ -265,7 +265,7 @@ int64_t choose_tile(const DenoiseOptions& options, const nn::Backend& backend, c
 }
 
 std::string backend_for(const DenoiseOptions& o) {
-  return o.backend.empty() ? nn::available_backends().back() : o.backend;  // the last is the fastest
+  return o.backend.empty() ? nn::default_backend(o.precision) : o.backend;
 }
 
 // The options' cached backend for `model`, or a fresh one held by `owned`.

@@ -38,7 +38,7 @@ class BackendCache {
 };
 
 struct DenoiseOptions {
-  std::string backend;                          // empty: the fastest available
+  std::string backend;                          // empty: nn::default_backend(precision)
   nn::Precision precision = nn::Precision::FP32;
   int64_t tile = 0;                             // tile edge without halo; 0: the largest that fits max_memory
   size_t max_memory = size_t{4} << 30;          // bytes for tiles, backend scratch and the output

@@ -53,6 +53,8 @@ class Backend {
 std::unique_ptr<Backend> make_backend(const std::string& name, const Graph& graph, const BackendOptions& options);
 std::unique_ptr<Backend> make_backend(const std::string& name, const Network& network, const BackendOptions& options);
 std::vector<std::string> available_backends();
+// What runs when the caller names no backend: the faster one for this precision as measured.
+std::string default_backend(Precision precision);
 
 std::unique_ptr<Backend> make_eigen_backend(const Graph& graph);
 

@@ -3,7 +3,8 @@
 // Why not std::vector: a fresh 100 MB-1 GB arena is mostly page faults when first written (4 KiB pages: ~250 k
 // faults for 1 GB, measured at ~0.4 s per 128 MB on these VMs), so buffers of 2 MiB or more are aligned to 2 MiB
 // and marked for transparent huge pages (madvise; Debian's default THP mode), which cuts the faults 512-fold.
-// Contents are not initialised; grow() keeps nothing.
+// A fresh buffer is written once in parallel (zeros) so that its page faults are shared by the threads; contents
+// are otherwise unspecified: grow() keeps nothing.
 #pragma once
 
 #include <cstddef>
