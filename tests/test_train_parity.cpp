@@ -240,6 +240,23 @@ TEST(TrainBatchNorm, FrozenStatisticsTrainAsInferenceRuns) {
   EXPECT_FALSE(torch::allclose(net->forward(x), trained.detach(), 1e-3, 1e-3)) << "unfrozen, batch statistics differ";
 }
 
+// A patch within the network's reach is refused before any data is read, naming the reach and a patch that works;
+// one past the reach trains (a note says the interior needs twice the reach).
+TEST(TrainCli, RefusesAPatchWithinTheNetworksReach) {
+  testing::TempDir tmp;
+  std::string text;
+  // 4 levels of 1 block: reach 75 px, rounded to the 8-px pooling grid: 80.
+  const int rc = testing::run_program(RESIDUE_TRAIN_PATH,
+                                      {"--data", tmp.path().string(), "--arch", "1,1,1,1/8,8,8,8", "--patch", "64",
+                                       "--steps", "1", "-o", (tmp / "m.safetensors").string()},
+                                      &text);
+  EXPECT_NE(rc, 0) << text;
+  EXPECT_NE(text.find("--patch 64 is within the reach"), std::string::npos) << text;
+  EXPECT_NE(text.find("(80 px each side)"), std::string::npos) << text;
+  EXPECT_NE(text.find("use --patch 88"), std::string::npos) << text;
+  EXPECT_FALSE(std::filesystem::exists(tmp / "m.safetensors"));
+}
+
 TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {
   const auto starter = testing::shared_dataset("cycles-starter");
   RESIDUE_REQUIRE_SHARED(starter);

@@ -116,6 +116,25 @@ void save_checkpoint(const fs::path& dir, train::ResidueNet& net, torch::optim::
   fs::rename(dir / "step.tmp", dir / "step");
 }
 
+// A network that reaches past the patch sees, at every training pixel, the zero padding of both opposite sides of
+// the patch; on a whole image a pixel near one border sees that border alone, a case it never trained on. A
+// 4-level network (reach 120 px) trained on 64-px patches painted stripes down the right and bottom edges of 14
+// of the 64 starter scenes; on 128-px patches, none (docs/MODELS.md, lever 2b). So the patch must exceed the
+// reach; below twice the reach no pixel is free of every border, which whole images have in their interior.
+void check_patch_covers_reach(const nn::Architecture& arch, int patch) {
+  const int reach = arch.halo(), a = arch.alignment();
+  const int enough = (reach / a + 1) * a;  // the smallest patch on the pooling grid beyond the reach
+  if (patch <= reach)
+    throw Error(ErrorKind::Usage, "--patch " + std::to_string(patch) + " is within the reach of " + arch.to_string() +
+                                      " (" + std::to_string(reach) + " px each side): every training pixel would see "
+                                      "both opposite borders of its patch, which no pixel of a larger image does; "
+                                      "use --patch " + std::to_string(enough) + " or more");
+  if (patch < 2 * reach)
+    std::printf("residue-train: note: the %d-px patch is under twice the network's reach (%d px): no training pixel "
+                "is clear of every border; --patch %d would also train the interior of larger images\n",
+                patch, reach, (2 * reach + a - 1) / a * a);
+}
+
 int run(const Options& o) {
   torch::set_num_threads(o.threads);
   torch::manual_seed(o.seed);
@@ -148,10 +167,8 @@ int run(const Options& o) {
     const auto d = nn::parse_dilations(o.dilations);
     if (!d) throw Error(ErrorKind::Usage, "--dilations: expected integers from 1 to 64, e.g. 1,2,4,8");
     arch.dilations = *d;
-    if (arch.halo() >= o.patch / 2)
-      std::printf("residue-train: note: the receptive field (%d px each side) exceeds half the %d-px patch; "
-                  "consider --patch %d\n", arch.halo(), o.patch, 4 * arch.halo());
   }
+  check_patch_covers_reach(arch, o.patch);
   if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out + "' exists; pass --force");
 
   // Scenes: each data folder's own cut (index.json) or, without one, its last `val` scenes by name.
