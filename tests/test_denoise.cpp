@@ -13,6 +13,7 @@
 #include "core/aov/aov_loader.h"
 #include "core/denoise/denoise_job.h"
 #include "core/denoise/denoiser.h"
+#include "core/denoise/oidn_filter.h"
 #include "core/features/features.h"
 #include "core/metrics/metrics.h"
 #include "core/io/exr_writer.h"
@@ -380,6 +381,67 @@ TEST(Denoise, DemodulatedModelDividesByTheAlbedoAndMultipliesBack) {
             std::string::npos);
 }
 
+// An autoexposed model (issue 16): its colour planes are log(1 + c e) with e the image's autoexposure and its
+// output the network's divided by e, against the float64 network; so a render 8x brighter or 16x dimmer gives
+// the same image scaled alike (the same weights without the flag do not: the test can tell), with the energy
+// correction and the guard on; tiled equals untiled; the flag travels in the model file and a bad value is refused.
+TEST(Denoise, AutoexposedModelScalesWithTheRender) {
+  nn::Architecture arch{1, 8, FeatureSet::Full};
+  arch.autoexposure = true;
+  const nn::Network network = nn::random_network(arch, 5);
+  const nn::Model model = nn::model_from_network(network, "ae");
+  const AovStack s = random_stack(21, 13, 8);
+  const float e = oidn_autoexposure(s.color.image);
+  ASSERT_TRUE(std::isfinite(e) && e > 0 && std::abs(e - 1.0f) > 0.1f) << e;  // the scale does something here
+  FeatureStats stats = compute_feature_stats(s);
+  stats.exposure = e;
+  Image f;
+  make_features(s, FeatureSet::Full, stats, {0, 0, 21, 13}, f);
+  for (int64_t y = 0; y < 13; ++y)
+    for (int64_t x = 0; x < 21; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double colour = std::max(0.0, static_cast<double>(s.color.image.at(x, y, c)));
+        ASSERT_NEAR(f.at(x, y, c), std::log1p(colour * e), 2e-6 * (1 + f.at(x, y, c)));
+      }
+  const Image out = denoise(s, model, eigen_options(21));
+  const auto ref = testing::naive_forward(model.network, f);
+  for (int64_t y = 0; y < 13; ++y)
+    for (int64_t x = 0; x < 21; ++x)
+      for (int c = 0; c < 3; ++c) {
+        const double expected = std::expm1(std::max(0.0, ref.at(y, x, c))) / e;
+        EXPECT_NEAR(out.at(x, y, c), expected, 1e-5 * std::max(1.0, expected)) << x << "," << y << "," << c;
+      }
+  EXPECT_LT(max_rel_diff(denoise(s, model, eigen_options(8)), out), 1e-5) << "tiled equals untiled";
+
+  nn::Network plain_network = network;
+  plain_network.arch.autoexposure = false;
+  const nn::Model plain = nn::model_from_network(plain_network, "plain");
+  DenoiseOptions o = eigen_options(8);
+  o.energy_correction = true;
+  o.output_guard = true;
+  for (float k : {8.0f, 1.0f / 16}) {
+    AovStack scaled = s;
+    for (int64_t i = 0; i < scaled.color.image.pixel_count() * 3; ++i) scaled.color.image.data()[i] *= k;
+    Image expected = denoise(s, model, o);
+    for (int64_t i = 0; i < expected.pixel_count() * 3; ++i) expected.data()[i] *= k;
+    EXPECT_LT(max_rel_diff(denoise(scaled, model, o), expected), 1e-4) << "x" << k;
+    Image plain_expected = denoise(s, plain, o);
+    for (int64_t i = 0; i < plain_expected.pixel_count() * 3; ++i) plain_expected.data()[i] *= k;
+    EXPECT_GT(max_rel_diff(denoise(scaled, plain, o), plain_expected), 1e-2) << "x" << k << " without the flag";
+  }
+
+  TempDir tmp;
+  auto file = nn::to_safetensors(model.network);
+  nn::write_safetensors(tmp / "ae.safetensors", file, false);
+  EXPECT_TRUE(nn::load_model(tmp / "ae.safetensors").network.arch.autoexposure);
+  EXPECT_NE(nn::load_model(tmp / "ae.safetensors").architecture().find("autoexposure"), std::string::npos);
+  file.metadata["residue.autoexposure"] = "yes";
+  nn::write_safetensors(tmp / "bad.safetensors", file, false);
+  EXPECT_NE(testing::error_message([&] { nn::load_model(tmp / "bad.safetensors"); }, ErrorKind::Input)
+                .find("residue.autoexposure"),
+            std::string::npos);
+}
+
 // A post-correction model (issue 16, lever 6) refines OIDN's denoise: OIDN runs first, its log colour comes in
 // as planes 9-11, and input_skip adds those. With a zero output convolution the model returns OIDN's image (up to
 // the log/exp round trip); with random weights it equals the float64 network on those 12 planes. The file records
@@ -703,6 +765,17 @@ TEST(DenoiseJob, ErrorsAreValues) {
     EXPECT_EQ(stats.energy_corrected, c.energy);
     const Image streamed = testing::read_exr_float(tmp / c.file);
     EXPECT_LT(max_rel_diff(streamed, in_memory), 1e-5) << c.file;
+  }
+  {  // an autoexposed model's exposure comes from a pass over the colour's bands, as from the whole image
+    nn::Architecture arch{2, 8, FeatureSet::Full};
+    arch.autoexposure = true;
+    const nn::Model ae = nn::model_from_network(nn::random_network(arch, 6), "ae");
+    DenoiseOptions o = eigen_options(24);
+    o.energy_correction = true;
+    io::ExrWriteOptions exr;
+    exr.pixel_type = io::PixelType::Float;
+    denoise_to_exr(reader, ae, o, tmp / "ae.exr", exr);
+    EXPECT_LT(max_rel_diff(testing::read_exr_float(tmp / "ae.exr"), denoise(whole, ae, o)), 1e-5);
   }
   {  // a demodulated model reads the albedo of the rows it multiplies back, band by band
     nn::Architecture arch{2, 8, FeatureSet::Full};

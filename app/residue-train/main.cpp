@@ -39,6 +39,7 @@ struct Options {
   std::string dilations;  // per ResBlock, repeated; empty: none (the paper)
   bool input_skip = false;  // variant: the network predicts the correction to the log noisy colour
   bool demodulate = false;  // variant: colour divided by the albedo in, multiplied back out
+  bool autoexposure = false;  // variant: colour scaled by the image's autoexposure in, divided back out
   std::string prior;        // post-correction: refine this model's output ("oidn")
   int steps = 3000;
   int batch = 8;
@@ -157,6 +158,7 @@ int run(const Options& o) {
   arch.features = *feature_set_from_string(o.features);
   arch.input_skip = o.input_skip;
   arch.demodulate = o.demodulate;
+  arch.autoexposure = o.autoexposure;
   arch.prior = o.prior;
   if (!arch.prior.empty() && arch.features != FeatureSet::Full)
     throw Error(ErrorKind::Usage, "--prior needs --features full");
@@ -354,6 +356,9 @@ int main(int argc, char** argv) {
                  "Dilation per ResBlock, repeated over the blocks, e.g. 1,2,4,8 (default: none, as in the paper)");
   app.add_flag("--input-skip", o.input_skip,
                "Add the input's log colour to the output: the network learns the correction (a variant)");
+  app.add_flag("--autoexposure", o.autoexposure,
+               "Variant: scale the colour by the image's autoexposure (0.18 / log-average luminance, as OIDN) before "
+               "the network and divide its output by it, so that dim and bright renders look alike to it");
   app.add_flag("--demodulate", o.demodulate,
                "Divide the colour by the albedo before the network and multiply its output back (a variant)");
   app.add_option("--prior", o.prior,

@@ -5,6 +5,7 @@
 #include "core/aov/aov_loader.h"
 #include "core/aov/dataset.h"
 #include "core/denoise/denoiser.h"
+#include "core/denoise/oidn_filter.h"
 #include "core/features/features.h"
 #include "core/util/error.h"
 
@@ -53,6 +54,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     FeatureStats f = compute_feature_stats(s);
     f.demodulate = arch.demodulate;
     f.prior = !arch.prior.empty();
+    f.exposure = arch.autoexposure ? oidn_autoexposure(s.color.image) : 1.0f;
     if (f.prior) s.prior = Aov{denoise(s, *prior, {}), {}, {}, 0};
     return f;
   };
@@ -63,23 +65,27 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     TrainingScene s;
     s.name = dir.filename().string();
     const Rect all{0, 0, a.width(), a.height()};
-    Image f;
-    make_features(a, features, stats(a), all, f);
-    s.inputs.push_back(std::move(f));
+    // Each half with its target: log(1 + reference), times the half's own exposure for an autoexposed model (the
+    // halves' noise gives them slightly different exposures; inference scales by the noisy input's, too).
+    auto add_input = [&](AovStack& half) {
+      const FeatureStats fs = stats(half);
+      Image f, target(a.width(), a.height(), 3);
+      make_features(half, features, fs, all, f);
+      for (int64_t y = 0; y < a.height(); ++y)
+        for (int64_t x = 0; x < a.width(); ++x)
+          for (int c = 0; c < 3; ++c) target.at(x, y, c) = compress_color(exposed(a.reference->image.at(x, y, c), fs.exposure));
+      s.inputs.push_back(std::move(f));
+      s.targets.push_back(std::move(target));
+    };
+    add_input(a);
     std::optional<AovStack> b;
     if (fs::exists(dir / "noisy_b.exr")) {
       LoadOptions lb;
       lb.load_reference = false;
       b = load_aov_stack({dir / "noisy_b.exr"}, lb);
       b->variance = a.variance;  // (a - b)^2 / 2 is the estimate for either half
-      Image fb;
-      make_features(*b, features, stats(*b), all, fb);
-      s.inputs.push_back(std::move(fb));
+      add_input(*b);
     }
-    s.target = Image(a.width(), a.height(), 3);
-    for (int64_t y = 0; y < a.height(); ++y)
-      for (int64_t x = 0; x < a.width(); ++x)
-        for (int c = 0; c < 3; ++c) s.target.at(x, y, c) = compress_color(a.reference->image.at(x, y, c));
 
     // Patch weights: mean relative noise inside the patch, plus a floor so flat regions still appear.
     const Image noise = noise_map(a, b ? &*b : nullptr, a.reference->image);
@@ -117,7 +123,9 @@ void TrainingSet::sample(std::mt19937& rng, int batch, torch::Tensor& inputs, to
     const TrainingScene& s = scenes_[pick_scene(rng)];
     std::discrete_distribution<size_t> pick_corner(s.weights.begin(), s.weights.end());
     const auto [x0, y0] = s.corners[pick_corner(rng)];
-    const Image& src = s.inputs[std::uniform_int_distribution<size_t>(0, s.inputs.size() - 1)(rng)];
+    const size_t half = std::uniform_int_distribution<size_t>(0, s.inputs.size() - 1)(rng);
+    const Image& src = s.inputs[half];
+    const Image& target = s.targets[half];
     const int t = pick_transform(rng);
     const bool flip_x = t & 1, flip_y = t & 2, transpose = t & 4;
     for (int64_t v = 0; v < P; ++v)
@@ -129,7 +137,7 @@ void TrainingSet::sample(std::mt19937& rng, int batch, torch::Tensor& inputs, to
         const int64_t px = x0 + sx, py = y0 + sy;
         for (int c = 0; c < channels_; ++c)
           in[((static_cast<int64_t>(b) * channels_ + c) * P + v) * P + u] = src.at(px, py, c);
-        for (int c = 0; c < 3; ++c) tg[((static_cast<int64_t>(b) * 3 + c) * P + v) * P + u] = s.target.at(px, py, c);
+        for (int c = 0; c < 3; ++c) tg[((static_cast<int64_t>(b) * 3 + c) * P + v) * P + u] = target.at(px, py, c);
         if (np >= 0) {
           // Turn the normal with the image: in image axes (right, down) it is (nx, -ny); the pixel mapping
           // above applied to a vector is: flips negate, then the transpose swaps.

@@ -20,8 +20,8 @@ namespace residue::train {
 
 struct TrainingScene {
   std::string name;
-  std::vector<Image> inputs;  // feature planes of each noisy half, H x W x C
-  Image target;               // log(1 + reference), H x W x 3
+  std::vector<Image> inputs;   // feature planes of each noisy half, H x W x C
+  std::vector<Image> targets;  // each half's target: log(1 + reference x the half's exposure), H x W x 3
   // Patch sampling: top-left corners on a grid and their probabilities.
   std::vector<std::pair<int64_t, int64_t>> corners;
   std::vector<double> weights;

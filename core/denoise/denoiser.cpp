@@ -78,8 +78,9 @@ class ResidueIO final : public NetworkIO {
     make_features(src, set_, stats_, r, planes);
   }
   float output(float raw, const AovStack& src, int64_t x, int64_t y, int c) const override {
-    if (!stats_.demodulate) return expand_color(raw);
-    return std::min(expand_color(raw) * demodulation_factor(src.albedo->image.at(x, y, c)), FLT_MAX);
+    float v = expand_color(raw);
+    if (stats_.demodulate) v = std::min(v * demodulation_factor(src.albedo->image.at(x, y, c)), FLT_MAX);
+    return stats_.exposure == 1.0f ? v : std::min(v / stats_.exposure, FLT_MAX);
   }
 
  private:
@@ -112,11 +113,6 @@ void check_inputs(const AovStack& stack, const nn::Model& model) {
   const std::string who = "Open Image Denoise's network " + model.name;
   if (model.oidn.albedo && !stack.albedo) throw Error(ErrorKind::Input, who + " needs an albedo AOV; the render has none");
   if (model.oidn.normal && !stack.normal) throw Error(ErrorKind::Input, who + " needs a normal AOV; the render has none");
-}
-
-// The input scale an OIDN network runs with: the autoexposure for HDR colour, else 1.
-float oidn_scale(const nn::Model& model, const Image& colour) {
-  return model.oidn.color && model.oidn.hdr ? oidn_autoexposure(colour) : 1.0f;
 }
 
 // Denoises one tile. `src` holds the image's pixels of `src_rect` (image coordinates; it covers the tile and
@@ -353,41 +349,50 @@ class ReaderRows final : public RowSource {
   Rect last_{};
 };
 
-FeatureStats with_encoding(FeatureStats stats, const nn::Model& model) {
+// `exposure`: the image's autoexposure, used when the model asks for it.
+FeatureStats with_encoding(FeatureStats stats, const nn::Model& model, float exposure) {
   stats.demodulate = model.network.arch.demodulate;
   stats.prior = !model.network.arch.prior.empty();
+  stats.exposure = model.network.arch.autoexposure ? exposure : 1.0f;
   return stats;
 }
 
-// The whole-image statistics a model's input needs, before any tile runs: the depth scale (Residue's models)
-// or OIDN's autoexposure; from the stack in memory, or from one pass over the files' bands.
+// The whole-image statistics a model's input needs, before any tile runs: the depth scale (Residue's models),
+// the autoexposure (OIDN's HDR networks, Residue's autoexposed ones); from the stack in memory, or from one pass
+// over the files' bands.
 residue_io_t network_io(RowSource& source, const nn::Model& model, int64_t band, const CancelToken* cancel) {
   const bool residue = model.method == nn::Method::Residue;
-  if (const AovStack* stack = source.whole())
+  const bool exposure = residue ? model.network.arch.autoexposure : model.oidn.color && model.oidn.hdr;
+  if (const AovStack* stack = source.whole()) {
+    const float scale = exposure ? oidn_autoexposure(stack->color.image) : 1.0f;
     return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features,
-                                                              with_encoding(compute_feature_stats(*stack), model)))
-                   : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, oidn_scale(model, stack->color.image))));
+                                                              with_encoding(compute_feature_stats(*stack), model, scale)))
+                   : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, scale)));
+  }
   const AovStack& layout = source.layout();
   const int64_t W = layout.data_window.width, H = layout.data_window.height;
   FeatureStats fstats = compute_feature_stats(layout);
-  const bool exposure = !residue && model.oidn.color && model.oidn.hdr;
+  const bool depth = residue && layout.depth;
   OidnAutoexposure autoexposure(W, H);
-  if ((residue && layout.depth) || exposure) {
+  if (depth || exposure) {
     const int64_t stride = depth_sample_stride(W * H);
     std::vector<float> samples;  // the same sample compute_feature_stats draws from a whole stack
+    std::vector<AovRole> roles;  // only what the statistics read
+    if (exposure) roles.push_back(AovRole::Color);
+    if (depth) roles.push_back(AovRole::Depth);
     for (int64_t y0 = 0; y0 < H; y0 += band) {
       throw_if_cancelled(cancel);
-      // Only what the statistics read: the depth, or the colour.
-      const auto rows = source.rows(y0, std::min(H, y0 + band), {exposure ? AovRole::Color : AovRole::Depth});
+      const auto rows = source.rows(y0, std::min(H, y0 + band), roles);
       if (exposure) autoexposure.add(rows.stack->color.image, y0);
-      if (!residue) continue;
+      if (!depth) continue;
       for (int64_t i = 0; i < rows.stack->depth->image.pixel_count(); ++i)
         if ((y0 * W + i) % stride == 0) samples.push_back(rows.stack->depth->image.data()[i]);
     }
-    if (residue) fstats.depth_scale = depth_scale_from_samples(samples);
+    if (depth) fstats.depth_scale = depth_scale_from_samples(samples);
   }
-  return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, with_encoding(fstats, model)))
-                 : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, exposure ? autoexposure.scale() : 1.0f)));
+  const float scale = exposure ? autoexposure.scale() : 1.0f;
+  return residue ? residue_io_t(std::make_unique<ResidueIO>(model.network.arch.features, with_encoding(fstats, model, scale)))
+                 : residue_io_t(std::make_unique<OidnIO>(OidnTransform(model.oidn, scale)));
 }
 
 // The tile engine: one denoise, planned once, produced band by band (a band is one row of tiles) in order, each

@@ -26,6 +26,11 @@ float expand_color(float y) {
 
 float demodulation_factor(float albedo) { return sanitize_nonnegative(albedo) + 0.01f; }
 
+float exposed(float linear, float exposure) {
+  const float v = linear * exposure;
+  return std::isinf(v) && std::isfinite(linear) ? FLT_MAX : v;
+}
+
 int64_t depth_sample_stride(int64_t pixel_count) { return std::max<int64_t>(1, pixel_count / (int64_t{1} << 20)); }
 
 double depth_scale_from_samples(std::vector<float>& samples) {
@@ -91,6 +96,7 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
   if (out.width() != rect.width || out.height() != rect.height || out.channels() != channels)
     out = Image(rect.width, rect.height, channels);
   const float inv_depth_mean = static_cast<float>(1.0 / stats.depth_scale);
+  const float e = stats.exposure;
   const auto& r = stats.normal_rotation;
   tbb::parallel_for(int64_t{0}, rect.height, [&](int64_t y) {
     const int64_t sy = rect.y + y;
@@ -99,9 +105,9 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
       float* f = &out.at(x, y, 0);
       if (stats.demodulate) {
         for (int c = 0; c < 3; ++c)
-          *f++ = compress_color(stack.color.image.at(sx, sy, c) / demodulation_factor(stack.albedo->image.at(sx, sy, c)));
+          *f++ = compress_color(exposed(stack.color.image.at(sx, sy, c), e) / demodulation_factor(stack.albedo->image.at(sx, sy, c)));
       } else {
-        for (int c = 0; c < 3; ++c) *f++ = compress_color(stack.color.image.at(sx, sy, c));
+        for (int c = 0; c < 3; ++c) *f++ = compress_color(exposed(stack.color.image.at(sx, sy, c), e));
       }
       if (set == FeatureSet::ColorOnly) continue;
       const bool depth = set == FeatureSet::Full || set == FeatureSet::FullVariance;
@@ -125,11 +131,11 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
         const int nv = std::min(3, var.channels());
         double sum = 0;
         for (int c = 0; c < nv; ++c) sum += sanitize_nonnegative(var.at(sx, sy, c));
-        *f++ = static_cast<float>(std::log1p(std::sqrt(sum / nv)));
+        *f++ = static_cast<float>(std::log1p(std::sqrt(sum / nv) * e));  // a standard deviation: scales as colour
       }
       if (stats.prior)
         for (int c = 0; c < 3; ++c) {
-          const float p = stack.prior->image.at(sx, sy, c);
+          const float p = exposed(stack.prior->image.at(sx, sy, c), e);
           *f++ = compress_color(stats.demodulate ? p / demodulation_factor(stack.albedo->image.at(sx, sy, c)) : p);
         }
     }

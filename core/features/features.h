@@ -15,6 +15,8 @@
 //   prior   log(1 + p)                       (post-correction models only, after the set's planes) p: the prior
 //                                            model's denoised colour (stack.prior), sanitised like colour
 // Output: c = exp(y) - 1, clamped to [0, FLT_MAX], NaN -> 0: always finite and non-negative.
+// Autoexposed models (Architecture::autoexposure) see c (noise, p) times the image's exposure (FeatureStats) in
+// place of c, and their output is divided by it: scaling a render's colour scales their output alike.
 // Demodulated models (Architecture::demodulate, issue 16's lever 4) see the colour divided by the albedo,
 // log(1 + c / (a + 0.01)) per channel (a sanitised like colour), and their output is multiplied back by (a + 0.01):
 // texture comes back from the albedo by construction; 0.01 bounds the gain where the albedo is black.
@@ -37,6 +39,9 @@ struct FeatureStats {
   std::array<double, 9> normal_rotation{1, 0, 0, 0, 1, 0, 0, 0, 1};  // world -> camera, row-major 3x3
   // Not statistics: the model's encoding, set by the caller from its Architecture.
   bool demodulate = false;  // colour (and prior) divided by the albedo
+  // Colour, noise and prior multiplied by this before the log, the output divided by it: 1, or for models with
+  // Architecture::autoexposure the image's autoexposure (0.18 / the log-average luminance, as OIDN's).
+  float exposure = 1.0f;
   bool prior = false;       // 3 more planes: the prior model's colour (stack.prior)
 };
 
@@ -64,5 +69,8 @@ float compress_color(float linear);
 float expand_color(float network_output);
 // What a demodulated model's colour is divided by, and its output multiplied by: sanitised albedo + 0.01.
 float demodulation_factor(float albedo);
+// A colour value times the exposure, kept finite: a finite value that overflows becomes FLT_MAX (NaN, Inf and
+// negatives stay as they are, for compress_color to sanitise).
+float exposed(float linear, float exposure);
 
 }  // namespace residue

@@ -186,18 +186,19 @@ Model load_model(const std::filesystem::path& path) {
     arch.blocks = arch.levels.front();
     arch.width = arch.widths.front();
   }
-  if (md.count("residue.input_skip")) {
-    const std::string v = md.at("residue.input_skip");
-    if (v != "0" && v != "1") throw Error(ErrorKind::Input, where + ": metadata \"residue.input_skip\" must be 0 or 1, not \"" + v + "\"");
-    arch.input_skip = v == "1";
-  }
-  if (md.count("residue.demodulate")) {
-    const std::string v = md.at("residue.demodulate");
-    if (v != "0" && v != "1") throw Error(ErrorKind::Input, where + ": metadata \"residue.demodulate\" must be 0 or 1, not \"" + v + "\"");
-    arch.demodulate = v == "1";
-    if (arch.demodulate && arch.features == FeatureSet::ColorOnly)
-      throw Error(ErrorKind::Input, where + ": a demodulated model needs the albedo, but its feature set is \"color\"");
-  }
+  // A variant's switch: absent (off), "0" or "1".
+  auto flag = [&](const std::string& key) {
+    const auto it = md.find(key);
+    if (it == md.end()) return false;
+    if (it->second != "0" && it->second != "1")
+      throw Error(ErrorKind::Input, where + ": metadata \"" + key + "\" must be 0 or 1, not \"" + it->second + "\"");
+    return it->second == "1";
+  };
+  arch.input_skip = flag("residue.input_skip");
+  arch.autoexposure = flag("residue.autoexposure");
+  arch.demodulate = flag("residue.demodulate");
+  if (arch.demodulate && arch.features == FeatureSet::ColorOnly)
+    throw Error(ErrorKind::Input, where + ": a demodulated model needs the albedo, but its feature set is \"color\"");
   if (md.count("residue.prior")) {
     arch.prior = md.at("residue.prior");
     if (arch.prior != "oidn" || arch.features != FeatureSet::Full)
@@ -340,6 +341,7 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   if (n.arch.max_dilation() > 1) f.metadata["residue.dilations"] = dilations_to_string(n.arch.dilations);
   if (n.arch.input_skip) f.metadata["residue.input_skip"] = "1";
   if (n.arch.demodulate) f.metadata["residue.demodulate"] = "1";
+  if (n.arch.autoexposure) f.metadata["residue.autoexposure"] = "1";
   if (!n.arch.prior.empty()) f.metadata["residue.prior"] = n.arch.prior;
   if (n.arch.multiscale()) {
     f.metadata["residue.levels"] = ints_to_string(n.arch.levels);

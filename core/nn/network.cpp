@@ -83,11 +83,12 @@ std::optional<std::vector<int>> parse_ints(const std::string& text, int lo, int 
 std::string Architecture::to_string() const {
   if (multiscale())
     return "ms " + ints_to_string(levels) + "/" + ints_to_string(widths) + " " + residue::to_string(features) +
-           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "") + (prior.empty() ? "" : " refines " + prior);
+           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "") + (autoexposure ? " autoexposure" : "") + (prior.empty() ? "" : " refines " + prior);
   std::string s = std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
   if (max_dilation() > 1) s += " dilated " + dilations_to_string(dilations);
   if (input_skip) s += " input-skip";
   if (demodulate) s += " demodulated";
+  if (autoexposure) s += " autoexposure";
   if (!prior.empty()) s += " refines " + prior;
   return s;
 }

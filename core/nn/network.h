@@ -42,6 +42,9 @@ struct Architecture {
   // at levels above the bottom) and each level's width. Empty: the paper's flat network (blocks, width).
   std::vector<int> levels, widths;
   bool demodulate = false;     // variant: colour divided by the albedo in, multiplied back out (core/features)
+  // Variant: colour (and prior, noise) multiplied by the image's autoexposure in, divided back out (core/features):
+  // a dim render looks to the network like a well-exposed one (issue 16).
+  bool autoexposure = false;
   // Post-correction: the model ("oidn") whose output this one refines. Its log colour comes in as 3 more input
   // planes after the feature set's, and input_skip adds those planes instead of the noisy colour. Empty: none.
   std::string prior;
