@@ -395,10 +395,11 @@ TEST(Denoise, DemodulatedModelDividesByTheAlbedoAndMultipliesBack) {
 TEST(Denoise, AutoexposedModelScalesWithTheRender) {
   nn::Architecture arch{1, 8, FeatureSet::Full};
   arch.autoexposure = true;
+  arch.exposure_key = 0.5f;  // the log-average luminance goes to 0.5 instead of OIDN's 0.18
   const nn::Network network = nn::random_network(arch, 5);
   const nn::Model model = nn::model_from_network(network, "ae");
   const AovStack s = random_stack(21, 13, 8);
-  const float e = oidn_autoexposure(s.color.image);
+  const float e = oidn_autoexposure(s.color.image) * 0.5f / 0.18f;
   ASSERT_TRUE(std::isfinite(e) && e > 0 && std::abs(e - 1.0f) > 0.1f) << e;  // the scale does something here
   FeatureStats stats = compute_feature_stats(s);
   stats.exposure = e;
@@ -435,13 +436,18 @@ TEST(Denoise, AutoexposedModelScalesWithTheRender) {
   TempDir tmp;
   auto file = nn::to_safetensors(model.network);
   nn::write_safetensors(tmp / "ae.safetensors", file, false);
-  EXPECT_TRUE(nn::load_model(tmp / "ae.safetensors").network.arch.autoexposure);
-  EXPECT_NE(nn::load_model(tmp / "ae.safetensors").architecture().find("autoexposure"), std::string::npos);
-  file.metadata["residue.autoexposure"] = "yes";
-  nn::write_safetensors(tmp / "bad.safetensors", file, false);
-  EXPECT_NE(testing::error_message([&] { nn::load_model(tmp / "bad.safetensors"); }, ErrorKind::Input)
-                .find("residue.autoexposure"),
-            std::string::npos);
+  const nn::Model loaded = nn::load_model(tmp / "ae.safetensors");
+  EXPECT_TRUE(loaded.network.arch.autoexposure);
+  EXPECT_EQ(loaded.network.arch.exposure_key, 0.5f);
+  EXPECT_NE(loaded.architecture().find("autoexposure 0.5"), std::string::npos) << loaded.architecture();
+  for (const auto& [key, value] : {std::pair<std::string, std::string>{"residue.autoexposure", "yes"},
+                                   {"residue.exposure_key", "-1"}, {"residue.exposure_key", "0.5x"}}) {
+    auto bad = file;
+    bad.metadata[key] = value;
+    nn::write_safetensors(tmp / "bad.safetensors", bad, true);
+    EXPECT_NE(testing::error_message([&] { nn::load_model(tmp / "bad.safetensors"); }, ErrorKind::Input).find(key),
+              std::string::npos) << key << "=" << value;
+  }
 }
 
 // A post-correction model (issue 16, lever 6) refines OIDN's denoise: OIDN runs first, its log colour comes in

@@ -40,6 +40,7 @@ struct Options {
   bool input_skip = false;  // variant: the network predicts the correction to the log noisy colour
   bool demodulate = false;  // variant: colour divided by the albedo in, multiplied back out
   bool autoexposure = false;  // variant: colour scaled by the image's autoexposure in, divided back out
+  float exposure_key = 0.18f;  // what the autoexposure maps the log-average luminance to
   std::string prior;        // post-correction: refine this model's output ("oidn")
   int steps = 3000;
   int batch = 8;
@@ -159,6 +160,7 @@ int run(const Options& o) {
   arch.input_skip = o.input_skip;
   arch.demodulate = o.demodulate;
   arch.autoexposure = o.autoexposure;
+  arch.exposure_key = o.exposure_key;
   arch.prior = o.prior;
   if (!arch.prior.empty() && arch.features != FeatureSet::Full)
     throw Error(ErrorKind::Usage, "--prior needs --features full");
@@ -359,6 +361,11 @@ int main(int argc, char** argv) {
   app.add_flag("--autoexposure", o.autoexposure,
                "Variant: scale the colour by the image's autoexposure (0.18 / log-average luminance, as OIDN) before "
                "the network and divide its output by it, so that dim and bright renders look alike to it");
+  app.add_option("--exposure-key", o.exposure_key,
+                 "With --autoexposure: the log-average luminance the exposure maps an image to (OIDN: 0.18; higher "
+                 "puts more of the image where log(1 + c) is logarithmic)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_flag("--demodulate", o.demodulate,
                "Divide the colour by the albedo before the network and multiply its output back (a variant)");
   app.add_option("--prior", o.prior,

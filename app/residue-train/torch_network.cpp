@@ -200,6 +200,7 @@ nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::str
   if (net->arch.input_skip) f.metadata["residue.input_skip"] = "1";
   if (net->arch.demodulate) f.metadata["residue.demodulate"] = "1";
   if (net->arch.autoexposure) f.metadata["residue.autoexposure"] = "1";
+  if (net->arch.autoexposure) f.metadata["residue.exposure_key"] = nn::exposure_key_string(net->arch.exposure_key);
   if (!net->arch.prior.empty()) f.metadata["residue.prior"] = net->arch.prior;
   if (net->arch.multiscale()) {
     f.metadata["residue.levels"] = nn::ints_to_string(net->arch.levels);

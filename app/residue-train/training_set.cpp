@@ -54,7 +54,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     FeatureStats f = compute_feature_stats(s);
     f.demodulate = arch.demodulate;
     f.prior = !arch.prior.empty();
-    f.exposure = arch.autoexposure ? oidn_autoexposure(s.color.image) : 1.0f;
+    f.exposure = arch.autoexposure ? arch.exposure(oidn_autoexposure(s.color.image)) : 1.0f;
     if (f.prior) s.prior = Aov{denoise(s, *prior, {}), {}, {}, 0};
     return f;
   };

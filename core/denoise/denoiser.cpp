@@ -349,11 +349,11 @@ class ReaderRows final : public RowSource {
   Rect last_{};
 };
 
-// `exposure`: the image's autoexposure, used when the model asks for it.
+// `exposure`: OIDN's autoexposure of the image, which an autoexposed model scales to its key.
 FeatureStats with_encoding(FeatureStats stats, const nn::Model& model, float exposure) {
   stats.demodulate = model.network.arch.demodulate;
   stats.prior = !model.network.arch.prior.empty();
-  stats.exposure = model.network.arch.autoexposure ? exposure : 1.0f;
+  stats.exposure = model.network.arch.exposure(exposure);
   return stats;
 }
 

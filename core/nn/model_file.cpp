@@ -196,6 +196,14 @@ Model load_model(const std::filesystem::path& path) {
   };
   arch.input_skip = flag("residue.input_skip");
   arch.autoexposure = flag("residue.autoexposure");
+  if (const auto it = md.find("residue.exposure_key"); it != md.end()) {
+    char* end = nullptr;
+    const float key = std::strtof(it->second.c_str(), &end);
+    if (end == it->second.c_str() || *end != '\0' || !(key > 0.0f) || !std::isfinite(key))
+      throw Error(ErrorKind::Input, where + ": metadata \"residue.exposure_key\" must be a positive number, not \"" +
+                                        it->second + "\"");
+    arch.exposure_key = key;
+  }
   arch.demodulate = flag("residue.demodulate");
   if (arch.demodulate && arch.features == FeatureSet::ColorOnly)
     throw Error(ErrorKind::Input, where + ": a demodulated model needs the albedo, but its feature set is \"color\"");
@@ -342,6 +350,7 @@ SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::stri
   if (n.arch.input_skip) f.metadata["residue.input_skip"] = "1";
   if (n.arch.demodulate) f.metadata["residue.demodulate"] = "1";
   if (n.arch.autoexposure) f.metadata["residue.autoexposure"] = "1";
+  if (n.arch.autoexposure) f.metadata["residue.exposure_key"] = nn::exposure_key_string(n.arch.exposure_key);
   if (!n.arch.prior.empty()) f.metadata["residue.prior"] = n.arch.prior;
   if (n.arch.multiscale()) {
     f.metadata["residue.levels"] = ints_to_string(n.arch.levels);

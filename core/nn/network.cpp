@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <random>
 
 namespace residue::nn {
@@ -80,15 +82,34 @@ std::optional<std::vector<int>> parse_ints(const std::string& text, int lo, int 
   return d;
 }
 
+std::string exposure_key_string(float key) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.9g", static_cast<double>(key));
+  for (int digits = 1; digits <= 9; ++digits) {  // the shortest that reads back the same float
+    char shorter[32];
+    std::snprintf(shorter, sizeof shorter, "%.*g", digits, static_cast<double>(key));
+    if (std::strtof(shorter, nullptr) == key) return shorter;
+  }
+  return text;
+}
+
+std::string Architecture::autoexposure_string() const {
+  if (!autoexposure) return "";
+  if (exposure_key == 0.18f) return " autoexposure";
+  char key[32];
+  std::snprintf(key, sizeof key, " autoexposure %g", static_cast<double>(exposure_key));
+  return key;
+}
+
 std::string Architecture::to_string() const {
   if (multiscale())
     return "ms " + ints_to_string(levels) + "/" + ints_to_string(widths) + " " + residue::to_string(features) +
-           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "") + (autoexposure ? " autoexposure" : "") + (prior.empty() ? "" : " refines " + prior);
+           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "") + autoexposure_string() + (prior.empty() ? "" : " refines " + prior);
   std::string s = std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
   if (max_dilation() > 1) s += " dilated " + dilations_to_string(dilations);
   if (input_skip) s += " input-skip";
   if (demodulate) s += " demodulated";
-  if (autoexposure) s += " autoexposure";
+  s += autoexposure_string();
   if (!prior.empty()) s += " refines " + prior;
   return s;
 }

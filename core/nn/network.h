@@ -43,8 +43,14 @@ struct Architecture {
   std::vector<int> levels, widths;
   bool demodulate = false;     // variant: colour divided by the albedo in, multiplied back out (core/features)
   // Variant: colour (and prior, noise) multiplied by the image's autoexposure in, divided back out (core/features):
-  // a dim render looks to the network like a well-exposed one (issue 16).
+  // a dim render looks to the network like a well-exposed one (issue 16). The exposure maps the image's
+  // log-average luminance to `exposure_key` (OIDN's autoexposure: 0.18).
   bool autoexposure = false;
+  float exposure_key = 0.18f;
+  // What the colour is multiplied by, given OIDN's autoexposure of the image (0.18 / log-average luminance).
+  float exposure(float oidn_autoexposure) const {
+    return autoexposure ? oidn_autoexposure * (exposure_key / 0.18f) : 1.0f;
+  }
   // Post-correction: the model ("oidn") whose output this one refines. Its log colour comes in as 3 more input
   // planes after the feature set's, and input_skip adds those planes instead of the noisy colour. Empty: none.
   std::string prior;
@@ -64,7 +70,8 @@ struct Architecture {
   int alignment() const { return 1 << (multiscale() ? static_cast<int>(levels.size()) - 1 : 0); }
   // Multiply-adds x 2 per output pixel.
   double flops_per_pixel() const;
-  std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip", "ms 2,2,4/32,48,64 full"
+  std::string to_string() const;
+  std::string autoexposure_string() const;  // "", " autoexposure" (key 0.18) or " autoexposure 1"  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip", "ms 2,2,4/32,48,64 full"
 };
 
 // A 3x3 convolution with bias. Weights in OIHW order (as PyTorch stores them): weight[((o*in + i)*3 + ky)*3 + kx].
@@ -87,6 +94,7 @@ struct BatchNorm {
 // "1,2,4,8": the metadata and command-line form; parse_dilations returns nullopt unless every entry is an
 // integer in [1, 64].
 std::string dilations_to_string(const std::vector<int>& d);
+std::string exposure_key_string(float key);  // the metadata form: shortest text that reads back the same float
 std::optional<std::vector<int>> parse_dilations(const std::string& text);
 
 // Folds BN into the preceding conv: w' = w * g / sqrt(v + eps), b' = (b - m) * g / sqrt(v + eps) + beta.
