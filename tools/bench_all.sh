@@ -4,7 +4,9 @@
 # runs as text into OUTDIR (default docs/benchmarks/DATE-CPU), then the model cards' benchmark can be re-stamped
 # from the same machine with tools/stamp_benchmark.py.
 #
-#   tools/bench_all.sh [OUTDIR]        (CLI=path/to/residue-cli to use another build)
+#   tools/bench_all.sh [OUTDIR]        (CLI=path/to/residue-cli to use another build;
+#                                       ONLY="narrow oidn_2k oidn_cards paper e2e": a subset, e.g. without the
+#                                       paper model's 9 minutes)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cli=${CLI:-$root/build/release/app/residue-cli/residue-cli}
@@ -16,8 +18,12 @@ out=${1:-$root/docs/benchmarks/$(date +%Y-%m-%d)-$cpu}
 mkdir -p "$out"
 echo "bench_all: writing to $out"
 
+only=${ONLY:-narrow oidn_2k oidn_cards paper e2e}
+wanted() { [[ " $only " == *" $1 "* ]]; }
+
 bench() {  # NAME ARGS...: one bench table as JSON
   local name=$1; shift
+  wanted "$name" || return 0
   echo "bench_all: $name"
   "$cli" bench "$@" --json > "$out/$name.json.tmp" && mv "$out/$name.json.tmp" "$out/$name.json"
 }
@@ -30,6 +36,7 @@ bench paper --models 16/128 --tiles 256,512,1024 --size 1024
 # zip), denoising it and writing a half EXR, three times per model and precision, on the default backend (what a
 # user gets). The CLI's own `time` line is denoise(); `files` is reading and writing; the wall clock is the whole
 # process.
+if ! wanted e2e; then echo "bench_all: done"; exit 0; fi
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 oiiotool "$root"/resources/examples/*/noisy.exr --resize 2048x2048 -d half --compression zip -o "$work/big.exr"
