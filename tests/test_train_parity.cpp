@@ -255,6 +255,14 @@ TEST(TrainCli, RefusesAPatchWithinTheNetworksReach) {
   EXPECT_NE(text.find("(80 px each side)"), std::string::npos) << text;
   EXPECT_NE(text.find("use --patch 88"), std::string::npos) << text;
   EXPECT_FALSE(std::filesystem::exists(tmp / "m.safetensors"));
+
+  // An exposure key means nothing without --autoexposure: refused rather than silently ignored.
+  EXPECT_NE(testing::run_program(RESIDUE_TRAIN_PATH,
+                                 {"--data", tmp.path().string(), "--exposure-key", "1", "-o",
+                                  (tmp / "m.safetensors").string()},
+                                 &text),
+            0);
+  EXPECT_NE(text.find("--exposure-key needs --autoexposure"), std::string::npos) << text;
 }
 
 TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {

@@ -161,6 +161,8 @@ int run(const Options& o) {
   arch.demodulate = o.demodulate;
   arch.autoexposure = o.autoexposure;
   arch.exposure_key = o.exposure_key;
+  if (!arch.autoexposure && o.exposure_key != 0.18f)
+    throw Error(ErrorKind::Usage, "--exposure-key needs --autoexposure");
   arch.prior = o.prior;
   if (!arch.prior.empty() && arch.features != FeatureSet::Full)
     throw Error(ErrorKind::Usage, "--prior needs --features full");
@@ -359,8 +361,9 @@ int main(int argc, char** argv) {
   app.add_flag("--input-skip", o.input_skip,
                "Add the input's log colour to the output: the network learns the correction (a variant)");
   app.add_flag("--autoexposure", o.autoexposure,
-               "Variant: scale the colour by the image's autoexposure (0.18 / log-average luminance, as OIDN) before "
-               "the network and divide its output by it, so that dim and bright renders look alike to it");
+               "Variant: scale the colour by the image's autoexposure (the key / its log-average luminance, as OIDN "
+               "with key 0.18) before the network and divide its output by it, so that dim and bright renders look "
+               "alike to it");
   app.add_option("--exposure-key", o.exposure_key,
                  "With --autoexposure: the log-average luminance the exposure maps an image to (OIDN: 0.18; higher "
                  "puts more of the image where log(1 + c) is logarithmic)")
