@@ -40,7 +40,8 @@ struct FeatureStats {
   // Not statistics: the model's encoding, set by the caller from its Architecture.
   bool demodulate = false;  // colour (and prior) divided by the albedo
   // Colour, noise and prior multiplied by this before the log, the output divided by it: 1, or for models with
-  // Architecture::autoexposure the image's autoexposure (0.18 / the log-average luminance, as OIDN's).
+  // Architecture::autoexposure the image's autoexposure (the model's key / the log-average luminance; OIDN's
+  // key is 0.18: Architecture::exposure).
   float exposure = 1.0f;
   bool prior = false;       // 3 more planes: the prior model's colour (stack.prior)
 };

@@ -20,7 +20,7 @@ std::vector<std::string> available_backends() {
 
 std::string default_backend(Precision precision) {
   // fp32: eigen. At the automatic tile (1024) it matches onednn on the flat models and is 5-12 % faster on OIDN's
-  // UNet, whose halo it skips (docs/PERFORMANCE.md, "Which backend runs by default"); bf16 is onednn's alone.
+  // UNet, whose halo it skips (docs/PERFORMANCE.md, "The fp32 default and the arena's first touch"); bf16 is onednn's alone.
   return precision == Precision::BF16 ? available_backends().back() : "eigen";
 }
 
