@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "core/nn/model_file.h"
 #include "core/util/error.h"
 
 namespace residue::train {
@@ -192,20 +193,7 @@ void freeze_batch_norm(ResidueNet& net) {
 nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::string> metadata) {
   nn::SafetensorsFile f;
   f.metadata = std::move(metadata);
-  f.metadata["residue.format"] = "1";
-  f.metadata["residue.blocks"] = std::to_string(net->arch.blocks);
-  f.metadata["residue.width"] = std::to_string(net->arch.width);
-  f.metadata["residue.features"] = to_string(net->arch.features);
-  if (net->arch.max_dilation() > 1) f.metadata["residue.dilations"] = nn::dilations_to_string(net->arch.dilations);
-  if (net->arch.input_skip) f.metadata["residue.input_skip"] = "1";
-  if (net->arch.demodulate) f.metadata["residue.demodulate"] = "1";
-  if (net->arch.autoexposure) f.metadata["residue.autoexposure"] = "1";
-  if (net->arch.autoexposure) f.metadata["residue.exposure_key"] = nn::exposure_key_string(net->arch.exposure_key);
-  if (!net->arch.prior.empty()) f.metadata["residue.prior"] = net->arch.prior;
-  if (net->arch.multiscale()) {
-    f.metadata["residue.levels"] = nn::ints_to_string(net->arch.levels);
-    f.metadata["residue.widths"] = nn::ints_to_string(net->arch.widths);
-  }
+  nn::write_architecture_metadata(net->arch, f.metadata);
   f.metadata["residue.bn_eps"] = "1e-05";
   auto put = [&](const std::string& name, const torch::Tensor& t) {
     if (name.find("num_batches_tracked") != std::string::npos) return;

@@ -339,23 +339,29 @@ std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet
                                     "; tried " + tried + " in:" + looked);
 }
 
+void write_architecture_metadata(const Architecture& arch, std::map<std::string, std::string>& metadata) {
+  metadata["residue.format"] = "1";
+  metadata["residue.blocks"] = std::to_string(arch.blocks);
+  metadata["residue.width"] = std::to_string(arch.width);
+  metadata["residue.features"] = to_string(arch.features);
+  if (arch.max_dilation() > 1) metadata["residue.dilations"] = dilations_to_string(arch.dilations);
+  if (arch.input_skip) metadata["residue.input_skip"] = "1";
+  if (arch.demodulate) metadata["residue.demodulate"] = "1";
+  if (arch.autoexposure) {
+    metadata["residue.autoexposure"] = "1";
+    metadata["residue.exposure_key"] = exposure_key_string(arch.exposure_key);
+  }
+  if (!arch.prior.empty()) metadata["residue.prior"] = arch.prior;
+  if (arch.multiscale()) {
+    metadata["residue.levels"] = ints_to_string(arch.levels);
+    metadata["residue.widths"] = ints_to_string(arch.widths);
+  }
+}
+
 SafetensorsFile to_safetensors(const Network& n, std::map<std::string, std::string> metadata) {
   SafetensorsFile f;
   f.metadata = std::move(metadata);
-  f.metadata["residue.format"] = "1";
-  f.metadata["residue.blocks"] = std::to_string(n.arch.blocks);
-  f.metadata["residue.width"] = std::to_string(n.arch.width);
-  f.metadata["residue.features"] = to_string(n.arch.features);
-  if (n.arch.max_dilation() > 1) f.metadata["residue.dilations"] = dilations_to_string(n.arch.dilations);
-  if (n.arch.input_skip) f.metadata["residue.input_skip"] = "1";
-  if (n.arch.demodulate) f.metadata["residue.demodulate"] = "1";
-  if (n.arch.autoexposure) f.metadata["residue.autoexposure"] = "1";
-  if (n.arch.autoexposure) f.metadata["residue.exposure_key"] = nn::exposure_key_string(n.arch.exposure_key);
-  if (!n.arch.prior.empty()) f.metadata["residue.prior"] = n.arch.prior;
-  if (n.arch.multiscale()) {
-    f.metadata["residue.levels"] = ints_to_string(n.arch.levels);
-    f.metadata["residue.widths"] = ints_to_string(n.arch.widths);
-  }
+  write_architecture_metadata(n.arch, f.metadata);
   f.metadata["residue.bn_eps"] = "0";
   auto put = [&](const std::string& name, std::vector<int64_t> shape, const std::vector<float>& v) {
     f.tensors[name] = Tensor{"F32", std::move(shape), v};

@@ -79,5 +79,8 @@ std::string model_variant_name(const std::string& family, FeatureSet set);
 
 // A network as a model file's tensors (batch norm written as identity: the weights are already folded).
 SafetensorsFile to_safetensors(const Network& network, std::map<std::string, std::string> metadata = {});
+// The residue.* keys that describe `arch` (what load_model reads back), written into `metadata`: one writer for
+// core's files and the trainer's.
+void write_architecture_metadata(const Architecture& arch, std::map<std::string, std::string>& metadata);
 
 }  // namespace residue::nn
