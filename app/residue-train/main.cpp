@@ -40,7 +40,7 @@ struct Options {
   bool input_skip = false;  // variant: the network predicts the correction to the log noisy colour
   bool demodulate = false;  // variant: colour divided by the albedo in, multiplied back out
   bool autoexposure = false;  // variant: colour scaled by the image's autoexposure in, divided back out
-  float exposure_key = 0.18f;  // what the autoexposure maps the log-average luminance to
+  float exposure_key = nn::Architecture::kOidnExposureKey;  // what the autoexposure maps the log-average luminance to
   std::string prior;        // post-correction: refine this model's output ("oidn")
   int steps = 3000;
   int batch = 8;
@@ -161,7 +161,7 @@ int run(const Options& o) {
   arch.demodulate = o.demodulate;
   arch.autoexposure = o.autoexposure;
   arch.exposure_key = o.exposure_key;
-  if (!arch.autoexposure && o.exposure_key != 0.18f)
+  if (!arch.autoexposure && o.exposure_key != nn::Architecture::kOidnExposureKey)
     throw Error(ErrorKind::Usage, "--exposure-key needs --autoexposure");
   arch.prior = o.prior;
   if (!arch.prior.empty() && arch.features != FeatureSet::Full)

@@ -80,7 +80,7 @@ class ResidueIO final : public NetworkIO {
   float output(float raw, const AovStack& src, int64_t x, int64_t y, int c) const override {
     float v = expand_color(raw);
     if (stats_.demodulate) v = std::min(v * demodulation_factor(src.albedo->image.at(x, y, c)), FLT_MAX);
-    return stats_.exposure == 1.0f ? v : std::min(v / stats_.exposure, FLT_MAX);
+    return std::min(v / stats_.exposure, FLT_MAX);  // exposure 1 (every other model): v unchanged
   }
 
  private:

@@ -84,21 +84,15 @@ std::optional<std::vector<int>> parse_ints(const std::string& text, int lo, int 
 
 std::string exposure_key_string(float key) {
   char text[32];
-  std::snprintf(text, sizeof text, "%.9g", static_cast<double>(key));
-  for (int digits = 1; digits <= 9; ++digits) {  // the shortest that reads back the same float
-    char shorter[32];
-    std::snprintf(shorter, sizeof shorter, "%.*g", digits, static_cast<double>(key));
-    if (std::strtof(shorter, nullptr) == key) return shorter;
+  for (int digits = 1;; ++digits) {  // the shortest that reads back the same float (9 digits always do)
+    std::snprintf(text, sizeof text, "%.*g", digits, static_cast<double>(key));
+    if (digits == 9 || std::strtof(text, nullptr) == key) return text;
   }
-  return text;
 }
 
 std::string Architecture::autoexposure_string() const {
   if (!autoexposure) return "";
-  if (exposure_key == 0.18f) return " autoexposure";
-  char key[32];
-  std::snprintf(key, sizeof key, " autoexposure %g", static_cast<double>(exposure_key));
-  return key;
+  return exposure_key == kOidnExposureKey ? " autoexposure" : " autoexposure " + exposure_key_string(exposure_key);
 }
 
 std::string Architecture::to_string() const {

@@ -45,11 +45,12 @@ struct Architecture {
   // Variant: colour (and prior, noise) multiplied by the image's autoexposure in, divided back out (core/features):
   // a dim render looks to the network like a well-exposed one (issue 16). The exposure maps the image's
   // log-average luminance to `exposure_key` (OIDN's autoexposure: 0.18).
+  static constexpr float kOidnExposureKey = 0.18f;
   bool autoexposure = false;
-  float exposure_key = 0.18f;
-  // What the colour is multiplied by, given OIDN's autoexposure of the image (0.18 / log-average luminance).
+  float exposure_key = kOidnExposureKey;
+  // What the colour is multiplied by, given OIDN's autoexposure of the image (its key / log-average luminance).
   float exposure(float oidn_autoexposure) const {
-    return autoexposure ? oidn_autoexposure * (exposure_key / 0.18f) : 1.0f;
+    return autoexposure ? oidn_autoexposure * (exposure_key / kOidnExposureKey) : 1.0f;
   }
   // Post-correction: the model ("oidn") whose output this one refines. Its log colour comes in as 3 more input
   // planes after the feature set's, and input_skip adds those planes instead of the noisy colour. Empty: none.
@@ -70,8 +71,8 @@ struct Architecture {
   int alignment() const { return 1 << (multiscale() ? static_cast<int>(levels.size()) - 1 : 0); }
   // Multiply-adds x 2 per output pixel.
   double flops_per_pixel() const;
-  std::string to_string() const;
-  std::string autoexposure_string() const;  // "", " autoexposure" (key 0.18) or " autoexposure 1"  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip", "ms 2,2,4/32,48,64 full"
+  std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip", "ms 2,2,4/32,48,64 full"
+  std::string autoexposure_string() const;  // "", " autoexposure" (OIDN's key) or " autoexposure 1"
 };
 
 // A 3x3 convolution with bias. Weights in OIHW order (as PyTorch stores them): weight[((o*in + i)*3 + ky)*3 + kx].
