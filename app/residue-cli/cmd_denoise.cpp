@@ -35,7 +35,8 @@ int run(const DenoiseCliOptions& o) {
   }
   const DenoiseStats& stats = r.stats;
   std::printf("wrote      %s%s\n", display_path(o.output).c_str(), r.streamed ? " (streamed band by band)" : "");
-  std::printf("model      %s (%s)%s\n", r.model.c_str(), r.architecture.c_str(),
+  std::printf("model      %s (%s)%s%s\n", r.model.c_str(), r.architecture.c_str(),
+              stats.ensemble > 1 ? (", self-ensemble x" + std::to_string(stats.ensemble)).c_str() : "",
               stats.strength < 1.0f ? (", strength " + std::to_string(stats.strength).substr(0, 4)).c_str() : "");
   std::printf("backend    %s\n", stats.backend.c_str());
   std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
@@ -87,6 +88,10 @@ Command add_denoise_command(CLI::App& app) {
                   "two (which keeps the image's brightness)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1.0f));
+  cmd->add_option("--ensemble", o->ensemble,
+                  "Self-ensemble: run the network under 1, 2, 4 or 8 flips and transposes of the image and average "
+                  "(N times the work for a lower error; default: the model's, 1 for most)")
+      ->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_flag("--float", o->float_output, "Write 32-bit float channels (default: half)");
   cmd->add_option("--compression", o->compression, "EXR compression (zip, piz, dwaa, none, ...)")->capture_default_str();
   cmd->add_flag("-f,--force", o->force, "Replace the output if it exists");

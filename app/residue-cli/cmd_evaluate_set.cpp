@@ -29,6 +29,7 @@ struct EvalSetOptions {
   std::string dataset;
   std::vector<std::string> models;
   std::vector<std::string> precisions = {"fp32"};
+  std::vector<int> ensembles = {0};  // self-ensemble sizes; 0: each model's own
   std::string backend;
   int last = 0;  // 0: every scene
   std::string split = "all";  // or the data set's "train" / "validation" cut (index.json)
@@ -121,6 +122,7 @@ int run(const EvalSetOptions& o) {
   struct Column {
     std::string label, model, precision;
     bool energy_correction = true;
+    int ensemble = 0;
     bool network() const { return !model.empty() && model != "bilateral"; }  // not the input or the baseline
   };
   std::vector<Column> columns = {{"noisy", "", ""}};
@@ -131,11 +133,12 @@ int run(const EvalSetOptions& o) {
       columns.push_back({label, m, "fp32"});
       continue;
     }
-    for (const auto& p : o.precisions) {
-      const std::string name = o.precisions.size() > 1 ? label + " " + p : label;
-      if (o.energy != "off") columns.push_back({name, m, p, true});
-      if (o.energy != "on") columns.push_back({o.energy == "both" ? name + " raw" : name, m, p, false});
-    }
+    for (const auto& p : o.precisions)
+      for (const int n : o.ensembles) {
+        const std::string name = (o.precisions.size() > 1 ? label + " " + p : label) + (n > 0 ? " x" + std::to_string(n) : "");
+        if (o.energy != "off") columns.push_back({name, m, p, true, n});
+        if (o.energy != "on") columns.push_back({o.energy == "both" ? name + " raw" : name, m, p, false, n});
+      }
   }
 
   // results[scene][column]
@@ -170,6 +173,7 @@ int run(const EvalSetOptions& o) {
         d.variance_blend = o.variance_blend == "on";
         d.output_guard = o.output_guard == "on";
         d.blend_tau = o.blend_tau;
+        d.ensemble = columns[ci].ensemble;
         DenoiseStats st;
         out = denoise(stack, model, d, {}, &st);
         cell.seconds = st.seconds;
@@ -226,6 +230,7 @@ int run(const EvalSetOptions& o) {
   nlohmann::json summary = nlohmann::json::array();
   for (size_t ci = 0; ci < columns.size(); ++ci)
     summary.push_back({{"label", columns[ci].label}, {"model", columns[ci].model}, {"precision", columns[ci].precision},
+                       {"ensemble", columns[ci].ensemble},
                        {"mean_relmse", mean[ci].relmse}, {"mean_ssim", mean[ci].ssim},
                        {"mean_ratio", mean[ci].mean_ratio},
                        {"relmse_reduction", mean[0].relmse / mean[ci].relmse},
@@ -255,6 +260,11 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("dataset", o->dataset, "Data set folder (s<seed>/noisy_a.exr, reference.exr)")->required();
   cmd->add_option("--models", o->models, "Model names or files; \"bilateral\" is the cross-bilateral baseline")->required()->delimiter(',');
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
+  cmd->add_option("--ensembles", o->ensembles,
+                  "Self-ensemble sizes, a column each (1, 2, 4, 8: the network under that many flips and transposes, "
+                  "averaged; default: each model's own)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)");
   cmd->add_option("--last", o->last, "Only the last N scenes by name (the starter set's validation scenes)");
   cmd->add_option("--perturb", o->perturb,

@@ -80,6 +80,7 @@ DenoiseOptions DenoiseCliOptions::denoise_options() const {
   d.energy_correction = !no_energy_correction;
   d.variance_blend = !no_variance_blend;
   d.strength = strength;
+  d.ensemble = ensemble;
   if (!roi.empty()) d.roi = parse_roi(roi);
   return d;
 }
@@ -170,7 +171,8 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
                                         .seconds = static_cast<float>(stats.seconds),
                                         .energy_correction = stats.energy_corrected,
                                         .variance_blend = stats.variance_blended,
-                                        .strength = stats.strength});
+                                        .strength = stats.strength,
+                                        .ensemble = stats.ensemble});
       t0 = std::chrono::steady_clock::now();
       stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
       result.write_s = seconds_since(t0);

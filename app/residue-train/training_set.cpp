@@ -7,20 +7,14 @@
 #include "core/denoise/denoiser.h"
 #include "core/denoise/oidn_filter.h"
 #include "core/features/features.h"
+#include "core/image/dihedral.h"
 #include "core/util/error.h"
 
 namespace residue::train {
 namespace fs = std::filesystem;
 
-// The index of a named plane (core/features/feature_set.h) in a feature set; -1 when the set has none.
-static int plane_of(FeatureSet set, const std::string& name) {
-  const std::vector<std::string> planes = feature_planes(set);
-  const auto it = std::find(planes.begin(), planes.end(), name);
-  return it == planes.end() ? -1 : static_cast<int>(it - planes.begin());
-}
-
-int normal_plane(FeatureSet set) { return plane_of(set, "normal.x"); }
-int albedo_plane(FeatureSet set) { return plane_of(set, "albedo.r"); }
+int normal_plane(FeatureSet set) { return feature_plane(set, "normal.x"); }
+int albedo_plane(FeatureSet set) { return feature_plane(set, "albedo.r"); }
 
 namespace {
 
@@ -126,27 +120,19 @@ void TrainingSet::sample(std::mt19937& rng, int batch, torch::Tensor& inputs, to
     const size_t half = std::uniform_int_distribution<size_t>(0, s.inputs.size() - 1)(rng);
     const Image& src = s.inputs[half];
     const Image& target = s.targets[half];
-    const int t = pick_transform(rng);
-    const bool flip_x = t & 1, flip_y = t & 2, transpose = t & 4;
+    const Dihedral d = Dihedral::from_index(pick_transform(rng));
     for (int64_t v = 0; v < P; ++v)
       for (int64_t u = 0; u < P; ++u) {
-        // Output pixel (u, v) reads source pixel (sx, sy) of the patch under the transform.
-        int64_t sx = transpose ? v : u, sy = transpose ? u : v;
-        if (flip_x) sx = P - 1 - sx;
-        if (flip_y) sy = P - 1 - sy;
+        const auto [sx, sy] = d.source(u, v, P, P);
         const int64_t px = x0 + sx, py = y0 + sy;
         for (int c = 0; c < channels_; ++c)
           in[((static_cast<int64_t>(b) * channels_ + c) * P + v) * P + u] = src.at(px, py, c);
         for (int c = 0; c < 3; ++c) tg[((static_cast<int64_t>(b) * 3 + c) * P + v) * P + u] = target.at(px, py, c);
         if (np >= 0) {
-          // Turn the normal with the image: in image axes (right, down) it is (nx, -ny); the pixel mapping
-          // above applied to a vector is: flips negate, then the transpose swaps.
-          float nu = src.at(px, py, np), nv = -src.at(px, py, np + 1);
-          if (flip_x) nu = -nu;
-          if (flip_y) nv = -nv;
-          if (transpose) std::swap(nu, nv);
-          in[((static_cast<int64_t>(b) * channels_ + np) * P + v) * P + u] = nu;
-          in[((static_cast<int64_t>(b) * channels_ + np + 1) * P + v) * P + u] = -nv;
+          // The normals turn with the image.
+          const auto [nx, ny] = d.turn_normal(src.at(px, py, np), src.at(px, py, np + 1));
+          in[((static_cast<int64_t>(b) * channels_ + np) * P + v) * P + u] = nx;
+          in[((static_cast<int64_t>(b) * channels_ + np + 1) * P + v) * P + u] = ny;
         }
       }
   }

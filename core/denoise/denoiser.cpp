@@ -15,6 +15,7 @@
 #include "core/denoise/strength.h"
 #include "core/denoise/variance_blend.h"
 #include "core/features/features.h"
+#include "core/image/dihedral.h"
 #include "core/io/exr_writer.h"
 #include "core/io/provenance.h"
 #include "core/util/error.h"
@@ -25,12 +26,15 @@ namespace {
 // Largest tile edge tried when none is given: big tiles waste less on halos, but progress comes per tile.
 constexpr int64_t kMaxAutoTile = 1024;
 
-size_t tile_bytes(const nn::Backend& backend, const nn::Graph& graph, int64_t tile) {
+size_t tile_bytes(const nn::Backend& backend, const nn::Graph& graph, int64_t tile, int ensemble) {
   const int64_t a = graph.alignment();
   const int64_t e = (tile + 2 * graph.halo() + a - 1) / a * a;
   const size_t pixels = static_cast<size_t>(e * e);
-  return backend.scratch_bytes(e, e) +
-         pixels * static_cast<size_t>(2 * graph.input_channels() + graph.output_channels()) * sizeof(float);
+  // Features, padded features and the output; a self-ensemble adds the turned input and output and the output
+  // turned back.
+  const int64_t planes = 2 * graph.input_channels() + graph.output_channels() +
+                         (ensemble > 1 ? graph.input_channels() + 2 * graph.output_channels() : 0);
+  return backend.scratch_bytes(e, e) + pixels * static_cast<size_t>(planes) * sizeof(float);
 }
 
 bool colour_is_empty(const Image& colour, const Rect& r) {
@@ -58,6 +62,20 @@ float tau_for(const DenoiseOptions& o, const nn::Model& model) {
   // cleaner (measured: mean relMSE 0.00311 with the blend, 0.00306 without, on the starter validation scenes).
   if (!o.variance_blend || model.method != nn::Method::Residue || !model.network.arch.prior.empty()) return 0.0f;
   return o.blend_tau > 0 ? o.blend_tau : blend_tau(model.metadata);
+}
+
+// The self-ensemble's size for this denoise: the option, else the model's (residue.ensemble), else 1.
+int ensemble_for(const DenoiseOptions& o, const nn::Model& model) {
+  const int n = o.ensemble > 0 ? o.ensemble : model.ensemble;
+  if (n != 1 && n != 2 && n != 4 && n != 8)
+    throw Error(ErrorKind::Usage, "the self-ensemble has 1, 2, 4 or 8 members (flips and transposes), not " + std::to_string(n));
+  return n;
+}
+
+// The input plane the self-ensemble turns as a view-space normal (x, then y): Residue's models'; OIDN's normals
+// (any space, as OIDN takes them) are flipped with the image but not turned.
+int turned_normal_plane(const nn::Model& model) {
+  return model.method == nn::Method::Residue ? feature_plane(model.network.arch.features, "normal.x") : -1;
 }
 
 // How a model's network is fed and read: AOVs -> input planes, raw output -> linear values.
@@ -125,8 +143,10 @@ struct TileRunner {
   bool guard;       // clamp overshoots to the receptive field's brightest input (output_guard.h)
   float blend_tau;  // variance blend (when the stack has variance); 0: off
   const CancelToken* cancel;
-  int64_t guarded = 0;  // values the guard clamped so far
-  Image features, padded, result;
+  int ensemble = 1;       // dihedral elements averaged (denoiser.h, DenoiseOptions::ensemble)
+  int normal_plane = -1;  // the input plane of the view-space normal's x (turned with the image), or -1
+  int64_t guarded = 0;    // values the guard clamped so far
+  Image features, padded, result, turned_in, turned_out;
 
   bool run(const AovStack& src, const Rect& src_rect, const Rect& bounds, const Rect& t, Image& out, int64_t out_x0,
            int64_t out_y0) {
@@ -155,16 +175,30 @@ struct TileRunner {
       net_in = &padded;
     }
     const Rect core{tx - in.x, ty - in.y, t.width, t.height};  // the tile in the network's input, without its halo
-    backend.run(*net_in, result, cancel, core);
-    if (residue && guard) guarded += guard_output(features, core, halo, result);
+    // The self-ensemble: the network on the tile under each flip (and transpose), each output turned back; the
+    // mean of their linear values. Member 0 is the tile as it is.
     int64_t non_finite = 0;
-    for (int64_t y = 0; y < t.height; ++y)
-      for (int64_t x = 0; x < t.width; ++x)
-        for (int c = 0; c < oc; ++c) {
-          const float raw = result.at(tx - in.x + x, ty - in.y + y, c);
-          non_finite += !std::isfinite(raw);
-          out.at(t.x - out_x0 + x, t.y - out_y0 + y, c) = io.output(raw, src, tx + x, ty + y, c);
-        }
+    const float weight = 1.0f / static_cast<float>(ensemble);
+    for (int k = 0; k < ensemble; ++k) {
+      if (k == 0) {
+        backend.run(*net_in, result, cancel, core);
+      } else {
+        const Dihedral d = Dihedral::from_index(k);
+        turned_in = apply(*net_in, d, normal_plane);
+        backend.run(turned_in, turned_out, cancel, d.map(core, net_in->width(), net_in->height()));
+        result = apply(turned_out, d.inverse());
+      }
+      if (residue && guard) guarded += guard_output(features, core, halo, result);
+      for (int64_t y = 0; y < t.height; ++y)
+        for (int64_t x = 0; x < t.width; ++x)
+          for (int c = 0; c < oc; ++c) {
+            const float raw = result.at(core.x + x, core.y + y, c);
+            non_finite += !std::isfinite(raw);
+            const float v = io.output(raw, src, tx + x, ty + y, c);
+            float& o = out.at(t.x - out_x0 + x, t.y - out_y0 + y, c);
+            o = ensemble == 1 ? v : (k == 0 ? 0.0f : o) + weight * v;
+          }
+    }
     // Output is finite or the run fails: a network whose weights or inputs overflow does not get written as a
     // black or saturated image with success (the output transforms would turn NaN into 0 and Inf into FLT_MAX).
     if (non_finite > 0)
@@ -222,10 +256,10 @@ int64_t interactive_tile(const nn::Graph& graph, double seconds_per_mp, double t
   return align_tile(std::clamp<int64_t>(edge, std::max<int64_t>(8 * halo, 64), kMaxAutoTile), a);
 }
 
-int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget) {
+int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget, int ensemble) {
   for (int64_t t = kMaxAutoTile; t >= 16; t = t * 3 / 4) {
     const int64_t aligned = align_tile(t, graph.alignment());
-    if (tile_bytes(backend, graph, aligned) <= budget) return aligned;
+    if (tile_bytes(backend, graph, aligned, ensemble) <= budget) return aligned;
   }
   return 0;
 }
@@ -242,20 +276,21 @@ Rect checked_region(const DenoiseOptions& options, int64_t w, int64_t h) {
 }
 
 // The tile edge: the option (rounded down to the network's alignment), or the largest within `budget`.
-int64_t choose_tile(const DenoiseOptions& options, const nn::Backend& backend, const nn::Graph& graph, size_t budget) {
+int64_t choose_tile(const DenoiseOptions& options, const nn::Backend& backend, const nn::Graph& graph, size_t budget,
+                    int ensemble) {
   const int64_t a = graph.alignment();
   int64_t tile = options.tile;
   if (tile <= 0) {
-    tile = tile_for_memory(backend, graph, budget);
+    tile = tile_for_memory(backend, graph, budget, ensemble);
     if (tile == 0)
       throw Error(ErrorKind::Usage, "--max-memory " + std::to_string(options.max_memory >> 20) +
                                         " MiB is too small even for 16-pixel tiles of this model");
     return tile;
   }
   tile = align_tile(tile, a);
-  if (tile_bytes(backend, graph, tile) > budget)
+  if (tile_bytes(backend, graph, tile, ensemble) > budget)
     throw Error(ErrorKind::Usage, "tiles of " + std::to_string(tile) + " px need " +
-                                      std::to_string(tile_bytes(backend, graph, tile) >> 20) +
+                                      std::to_string(tile_bytes(backend, graph, tile, ensemble) >> 20) +
                                       " MiB, over --max-memory; use smaller tiles or more memory");
   return tile;
 }
@@ -409,10 +444,11 @@ class BandDenoiser {
         io_(network_io(source, model, tile, options.cancel)),
         tiles_(grid_tiles({0, 0, W_, H_}, region_, tile)),
         runner_{model, backend, *io_, options.skip_empty_tiles, options.output_guard, tau_for(options, model),
-                options.cancel, 0, {}, {}, {}},
+                options.cancel, ensemble_for(options, model), turned_normal_plane(model)},
         correct_(correcting(options, model)), correction_(region_) {
     stats_.tiles = static_cast<int64_t>(tiles_.size());
     stats_.tile_size = tile;
+    stats_.ensemble = runner_.ensemble;
     stats_.backend = backend.description();
     stats_.features = model.features();
     stats_.energy_corrected = correct_;
@@ -505,7 +541,7 @@ Image denoise_stack(const AovStack& stack, const nn::Model& model, const Denoise
   // The output is held whole: the tiles get the rest of the budget.
   const size_t output_bytes = source.size() * sizeof(float);
   const size_t budget = options.max_memory > output_bytes ? options.max_memory - output_bytes : 0;
-  int64_t tile = choose_tile(options, backend, model.graph, budget);
+  int64_t tile = choose_tile(options, backend, model.graph, budget, ensemble_for(options, model));
   const int64_t a = model.graph.alignment();
   if (options.tile <= 0) tile = std::min(tile, (std::max(region.width, region.height) + a - 1) / a * a);
 
@@ -537,6 +573,7 @@ Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOption
       DenoiseOptions whole = options;
       whole.roi.reset();
       whole.strength = 1.0f;
+      whole.ensemble = 1;  // a prior or prefilter runs as it was trained with
       DenoiseStats ignored;
       return denoise(stack, first, whole, {}, &ignored);
     };
@@ -600,7 +637,7 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     auto band_bytes = [&](int64_t tile) {
       return static_cast<size_t>(((tile + 4 * h) * stack_channels + (1 + BandDenoiser::bands_ahead(correct, tile)) * tile * 3) * W) *
                  sizeof(float) +
-             tile_bytes(backend, graph, tile) + correction_grid;
+             tile_bytes(backend, graph, tile, ensemble_for(options, model)) + correction_grid;
     };
     int64_t tile = options.tile > 0 ? align_tile(options.tile, a) : 0;
     if (tile <= 0)
@@ -615,7 +652,8 @@ DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, con
     io::record(exr.residue_attributes, {.backend = local.backend,
                                         .energy_correction = local.energy_corrected,
                                         .variance_blend = local.variance_blended,
-                                        .strength = options.strength});
+                                        .strength = options.strength,
+                                        .ensemble = local.ensemble});
     local.clamped_to_half =
         io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t n) { return engine.band(y0, n); })
             .clamped_to_half;

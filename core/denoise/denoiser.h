@@ -50,6 +50,10 @@ struct DenoiseOptions {
   bool variance_blend = true;                   // with a variance AOV: keep clean input pixels (variance_blend.h)
   float blend_tau = 0;                          // the blend's tau; 0: the model's (residue.blend_tau) or the default
   float strength = 1.0f;                        // 1: the output; 0: the noisy input; between: blend (strength.h)
+  // The self-ensemble: the network runs on each tile under the first 1, 2, 4 or 8 flips and transposes
+  // (core/image/dihedral.h; normals turned with the image) and the mean of its outputs, turned back, is kept:
+  // that many times the network's work for a lower error (measured in docs/MODELS.md). 0: the model's.
+  int ensemble = 0;
   const CancelToken* cancel = nullptr;          // raised: stop within one network layer, throwing Cancelled
   BackendCache* backends = nullptr;             // reuse backends across calls; null: made for this call
 };
@@ -65,6 +69,7 @@ struct DenoiseStats {
   int64_t tiles = 0;
   int64_t skipped = 0;
   int64_t tile_size = 0;
+  int ensemble = 1;  // members of the self-ensemble
   double seconds = 0;
   std::string backend;  // the backend's description
   FeatureSet features = FeatureSet::Full;
@@ -98,7 +103,7 @@ std::vector<Rect> make_tiles(const Rect& region, int64_t tile);
 
 // The tile edge (a multiple of the graph's alignment) that keeps one tile's memory within `budget` bytes, or 0
 // when even 16 px does not fit.
-int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget);
+int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget, int ensemble = 1);
 
 // The tile edge for interactive use (the viewer): tiles that take about `target_seconds` each at
 // `seconds_per_mp` (the model's measured speed, halo included in the work), so that progress shows often and

@@ -1,5 +1,7 @@
 #include "core/features/feature_set.h"
 
+#include <algorithm>
+
 namespace residue {
 
 int feature_channels(FeatureSet set) { return static_cast<int>(feature_planes(set).size()); }
@@ -11,6 +13,12 @@ std::vector<std::string> feature_planes(FeatureSet set) {
   for (const char* p : {"normal.x", "normal.y", "albedo.r", "albedo.g", "albedo.b"}) planes.push_back(p);
   if (set == FeatureSet::FullVariance) planes.push_back("noise");
   return planes;
+}
+
+int feature_plane(FeatureSet set, const std::string& name) {
+  const std::vector<std::string> planes = feature_planes(set);
+  const auto it = std::find(planes.begin(), planes.end(), name);
+  return it == planes.end() ? -1 : static_cast<int>(it - planes.begin());
 }
 
 const char* to_string(FeatureSet set) {

@@ -19,6 +19,8 @@ int feature_channels(FeatureSet set);
 // The input planes by name, in the network's order (core/features/features.h says what each holds):
 // "color.r", "color.g", "color.b", "depth", "normal.x", "normal.y", "albedo.r", "albedo.g", "albedo.b", "noise".
 std::vector<std::string> feature_planes(FeatureSet set);
+// The index of a named plane in the set's order; -1 when the set has none.
+int feature_plane(FeatureSet set, const std::string& name);
 const char* to_string(FeatureSet set);  // "full", "color+albedo+normal", "color"
 std::optional<FeatureSet> feature_set_from_string(const std::string& name);
 

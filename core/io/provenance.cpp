@@ -17,6 +17,7 @@ void record(OIIO::ParamValueList& attributes, const Provenance& p) {
   if (p.energy_correction) attributes.attribute("residue:energy_correction", *p.energy_correction ? 1 : 0);
   if (p.variance_blend) attributes.attribute("residue:variance_blend", *p.variance_blend ? 1 : 0);
   if (p.strength) attributes.attribute("residue:strength", *p.strength);
+  if (p.ensemble) attributes.attribute("residue:ensemble", *p.ensemble);
 }
 
 }  // namespace residue::io

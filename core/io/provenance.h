@@ -20,6 +20,7 @@ struct Provenance {
   std::optional<bool> energy_correction;    // residue:energy_correction (0/1)
   std::optional<bool> variance_blend;       // residue:variance_blend (0/1)
   std::optional<float> strength;            // residue:strength
+  std::optional<int> ensemble;              // residue:ensemble, the self-ensemble's members (1, 2, 4, 8)
 };
 
 // Adds the set fields, and residue:version always, to `attributes` (replacing attributes of the same name).

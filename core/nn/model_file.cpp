@@ -220,6 +220,12 @@ Model load_model(const std::filesystem::path& path) {
   m.path = path.string();
   m.metadata = md;
   m.name = md.count("name") ? md.at("name") : path.stem().string();
+  if (const auto it = md.find("residue.ensemble"); it != md.end()) {
+    if (it->second != "1" && it->second != "2" && it->second != "4" && it->second != "8")
+      throw Error(ErrorKind::Input, where + ": metadata \"residue.ensemble\" must be 1, 2, 4 or 8 (the flips and "
+                                    "transposes averaged), not \"" + it->second + "\"");
+    m.ensemble = std::stoi(it->second);
+  }
   Network& n = m.network;
   n.arch = arch;
   const int w = arch.level_width(0);

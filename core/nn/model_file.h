@@ -49,6 +49,9 @@ struct Model {
   std::shared_ptr<const Model> albedo_prefilter, normal_prefilter;
   // A post-correction model's prior (Architecture::prior): the network whose output it refines, run first.
   std::shared_ptr<const Model> prior;
+  // The self-ensemble it runs with unless told otherwise (metadata residue.ensemble: 1, 2, 4 or 8 flips and
+  // transposes averaged; DenoiseOptions::ensemble).
+  int ensemble = 1;
 
   FeatureSet features() const;  // the AOVs a Residue model reads (OIDN: the nearest set)
   std::string architecture() const;  // "8/32 full", "OIDN UNet (rt_hdr_alb_nrm)"
