@@ -90,6 +90,7 @@ TEST(VarianceBlend, MatchesTheFormulaAndItsLimits) {
   EXPECT_EQ(blend_tau({{"residue.blend_tau", "0.0004"}}), 0.0004f);
   EXPECT_EQ(blend_tau({{"residue.blend_tau", "junk"}}), VarianceBlend::kTau);
   EXPECT_EQ(blend_tau({{"residue.blend_tau", "-1"}}), VarianceBlend::kTau);
+  EXPECT_EQ(blend_tau({{"residue.blend_tau", "0"}}), 0.0f);  // the model takes no blend
 }
 
 TEST(VarianceBlend, DenoiseUsesItOnlyWithVarianceAndTiledEqualsUntiled) {
@@ -126,6 +127,15 @@ TEST(VarianceBlend, DenoiseUsesItOnlyWithVarianceAndTiledEqualsUntiled) {
   o.variance_blend = true;
   denoise(without, model, o, {}, &st);
   EXPECT_FALSE(st.variance_blended) << "no variance AOV: nothing to blend with";
+  // A model whose tau is 0 is not blended (its fitted best), unless a tau is given.
+  nn::Model no_blend = model;
+  no_blend.metadata["residue.blend_tau"] = "0";
+  const Image unblended = denoise(s, no_blend, o, {}, &st);
+  EXPECT_FALSE(st.variance_blended);
+  for (size_t i = 0; i < raw.size(); ++i) ASSERT_EQ(unblended.data()[i], raw.data()[i]);
+  o.blend_tau = 1e30f;
+  denoise(s, no_blend, o, {}, &st);
+  EXPECT_TRUE(st.variance_blended);
 }
 
 TEST(VarianceBlend, StreamedEqualsInMemoryOnTungstensRender) {

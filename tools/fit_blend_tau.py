@@ -6,10 +6,11 @@ a better model should keep more of its output, so each model gets its own. For e
 halves) and keeps, among the taus whose mean SSIM is within --max-ssim-loss of the sweep's best, the smallest
 whose mean relMSE is within --relmse-tolerance of the lowest: a larger tau keeps more of the noisy input, so
 relMSE can fall while visible noise comes back (SSIM sees it), and a tau that buys no clear gain on these scenes
-only risks it on others. Prints the whole sweep.
+only risks it on others. tau 0 is no blend at all (a model better than its input everywhere: the blend can
+only add noise back), the smallest candidate. Prints the whole sweep.
 
   /usr/bin/python3 tools/fit_blend_tau.py resources/models/base.safetensors /work/datasets/residue-v1 \\
-      [--taus 0.0001,0.0003,0.001,0.003,0.01] [--max-ssim-loss 0.005] [--relmse-tolerance 0.005] [--cli build/release/app/residue-cli/residue-cli] [--dry-run]
+      [--taus 0,0.0001,0.0003,0.001,0.003,0.01] [--last N (a data set without index.json: its last N scenes)] [--max-ssim-loss 0.005] [--relmse-tolerance 0.005] [--cli build/release/app/residue-cli/residue-cli] [--dry-run]
 """
 import argparse, json, os, subprocess, sys, tempfile
 
@@ -22,7 +23,8 @@ def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("model")
     p.add_argument("dataset")
-    p.add_argument("--taus", default="0.0001,0.0003,0.001,0.003,0.01")
+    p.add_argument("--taus", default="0,0.0001,0.0003,0.001,0.003,0.01")
+    p.add_argument("--last", type=int, default=0, help="score the last N scenes (a data set without index.json)")
     p.add_argument("--cli", default=os.path.join(here, "..", "build", "release", "app", "residue-cli", "residue-cli"))
     p.add_argument("--max-ssim-loss", type=float, default=0.005,
                    help="a tau may cost at most this much mean SSIM against the sweep's best")
@@ -36,8 +38,10 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for tau in [float(t) for t in a.taus.split(",")]:
             out = os.path.join(tmp, f"{tau}.json")
-            subprocess.run([a.cli, "evaluate-set", a.dataset, "--split", "validation", "--models", a.model,
-                            "--blend-tau", str(tau), "--json", out, "--force"], check=True,
+            scenes = ["--last", str(a.last)] if a.last > 0 else ["--split", "validation"]
+            blend = ["--blend-tau", str(tau)] if tau > 0 else ["--variance-blend", "off"]
+            subprocess.run([a.cli, "evaluate-set", a.dataset, *scenes, "--models", a.model, *blend,
+                            "--json", out, "--force"], check=True,
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             summary = {r["label"]: r for r in json.load(open(out))["summary"]}
             relmse, ssim = summary[label]["mean_relmse"], summary[label]["mean_ssim"]
@@ -55,7 +59,8 @@ def main():
     header, data = read_header(a.model)
     meta = header.setdefault("__metadata__", {})
     meta["residue.blend_tau"] = f"{best[1]:g}"
-    meta["blend_tau_fit"] = json.dumps({"dataset": os.path.abspath(a.dataset), "split": "validation",
+    meta["blend_tau_fit"] = json.dumps({"dataset": os.path.abspath(a.dataset),
+                                        "split": f"last {a.last}" if a.last > 0 else "validation",
                                         "max_ssim_loss": a.max_ssim_loss, "relmse_tolerance": a.relmse_tolerance,
                                         "sweep": [{"tau": t, "relmse": r, "ssim": s} for r, t, s in sweep]})
     write_header(a.model, header, data)

@@ -11,7 +11,7 @@ float blend_tau(const std::map<std::string, std::string>& md) {
   if (it == md.end()) return VarianceBlend::kTau;
   try {
     const float t = std::stof(it->second);
-    if (t > 0 && std::isfinite(t)) return t;
+    if (t >= 0 && std::isfinite(t)) return t;  // 0: the model takes no blend
   } catch (const std::exception&) {
   }
   return VarianceBlend::kTau;  // a malformed value: the default rather than no denoise

@@ -10,7 +10,8 @@
 // 0.01, relMSE's). tau stands for the network's own relative error, the other side of an inverse-variance
 // mix: a pixel whose relative standard error is sqrt(tau) (3 % for the default 0.001) keeps half of the
 // network's output, a noisier one nearly all of it. A better model needs a smaller tau, so a model file may
-// carry its own (metadata residue.blend_tau). Non-finite noisy or variance values keep the output.
+// carry its own (metadata residue.blend_tau; 0 when the blend costs it more than it gains, as for a model that
+// beats the input everywhere: then none is applied). Non-finite noisy or variance values keep the output.
 // Per tile, reading only the tile and 3 pixels around it, so tiled, untiled and streamed outputs agree.
 #pragma once
 
@@ -37,7 +38,7 @@ struct VarianceBlend {
 void blend_by_variance(const AovStack& src, const Rect& src_rect, const Rect& bounds, const Rect& tile, Image& out,
                        int64_t out_x0, int64_t out_y0, float tau = VarianceBlend::kTau);
 
-// The model's tau (metadata residue.blend_tau), else the default.
+// The model's tau (metadata residue.blend_tau; 0: no blend), else the default.
 float blend_tau(const std::map<std::string, std::string>& model_metadata);
 
 }  // namespace residue
