@@ -49,9 +49,9 @@ DenoiseController::~DenoiseController() {
 
 QString DenoiseController::key(const Request& r) {
   if (nn::method_of(r.model.toStdString()) == nn::Method::Bilateral) return r.model;
-  return QString("%1 %2 %3%4%5")
+  return QString("%1 %2 %3%4%5%6")
       .arg(r.model, precisionName(r.precision), r.backend, r.energy_correction ? "" : " raw",
-           r.variance_blend ? "" : " noblend");
+           r.variance_blend ? "" : " noblend", r.ensemble > 0 ? QString(" x%1").arg(r.ensemble) : QString());
 }
 
 QString DenoiseController::name(const Request& r) {
@@ -60,6 +60,7 @@ QString DenoiseController::name(const Request& r) {
   if (!r.backend.isEmpty()) n += " " + r.backend;
   if (!r.energy_correction) n += " raw";
   if (!r.variance_blend) n += " noblend";
+  if (r.ensemble > 0) n += QString(" x%1").arg(r.ensemble);
   return n;
 }
 
@@ -147,6 +148,8 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   } else {
     description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->architecture()),
                                               precisionName(req.precision));
+    const int members = req.ensemble > 0 ? req.ensemble : net->ensemble;
+    if (members > 1) description_ += tr(", self-ensemble x%1").arg(members);
     if (!req.energy_correction) description_ += tr(", no energy correction");
     if (stack->variance) description_ += req.variance_blend ? tr(", variance blend") : tr(", no variance blend");
     if (asked != req.model) description_ += tr(", instead of %1, which has no variant for this render's AOVs").arg(asked);
@@ -179,7 +182,11 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   options.backend = req.backend.toStdString();
   options.roi = rect;
   options.tile = req.tile;
-  if (options.tile <= 0) options.tile = interactive_tile(net->graph, expectedSecondsPerMp(req.model, req.precision));
+  options.ensemble = req.ensemble;
+  // A tile runs the network once per member of the self-ensemble.
+  if (options.tile <= 0)
+    options.tile = interactive_tile(net->graph, expectedSecondsPerMp(req.model, req.precision) *
+                                                    (req.ensemble > 0 ? req.ensemble : net->ensemble));
   options.energy_correction = req.energy_correction;
   options.variance_blend = req.variance_blend;
   // Tiles arrive on the worker thread and are handed to the GUI thread; poll() delivers the queued ones before
@@ -243,7 +250,9 @@ void DenoiseController::poll() {
     // The tiles shown so far are the network's output; the result may differ by the post-steps.
     session_->setResultTile(result_id_, r, crop(*job_->result(), r));
     const double mp = static_cast<double>(r.area()) / 1e6;
-    if (mp > 0 && stats.seconds > 0) measured_s_per_mp_[key({request_.model, request_.precision})] = stats.seconds / mp;
+    // Kept per network run: a self-ensemble's time divided by its members.
+    if (mp > 0 && stats.seconds > 0)
+      measured_s_per_mp_[key({request_.model, request_.precision})] = stats.seconds / mp / std::max(1, stats.ensemble);
     finish(true, {});
   } else if (st == DenoiseJob::Status::Cancelled) {
     finish(false, tr("cancelled after %1 of %2 tiles: the rest is the noisy input").arg(p.done).arg(p.total),

@@ -31,6 +31,7 @@ class DenoiseController : public QObject {
     int64_t tile = 0;  // 0: tiles of about half a second at the model's speed (interactive_tile)
     bool energy_correction = true;
     bool variance_blend = true;
+    int ensemble = 0;  // the self-ensemble's members (1, 2, 4, 8); 0: the model's own
     std::optional<Rect> roi;  // denoise only this region
   };
   struct Progress {
@@ -43,7 +44,7 @@ class DenoiseController : public QObject {
 
   // The settings as a key: two requests with the same key make the same image.
   static QString key(const Request& r);
-  // The short name a run's result gets: "small fp32", "oidn bf16 raw".
+  // The short name a run's result gets: "small fp32", "oidn bf16 raw", "small fp32 x8".
   static QString name(const Request& r);
   // Starts `r`, or shows the result kept for it. When the model has no variant for the render's AOVs, the
   // cheapest model that has one runs instead (and its description says so). Returns false when nothing started

@@ -81,6 +81,13 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
                        "computes a halo of the receptive field, so small tiles cost more in total. Auto: tiles "
                        "of about half a second each at the model's speed, so that Cancel stops at once"));
   row->addWidget(tile_);
+  ensemble_ = new QComboBox(this);
+  ensemble_->setObjectName("ensemble");
+  ensemble_->addItem(tr("model's ensemble"), 0);
+  for (int n : {1, 2, 4, 8}) ensemble_->addItem(tr("x%1").arg(n), n);
+  ensemble_->setToolTip(tr("Self-ensemble: run the network on the image flipped and transposed (1, 2, 4 or 8 ways) "
+                           "and average; N times the time for a lower error (see docs/MODELS.md)"));
+  row->addWidget(ensemble_);
   layout->addLayout(row);
   row = new QHBoxLayout;  // two rows: the panel fits a narrow side bar
   roi_only_ = new QCheckBox(tr("ROI only"), this);
@@ -256,6 +263,7 @@ DenoiseController::Request DenoisePanel::request() const {
   r.tile = tile_->currentData().toInt();
   r.energy_correction = energy_->isChecked();
   r.variance_blend = blend_->isChecked();
+  r.ensemble = ensemble_->currentData().toInt();
   if (roi_only_->isChecked() && roi_ && !roi_->empty()) r.roi = roi_;
   return r;
 }

@@ -68,6 +68,7 @@ class DenoisePanel : public QWidget {
   QComboBox* precision_ = nullptr;
   QComboBox* backend_ = nullptr;
   QComboBox* tile_ = nullptr;
+  QComboBox* ensemble_ = nullptr;
   QCheckBox* roi_only_ = nullptr;
   QCheckBox* energy_ = nullptr;
   QCheckBox* blend_ = nullptr;

@@ -318,6 +318,10 @@ class TestResults : public QObject {
     r.precision = nn::Precision::BF16;
     QCOMPARE(DenoiseController::name(r), QString("small bf16"));
     QVERIFY(DenoiseController::key(r) != res->key);
+    DenoiseController::Request x8 = r;
+    x8.ensemble = 8;
+    QCOMPARE(DenoiseController::name(x8), QString("small bf16 x8"));
+    QVERIFY(DenoiseController::key(x8) != DenoiseController::key(r));
     QVERIFY(c.start(r));
     c.cancel();
     QVERIFY(QTest::qWaitFor([&] { return finished.count() == 3; }, 60000));
@@ -326,6 +330,19 @@ class TestResults : public QObject {
     const Result* cancelled = session.result(session.a());
     QVERIFY(cancelled->state.startsWith("cancelled"));
     QVERIFY(!cancelled->complete);
+    // A self-ensemble: its own result, equal to core's with the same members.
+    DenoiseController::Request x2;
+    x2.model = "small";
+    x2.tile = 64;
+    x2.ensemble = 2;
+    QVERIFY(c.start(x2));
+    QVERIFY(QTest::qWaitFor([&] { return finished.count() == 4; }, 60000));
+    QVERIFY(finished.last().at(0).toBool());
+    QVERIFY(session.result(session.a())->description.contains("self-ensemble x2"));
+    core_options.ensemble = 2;
+    const Image expected_x2 = denoise(*stack, nn::load_model(nn::find_model_for("small", feature_set_for(*stack))), core_options);
+    QVERIFY(maxAbsDiff(*session.result(session.a())->image, expected_x2, 3) < 1e-4);
+    QVERIFY(maxAbsDiff(expected_x2, expected, 3) > 1e-3);  // the members changed the image
     // An unknown model is refused with a message.
     r.model = "nonesuch";
     QVERIFY(!c.start(r));
