@@ -963,7 +963,8 @@ TEST(CliDenoise, WritesAnExrWithProvenanceAndNeverOverwrites) {
 }
 
 // The header records the post-steps that ran, as core decided them, in memory and streamed: Tungsten's file
-// set has a variance AOV (so the blend runs unless switched off), the bundled room has none.
+// set has a variance AOV (so the blend runs unless switched off), the bundled room has none; and the
+// self-ensemble's size.
 TEST(CliDenoise, HeaderSaysWhichPostStepsRan) {
   const auto tungsten = testing::shared_dataset("tungsten-example/cornell-box");
   RESIDUE_REQUIRE_SHARED(tungsten);
@@ -975,10 +976,12 @@ TEST(CliDenoise, HeaderSaysWhichPostStepsRan) {
     std::string input;
     std::vector<std::string> flags;
     int energy, blend;
+    int ensemble = 1;
   };
   int n = 0;
   for (const Case& c : {Case{tungsten.string(), {}, 1, 1}, Case{tungsten.string(), {"--no-variance-blend"}, 1, 0},
-                        Case{tungsten.string(), {"--no-energy-correction"}, 0, 1}, Case{room, {}, 1, 0}}) {
+                        Case{tungsten.string(), {"--no-energy-correction"}, 0, 1}, Case{room, {}, 1, 0},
+                        Case{room, {"--ensemble", "4"}, 1, 0, 4}}) {
     for (const char* memory : {"4096", "2"}) {  // 2 MiB: the 384x384 Tungsten render is streamed band by band
       const auto out = tmp / ("out" + std::to_string(n++) + ".exr");
       std::vector<std::string> args = {"denoise", c.input, "-o", out.string(), "--model", model.string(),
@@ -991,6 +994,7 @@ TEST(CliDenoise, HeaderSaysWhichPostStepsRan) {
       const std::string what = c.input + " " + memory + " MiB " + (c.flags.empty() ? "" : c.flags[0]);
       EXPECT_EQ(img.spec().get_int_attribute("residue:energy_correction", -1), c.energy) << what;
       EXPECT_EQ(img.spec().get_int_attribute("residue:variance_blend", -1), c.blend) << what;
+      EXPECT_EQ(img.spec().get_int_attribute("residue:ensemble", -1), c.ensemble) << what;
     }
   }
 }
