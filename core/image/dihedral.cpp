@@ -19,7 +19,8 @@ Rect Dihedral::map(const Rect& r, int64_t w, int64_t h) const {
 Image apply(const Image& src, const Dihedral& d, int normal_plane) {
   const int64_t w = src.width(), h = src.height();
   const int channels = src.channels();
-  const auto [ow, oh] = d.size(w, h);
+  const std::pair<int64_t, int64_t> size = d.size(w, h);
+  const int64_t ow = size.first, oh = size.second;  // not a structured binding: the lambda below captures them
   Image out(ow, oh, channels);
   tbb::parallel_for(int64_t{0}, oh, [&](int64_t v) {
     for (int64_t u = 0; u < ow; ++u) {
