@@ -640,6 +640,13 @@ TEST(ModelCard, MultiScaleCostComesFromItsGraph) {
   ASSERT_TRUE(c.validation);
   EXPECT_EQ(c.validation->scenes, 3);
   EXPECT_FALSE(c.benchmark);
+  // A model that runs as a self-ensemble by default costs its members' work, and says so.
+  nn::SafetensorsFile x8 = nn::to_safetensors(net);
+  x8.metadata["residue.ensemble"] = "8";
+  nn::write_safetensors(tmp / "ms_x8.safetensors", x8, false);
+  const nn::ModelCard c8 = nn::model_card(nn::load_model(tmp / "ms_x8.safetensors"), "ms-x8");
+  EXPECT_DOUBLE_EQ(c8.gflop_per_mp, 8 * c.gflop_per_mp);
+  EXPECT_EQ(c8.architecture, "ms 1,1,2/8,12,16 full, self-ensemble x8");
 }
 
 TEST(ModelCard, CliListsTheCards) {

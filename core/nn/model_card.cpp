@@ -45,7 +45,7 @@ nlohmann::json oidn_cards(const std::filesystem::path& dir) {
 }
 
 double gflop_per_mp(const Model& m) {  // every network a denoise with `m` runs
-  double flops = m.graph.flops_per_pixel();
+  double flops = m.graph.flops_per_pixel() * m.ensemble;  // its self-ensemble's members; what runs first, once
   for (const auto& pre : {m.albedo_prefilter, m.normal_prefilter, m.prior})  // networks run before this one
     if (pre) flops += pre->graph.flops_per_pixel();
   return flops * 1e6 / 1e9;
@@ -90,6 +90,7 @@ ModelCard model_card(const Model& model, const std::string& family) {
     return c;
   }
   c.architecture = model.network.arch.to_string();
+  if (model.ensemble > 1) c.architecture += ", self-ensemble x" + std::to_string(model.ensemble);
   if (const auto it = model.metadata.find("description"); it != model.metadata.end()) c.description = it->second;
   c.validation = validation_of(json_of(model.metadata, "validation"));
   c.benchmark = benchmark_of(json_of(model.metadata, "benchmark"));
