@@ -196,7 +196,7 @@ struct TileRunner {
             non_finite += !std::isfinite(raw);
             const float v = io.output(raw, src, tx + x, ty + y, c);
             float& o = out.at(t.x - out_x0 + x, t.y - out_y0 + y, c);
-            o = ensemble == 1 ? v : (k == 0 ? 0.0f : o) + weight * v;
+            o = (k == 0 ? 0.0f : o) + weight * v;  // one member: weight 1, v itself
           }
     }
     // Output is finite or the run fails: a network whose weights or inputs overflow does not get written as a
