@@ -8,6 +8,7 @@
 #include "core/denoise/bilateral.h"
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
+#include "core/nn/model_alias.h"
 #include "core/util/error.h"
 #include "ui/session.h"
 
@@ -111,8 +112,10 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
         if (substitute.isEmpty()) throw;
       }
       variant = QString::fromStdString(path.stem().string());
-      auto& slot = loaded_[QString::fromStdString(path.string())];
-      if (!slot) slot = std::make_shared<const nn::Model>(nn::load_model(path));
+      // Keyed by name and file: an alias runs its model's file with its own settings.
+      const QString name = substitute.isEmpty() ? req.model : substitute;
+      auto& slot = loaded_[name + '|' + QString::fromStdString(path.string())];
+      if (!slot) slot = std::make_shared<const nn::Model>(nn::load_model_for(name.toStdString(), feature_set_for(*stack)));
       net = slot;
     } catch (const std::exception& e) {
       emit finished(false, QString::fromStdString(e.what()));

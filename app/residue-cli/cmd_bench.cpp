@@ -16,6 +16,7 @@
 #include "commands.h"
 #include "core/denoise/denoise_job.h"
 #include "core/denoise/denoiser.h"
+#include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
 #include "core/util/cpu_peak.h"
@@ -40,7 +41,7 @@ struct BenchOptions {
 // "small" or "oidn" (OIDN's rt_hdr_alb_nrm).
 nn::Model bench_model(const std::string& text) {
   if (text.find('/') == std::string::npos || std::filesystem::is_regular_file(text))
-    return nn::load_model(nn::find_model_for(text, FeatureSet::Full));
+    return nn::load_model_for(text, FeatureSet::Full);
   nn::Architecture a;
   char slash = 0;
   std::istringstream in(text);

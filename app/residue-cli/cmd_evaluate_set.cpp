@@ -19,6 +19,7 @@
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
 #include "core/metrics/metrics.h"
+#include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
 #include "core/util/error.h"
 
@@ -163,7 +164,7 @@ int run(const EvalSetOptions& o) {
         cell.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } else {
         const auto path = nn::find_model_for(columns[ci].model, feature_set_for(stack));
-        const nn::Model model = nn::load_model(path);
+        const nn::Model model = nn::load_model_for(columns[ci].model, feature_set_for(stack));
         model_file = path.string();
         DenoiseOptions d;
         d.backend = o.backend;

@@ -28,6 +28,7 @@ nlohmann::json to_json(const nn::ModelCard& c) {
                       {"machine", c.benchmark->machine}};
   }
   if (c.blend_tau) j["blend_tau"] = *c.blend_tau;
+  if (!c.alias_of.empty()) j["alias_of"] = c.alias_of;
   return j;
 }
 
@@ -39,19 +40,22 @@ std::string cell(const std::optional<double>& v, const char* format) {
 }
 
 void print_table(const std::vector<nn::ModelCard>& cards) {
-  std::printf("%-14s %-10s %-26s %9s %9s %9s %9s %7s\n", "model", "method", "architecture", "GFLOP/MP", "s/MP fp32",
-              "s/MP bf16", "relMSE", "SSIM");
+  std::printf("%-14s %-10s %-34s %9s %9s %9s %9s %7s %6s\n", "model", "method", "architecture", "GFLOP/MP",
+              "s/MP fp32", "s/MP bf16", "relMSE", "SSIM", "scenes");
   for (const auto& c : cards) {
     const bool net = c.method != nn::Method::Bilateral;
-    std::printf("%-14s %-10s %-26.26s %9s %9s %9s %9s %7s\n", c.family.c_str(), nn::to_string(c.method),
+    const std::string name = c.alias_of.empty() ? c.family : c.family + " = " + c.alias_of;
+    std::printf("%-14s %-10s %-34.34s %9s %9s %9s %9s %7s %6s\n", name.c_str(), nn::to_string(c.method),
                 c.architecture.c_str(), net ? cell(c.gflop_per_mp, "%.0f").c_str() : "-",
                 cell(c.seconds_per_mp(nn::Precision::FP32), "%.3g").c_str(),
                 cell(c.seconds_per_mp(nn::Precision::BF16), "%.3g").c_str(),
                 cell(c.validation ? std::optional<double>(c.validation->relmse) : std::nullopt, "%.3g").c_str(),
-                cell(c.validation ? std::optional<double>(c.validation->ssim) : std::nullopt, "%.4f").c_str());
+                cell(c.validation ? std::optional<double>(c.validation->ssim) : std::nullopt, "%.4f").c_str(),
+                cell(c.validation && c.validation->scenes > 0 ? std::optional<double>(c.validation->scenes) : std::nullopt,
+                     "%.0f").c_str());
   }
   std::printf("\ns/MP: seconds per megapixel as benchmarked (machine per model: --json); relMSE, SSIM: means over "
-              "the validation scenes.\n");
+              "that many validation scenes. NAME = MODEL: an alias, MODEL run as the architecture says.\n");
 }
 
 }  // namespace

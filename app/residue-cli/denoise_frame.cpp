@@ -9,6 +9,7 @@
 #include "core/denoise/strength.h"
 #include "core/features/features.h"
 #include "core/io/provenance.h"
+#include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
 #include "core/metrics/metrics.h"
 #include "core/util/error.h"
@@ -154,7 +155,8 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     // each file is loaded once per process.
     const std::filesystem::path file = nn::find_model_for(o.model, feature_set_for(layout));
     auto it = context.models.find(file);
-    if (it == context.models.end()) it = context.models.emplace(file, nn::load_model(file)).first;
+    if (it == context.models.end())
+      it = context.models.emplace(file, nn::load_model_for(o.model, feature_set_for(layout))).first;
     const nn::Model& model = it->second;
     result.model = model.name;
     result.architecture = model.architecture();

@@ -5,6 +5,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "core/nn/model_alias.h"
 #include "core/nn/oidn_network.h"
 
 namespace residue::nn {
@@ -143,6 +144,21 @@ std::vector<ModelCard> list_model_cards(std::vector<std::string>* problems) {
   for (auto& [name, card] : families) {
     card.variants = variants[name];
     nets.push_back(card);
+  }
+  for (const auto& alias : list_model_aliases(problems)) {
+    try {
+      ModelCard card = model_card(load_model_for(alias.name, FeatureSet::Full), alias.name);
+      card.alias_of = alias.model;
+      card.variants = variants[alias.model];
+      if (!alias.description.empty()) card.description = alias.description;
+      // The target's numbers were measured as the target runs; an alias that runs it otherwise has its own or none.
+      if (alias.ensemble > 0) card.validation.reset(), card.benchmark.reset();
+      if (auto v = validation_of(nlohmann::json::parse(alias.validation, nullptr, false)); v) card.validation = v;
+      if (auto b = benchmark_of(nlohmann::json::parse(alias.benchmark, nullptr, false)); b) card.benchmark = b;
+      nets.push_back(card);
+    } catch (const std::exception& e) {
+      if (problems) problems->push_back(alias.file.string() + ": alias \"" + alias.name + "\": " + e.what());
+    }
   }
   std::sort(nets.begin(), nets.end(), [](const ModelCard& a, const ModelCard& b) { return a.gflop_per_mp < b.gflop_per_mp; });
   out.insert(out.end(), nets.begin(), nets.end());

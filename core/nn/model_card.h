@@ -32,6 +32,7 @@ struct ModelCard {
   };
 
   std::string family;  // what find_model_for takes
+  std::string alias_of;  // an alias's (core/nn/model_alias.h): the family it stands for; empty for a model
   Method method = Method::Residue;
   std::filesystem::path file;  // the richest variant's file (empty for the bilateral filter)
   std::string architecture;    // "8/32", "3 levels 2,2,4/32,48,64", "OIDN UNet", "cross-bilateral filter"
@@ -49,8 +50,9 @@ struct ModelCard {
 // The card of a loaded model (a Residue model file, or one of OIDN's with its cards.json entry beside it).
 ModelCard model_card(const Model& model, const std::string& family);
 
-// Every family found in model_dirs() (the first folder that has a family wins, as find_model), sorted by cost,
-// the bilateral filter first and OIDN's networks (when installed) last. Files that cannot be read are left out
+// Every family found in model_dirs() (the first folder that has a family wins, as find_model) and every alias,
+// sorted by cost, the bilateral filter first and OIDN's networks (when installed) last. An alias's card is its
+// model's as the alias runs it (ensemble, cost), with the alias's own description and measured numbers. Files that cannot be read are left out
 // with a line in `problems`.
 std::vector<ModelCard> list_model_cards(std::vector<std::string>* problems = nullptr);
 

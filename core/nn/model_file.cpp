@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "core/nn/model_alias.h"
 #include "core/nn/oidn_network.h"
 #include "core/nn/tza.h"
 #include "core/util/error.h"
@@ -304,6 +305,13 @@ std::string model_variant_name(const std::string& family, FeatureSet set) {
 
 std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available) {
   if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
+  if (const auto alias = find_model_alias(name_or_path)) {
+    // One level only: an alias of an alias could loop, and what runs should be one lookup away from the name.
+    if (find_model_alias(alias->model))
+      throw Error(ErrorKind::Input, alias->file.string() + ": alias \"" + alias->name + "\" stands for \"" +
+                                        alias->model + "\", which is itself an alias; name a model");
+    return find_model_for(alias->model, available);
+  }
   if (name_or_path == "oidn" || name_or_path == "oidn-cleanaux") {
     const bool aux = feature_channels(available) >= feature_channels(FeatureSet::ColorAlbedoNormal);
     std::string file = aux ? "rt_hdr_alb_nrm" : "rt_hdr";

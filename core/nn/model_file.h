@@ -76,7 +76,8 @@ std::vector<std::filesystem::path> model_dirs();
 // without depth (or without any AOV) gets the model trained for what it has instead of zeros.
 // "oidn" picks OIDN's rt_hdr_alb_nrm (with albedo and normal) or rt_hdr; "oidn-cleanaux" its final-frame
 // network rt_hdr_calb_cnrm_large (albedo and normal needed), both from <model dir>/oidn/.
-// A path is returned as is. Throws Error(Input) listing what was looked for.
+// An alias (core/nn/model_alias.h, e.g. "best") resolves to its model's variant; load_model_for also applies its
+// settings. A path is returned as is. Throws Error(Input) listing what was looked for.
 std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available);
 std::string model_variant_name(const std::string& family, FeatureSet set);
 
