@@ -33,7 +33,10 @@ class ModelPathFor {
 // A family "fam" with a full and a colour-only variant, and `aliases` as the folder's aliases.json.
 void write_models(const TempDir& tmp, const std::string& aliases) {
   nn::write_safetensors(tmp / "fam.safetensors",
-                        nn::to_safetensors(nn::random_network({1, 4, FeatureSet::Full}, 1), {{"name", "fam"}}), false);
+                        nn::to_safetensors(nn::random_network({1, 4, FeatureSet::Full}, 1),
+                                           {{"name", "fam"}, {"validation", R"({"relmse": 0.75, "ssim": 0.5, "scenes": 3})"},
+                                            {"benchmark", R"({"fp32_s_per_mp": 1.5, "machine": "m"})"}}),
+                        false);
   nn::write_safetensors(tmp / "fam-color.safetensors",
                         nn::to_safetensors(nn::random_network({1, 4, FeatureSet::ColorOnly}, 2), {{"name", "fam-color"}}),
                         false);
@@ -43,7 +46,9 @@ void write_models(const TempDir& tmp, const std::string& aliases) {
 TEST(ModelAlias, ResolvesToTheModelsVariantWithTheAliasSettings) {
   TempDir tmp;
   write_models(tmp, R"({"top": {"model": "fam", "ensemble": 4, "description": "fam four times",
-                                "validation": {"relmse": 0.5, "ssim": 0.25, "scenes": 3}}})");
+                                "validation": {"relmse": 0.5, "ssim": 0.25, "scenes": 3},
+                                "benchmark": {"fp32_s_per_mp": 6.5, "machine": "m"}},
+                        "twice": {"model": "fam", "ensemble": 2}, "same": {"model": "fam"}})");
   ModelPathFor path(tmp.path());
   EXPECT_EQ(nn::find_model_for("top", FeatureSet::Full), tmp / "fam.safetensors");
   EXPECT_EQ(nn::find_model_for("top", FeatureSet::ColorOnly), tmp / "fam-color.safetensors")
@@ -69,8 +74,18 @@ TEST(ModelAlias, ResolvesToTheModelsVariantWithTheAliasSettings) {
   ASSERT_TRUE(top.validation);
   EXPECT_EQ(top.validation->relmse, 0.5);
   EXPECT_EQ(top.validation->scenes, 3);
+  EXPECT_EQ(top.seconds_per_mp(nn::Precision::FP32), 6.5);
+  EXPECT_EQ(top.ensemble, 4);
   EXPECT_EQ(top.variants, fam.variants);
   EXPECT_NE(top.architecture.find("x4"), std::string::npos) << top.architecture;
+  // The model's own numbers were measured x1: an alias running it otherwise shows none of them, one running it
+  // as is shows them.
+  const nn::ModelCard twice = card("twice"), same = card("same");
+  EXPECT_FALSE(twice.validation);
+  EXPECT_FALSE(twice.benchmark);
+  ASSERT_TRUE(same.validation && fam.validation);
+  EXPECT_EQ(same.validation->relmse, 0.75);
+  EXPECT_EQ(same.seconds_per_mp(nn::Precision::FP32), 1.5);
 }
 
 TEST(ModelAlias, MalformedAliasesAreRefusedNamingTheFile) {

@@ -221,9 +221,10 @@ double DenoiseController::expectedSecondsPerMp(const QString& model, nn::Precisi
     return here->second;
   for (const auto& m : models_) {
     if (m.family != model.toStdString()) continue;
+    // Per member of the self-ensemble, as measured_s_per_mp_: a card's numbers are for all its members.
     const auto bench = m.seconds_per_mp(precision);
-    if (bench) return *bench;
-    return m.gflop_per_mp / 50.0;  // no benchmark: 50 GFLOP/s, about what 2 cores of fp32 reach here
+    if (bench) return *bench / m.ensemble;
+    return m.gflop_per_mp / 50.0 / m.ensemble;  // no benchmark: 50 GFLOP/s, about what 2 cores of fp32 reach here
   }
   return 0.0;
 }

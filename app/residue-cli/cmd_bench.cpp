@@ -77,8 +77,8 @@ AovStack synthetic_stack(int64_t n) {
 // Tile 0 is the viewer's automatic tile: about half a second per tile at the model's benchmarked speed.
 int64_t tile_for(int64_t tile, const nn::Model& model, nn::Precision precision, int64_t size) {
   if (tile > 0) return std::min(tile, size);
-  const double s_per_mp =
-      nn::model_card(model, model.name).seconds_per_mp(precision).value_or(model.graph.flops_per_pixel() / 50e3);
+  const nn::ModelCard card = nn::model_card(model, model.name);  // its numbers: the whole ensemble's
+  const double s_per_mp = card.seconds_per_mp(precision).value_or(card.gflop_per_mp / 50.0);
   return std::min(interactive_tile(model.graph, s_per_mp), size);
 }
 
@@ -180,8 +180,8 @@ int run(const BenchOptions& o) {
       std::fprintf(stderr, "bench: %s %s %s: %s\n", model_text.c_str(), d.backend.c_str(), precision.c_str(), e.what());
       return;
     }
-    // Useful work: the halo each tile recomputes is not counted.
-    const double gflops = model.graph.flops_per_pixel() * static_cast<double>(o.size * o.size) / best.seconds / 1e9;
+    // Useful work (every member of a self-ensemble, any prefilter): the halo each tile recomputes is not counted.
+    const double gflops = nn::model_card(model, model.name).gflop_per_mp * megapixels / best.seconds;
     const double share = 100.0 * gflops / peak.gflops;
     rows.push_back({{"model", model_text}, {"backend", d.backend}, {"precision", precision}, {"tile", d.tile},
                     {"seconds_per_megapixel", best.seconds / megapixels}, {"gflops", gflops},

@@ -90,11 +90,16 @@ ModelCard model_card(const Model& model, const std::string& family) {
     }
     return c;
   }
+  c.ensemble = model.ensemble;
   c.architecture = model.network.arch.to_string();
   if (model.ensemble > 1) c.architecture += ", self-ensemble x" + std::to_string(model.ensemble);
   if (const auto it = model.metadata.find("description"); it != model.metadata.end()) c.description = it->second;
-  c.validation = validation_of(json_of(model.metadata, "validation"));
-  c.benchmark = benchmark_of(json_of(model.metadata, "benchmark"));
+  // The file's numbers were measured as the file runs: not for a model told to run as another ensemble (an alias).
+  const auto file_ensemble = model.metadata.find("residue.ensemble");
+  if (model.ensemble == (file_ensemble == model.metadata.end() ? 1 : std::stoi(file_ensemble->second))) {
+    c.validation = validation_of(json_of(model.metadata, "validation"));
+    c.benchmark = benchmark_of(json_of(model.metadata, "benchmark"));
+  }
   if (const auto it = model.metadata.find("residue.blend_tau"); it != model.metadata.end()) {
     try {
       c.blend_tau = std::stof(it->second);
@@ -151,8 +156,6 @@ std::vector<ModelCard> list_model_cards(std::vector<std::string>* problems) {
       card.alias_of = alias.model;
       card.variants = variants[alias.model];
       if (!alias.description.empty()) card.description = alias.description;
-      // The target's numbers were measured as the target runs; an alias that runs it otherwise has its own or none.
-      if (alias.ensemble > 0) card.validation.reset(), card.benchmark.reset();
       if (auto v = validation_of(nlohmann::json::parse(alias.validation, nullptr, false)); v) card.validation = v;
       if (auto b = benchmark_of(nlohmann::json::parse(alias.benchmark, nullptr, false)); b) card.benchmark = b;
       nets.push_back(card);

@@ -36,6 +36,7 @@ struct ModelCard {
   Method method = Method::Residue;
   std::filesystem::path file;  // the richest variant's file (empty for the bilateral filter)
   std::string architecture;    // "8/32", "3 levels 2,2,4/32,48,64", "OIDN UNet", "cross-bilateral filter"
+  int ensemble = 1;            // the self-ensemble it runs with (its cost and numbers are for all its members)
   double gflop_per_mp = 0;     // network work per megapixel (the model's self-ensemble, prefilters and a
                                // post-correction's prior included)
   std::vector<std::string> variants;  // feature sets present: "full", "color+albedo+normal", "color", ...
