@@ -50,6 +50,15 @@ def parse_args():
     p.add_argument("--probe-res", type=int, default=48, help="auto-exposure probe resolution (0 = no probe)")
     p.add_argument("--probe-spp", type=int, default=16)
     p.add_argument("--save-blend", action="store_true", help="also save DIR/scene.blend (debugging)")
+    p.add_argument("--photos", default=None,
+                   help="folder of photographs and artwork (searched recursively for .jpg/.png): a share of the "
+                        "scene's opaque materials take one as their colour (box-projected, 0.4-3 m per image); "
+                        "issue 16's lever 5. Drawn from their own random stream, so the scene is otherwise the "
+                        "same as without")
+    p.add_argument("--photo-share", type=float, default=0.5, help="share of materials given a photograph")
+    p.add_argument("--hdris", default=None,
+                   help="folder of .exr/.hdr environment maps: the world (sky, and the view through windows) is one "
+                        "of them in 60 %% of scenes, rotated at random")
     p.add_argument("--camera-move", default=None,
                    help="DX,DY,DZ,YAW: move the camera by (DX,DY,DZ) in its own axes (metres) and turn it by YAW "
                         "degrees about the world's up axis, after the scene and its exposure are set (animations: "
@@ -600,6 +609,109 @@ def world(ctx, kind, strength, sun_dir=None):
     bpy.context.scene.world = w
     ctx.desc["world"] = info
     return w
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Photographs (issue 16, lever 5): real image statistics on the surfaces and in the sky. Applied after the scene
+# is built, from a random stream of their own, so that --scene-seed builds the same geometry, lights and camera
+# with or without them.
+PHOTO_SKIP = ("emission", "glass", "grass_hair")  # light sources, transmission, hair: their colour stays
+
+
+def image_files(folder, exts):
+    out = []
+    for root, _dirs, files in os.walk(folder):
+        out += [os.path.join(root, f) for f in files if f.lower().endswith(exts) and not f.startswith("screenshot")]
+    return sorted(out)
+
+
+def image_licence(path):
+    """The licence recorded beside an image: a KDE wallpaper's metadata.json (../../ from contents/images), or a
+    license.txt in its folder (Blender's studio lights: CC0)."""
+    meta = os.path.join(os.path.dirname(path), "..", "..", "metadata.json")
+    if os.path.isfile(meta):
+        with open(meta) as f:
+            k = json.load(f).get("KPlugin", {})
+        authors = ", ".join(a.get("Name", "") for a in k.get("Authors", []))
+        return f"{k.get('License', 'see the package copyright')} ({authors})" if authors else k.get("License", "")
+    lic = os.path.join(os.path.dirname(path), "license.txt")
+    if os.path.isfile(lic):
+        with open(lic) as f:
+            return " ".join(f.read().split())[:200]
+    return "see the package copyright"
+
+
+def photo_material(ctx, rng, m, path):
+    """Replace the Principled BSDF's base colour by the photograph, box-projected in object space."""
+    nt = m.node_tree
+    bsdf = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
+    if bsdf is None:
+        return None
+    size = rng.uniform(0.4, 3.0)
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    mp = nt.nodes.new("ShaderNodeMapping")
+    mp.inputs["Scale"].default_value = (1.0 / size,) * 3
+    mp.inputs["Location"].default_value = (rng.uniform(0, 1), rng.uniform(0, 1), rng.uniform(0, 1))
+    mp.inputs["Rotation"].default_value = (0.0, 0.0, rng.choice([0.0, math.pi / 2]))
+    nt.links.new(tc.outputs["Object"], mp.inputs["Vector"])
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path, check_existing=True)
+    tex.projection = "BOX"
+    tex.projection_blend = 0.2
+    tex.extension = "REPEAT"
+    nt.links.new(mp.outputs["Vector"], tex.inputs["Vector"])
+    gain = rng.uniform(0.5, 1.0)  # photographs are bright; albedos of real surfaces mostly are not
+    mix = nt.nodes.new("ShaderNodeMixRGB")
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Fac"].default_value = 1.0
+    mix.inputs["Color2"].default_value = (gain, gain, gain, 1.0)
+    nt.links.new(tex.outputs["Color"], mix.inputs["Color1"])
+    for link in list(bsdf.inputs["Base Color"].links):
+        nt.links.remove(link)
+    nt.links.new(mix.outputs["Color"], bsdf.inputs["Base Color"])
+    return {"material": m.name, "image": path, "licence": image_licence(path), "size_m": round(size, 3),
+            "gain": round(gain, 3)}
+
+
+def hdri_world(ctx, rng, path):
+    """The world's background colour from an environment map (its strength, scaled by the exposure, is kept)."""
+    w = bpy.context.scene.world
+    nt = w.node_tree
+    bg = nt.nodes["Background"]
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(path, check_existing=True)
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    mp = nt.nodes.new("ShaderNodeMapping")
+    mp.inputs["Rotation"].default_value = (0.0, 0.0, rng.uniform(0, 2 * math.pi))
+    nt.links.new(tc.outputs["Generated"], mp.inputs["Vector"])
+    nt.links.new(mp.outputs["Vector"], env.inputs["Vector"])
+    for link in list(bg.inputs["Color"].links):
+        nt.links.remove(link)
+    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
+    return {"image": path, "licence": image_licence(path), "rotation_deg": round(math.degrees(mp.inputs["Rotation"].default_value[2]), 1)}
+
+
+def apply_photos(ctx, args):
+    rng = random.Random(ctx.seed * 104729 + 3)
+    if args.photos:
+        photos = image_files(args.photos, (".jpg", ".jpeg", ".png"))
+        if not photos:
+            raise SystemExit(f"make_scene: no .jpg/.png images under --photos {args.photos}")
+        used = []
+        for m in sorted(bpy.data.materials, key=lambda m: m.name):
+            if not m.use_nodes or m.name.startswith(PHOTO_SKIP) or rng.random() >= args.photo_share:
+                continue
+            info = photo_material(ctx, rng, m, rng.choice(photos))
+            if info:
+                used.append(info)
+        ctx.desc["photos"] = used
+        ctx.feature("photographs")
+    if args.hdris and bpy.context.scene.world is not None and rng.random() < 0.6:
+        maps = image_files(args.hdris, (".exr", ".hdr"))
+        if not maps:
+            raise SystemExit(f"make_scene: no .exr/.hdr maps under --hdris {args.hdris}")
+        ctx.desc["world"]["hdri"] = hdri_world(ctx, rng, rng.choice(maps))
+        ctx.feature("hdri")
 
 
 def camera(ctx, loc, target, lens, dof_focus=None, fstop=None):
@@ -1671,6 +1783,7 @@ def main():
     kind = os.environ.get("RESIDUE_DATAGEN_KIND") or ("interior" if args.scene_seed % 2 == 0 else "exterior")
     ctx.desc["kind"] = kind
     {"interior": build_interior, "exterior": build_exterior, "test": build_test}[kind](ctx)
+    apply_photos(ctx, args)
     configure(scene, args)
     build_s = time.time() - t
     probe_exposure(ctx, scene, args)
@@ -1742,8 +1855,10 @@ def main():
             "exr": "OPEN_EXR_MULTILAYER, color_depth 16 (half colour passes, float data passes), ZIP",
             "generator": "tools/datagen/make_scene.py",
             "command": "blender -b --factory-startup -noaudio -t {t} --python tools/datagen/make_scene.py -- "
-                       "--scene-seed {s} --renders {r} --outdir <dir> --res {res} --threads {t}".format(
-                           t=args.threads, s=args.scene_seed, r=args.renders, res=args.res),
+                       "--scene-seed {s} --renders {r} --outdir <dir> --res {res} --threads {t}{ph}".format(
+                           t=args.threads, s=args.scene_seed, r=args.renders, res=args.res,
+                           ph=(f" --photos {args.photos} --photo-share {args.photo_share}" if args.photos else "") +
+                              (f" --hdris {args.hdris}" if args.hdris else "")),
         },
         "timing": {
             "process_wall_s": process_wall(),

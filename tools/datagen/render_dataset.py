@@ -120,6 +120,10 @@ def render_scene(args, seed, spp):
     cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python", MAKE_SCENE,
            "--", "--scene-seed", str(seed), "--renders", renders, "--outdir", tmp, "--res", str(args.res),
            "--threads", str(args.threads)]
+    if args.photos:
+        cmd += ["--photos", args.photos, "--photo-share", str(args.photo_share)]
+    if args.hdris:
+        cmd += ["--hdris", args.hdris]
     logdir = os.path.join(args.out, "logs")
     os.makedirs(logdir, exist_ok=True)
     with open(os.path.join(logdir, f"s{seed}.log"), "w") as logf:
@@ -160,6 +164,11 @@ def main():
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--blender", default="/usr/bin/blender")
     p.add_argument("--timeout", type=float, default=3600.0, help="seconds per scene before giving up on it")
+    p.add_argument("--photos", default=None, help="photographs for the surfaces (make_scene.py --photos), e.g. "
+                   "/usr/share/wallpapers (Debian's plasma-workspace-wallpapers)")
+    p.add_argument("--photo-share", type=float, default=0.5)
+    p.add_argument("--hdris", default=None, help="environment maps for the world (make_scene.py --hdris), e.g. "
+                   "/usr/share/blender/datafiles/studiolights/world (Blender's CC0 HDRIs)")
     args = p.parse_args()
     args.out = os.path.abspath(args.out)
     spp_list = [int(s) for s in args.spp.split(",")]
