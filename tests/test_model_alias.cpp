@@ -48,7 +48,8 @@ TEST(ModelAlias, ResolvesToTheModelsVariantWithTheAliasSettings) {
   write_models(tmp, R"({"top": {"model": "fam", "ensemble": 4, "description": "fam four times",
                                 "validation": {"relmse": 0.5, "ssim": 0.25, "scenes": 3},
                                 "benchmark": {"fp32_s_per_mp": 6.5, "machine": "m"}},
-                        "twice": {"model": "fam", "ensemble": 2}, "same": {"model": "fam"}})");
+                        "twice": {"model": "fam", "ensemble": 2}, "same": {"model": "fam"},
+                        "best": {"model": "fam", "ensemble": 2}})");
   ModelPathFor path(tmp.path());
   EXPECT_EQ(nn::find_model_for("top", FeatureSet::Full), tmp / "fam.safetensors");
   EXPECT_EQ(nn::find_model_for("top", FeatureSet::ColorOnly), tmp / "fam-color.safetensors")
@@ -57,6 +58,9 @@ TEST(ModelAlias, ResolvesToTheModelsVariantWithTheAliasSettings) {
   EXPECT_EQ(nn::load_model_for("top", FeatureSet::ColorOnly).ensemble, 4);
   EXPECT_EQ(nn::load_model_for("fam", FeatureSet::Full).ensemble, 1) << "the model itself runs as its file says";
   EXPECT_FALSE(nn::find_model_alias("fam"));
+  // $RESIDUE_MODEL_PATH comes before the shipped models: its "best" wins over resources/models/aliases.json's.
+  EXPECT_EQ(nn::find_model_for("best", FeatureSet::Full), tmp / "fam.safetensors");
+  EXPECT_EQ(nn::load_model_for("best", FeatureSet::Full).ensemble, 2);
 
   // The card: the model's cost times the alias's ensemble, the alias's own description and numbers.
   const auto cards = nn::list_model_cards();
