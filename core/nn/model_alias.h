@@ -5,7 +5,8 @@
 //             "validation": {"relmse": 0.0088, "ssim": 0.941, "scenes": 30}}}
 // "model" is a family name (resolved per render like any name, variants included) or "oidn"; "ensemble" (1, 2,
 // 4 or 8; optional) overrides the model's own self-ensemble; "validation" and "benchmark" are what was measured
-// for the alias as it runs (its card shows those, not the target's). The first folder that defines a name wins, as for models.
+// for the alias as it runs (its card shows those, not the target's). The first folder that defines a name wins, as for
+// models; an alias hides a model file of the same name in any folder (name aliases apart from models).
 #pragma once
 
 #include <optional>
