@@ -217,7 +217,9 @@ void DenoisePanel::fillTable() {
                             .arg(opt(m.benchmark->fp32_s_per_mp, 3), opt(m.benchmark->bf16_s_per_mp, 3),
                                  QString::fromStdString(m.benchmark->machine)));
     table_->setItem(r, kBench, bench);
-    table_->setItem(r, kHere, new QTableWidgetItem(opt(controller_->measuredSecondsPerMp(family), 3)));
+    // Measured per member of a self-ensemble; shown for the ensemble the card is for, as its s/MP column.
+    const auto here = controller_->measuredSecondsPerMp(family);
+    table_->setItem(r, kHere, new QTableWidgetItem(opt(here ? std::optional<double>(*here * m.ensemble) : std::nullopt, 3)));
     const auto& val = m.validation;
     auto* rel = new QTableWidgetItem(val ? QString::number(val->relmse, 'g', 3) : QString("-"));
     auto* ssim = new QTableWidgetItem(val ? QString::number(val->ssim, 'g', 4) : QString("-"));
