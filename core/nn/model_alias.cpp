@@ -40,14 +40,21 @@ std::vector<ModelAlias> read_aliases(const std::filesystem::path& file) {
   return out;
 }
 
+// Every model folder's aliases.json, in model_dirs() order.
+std::vector<std::filesystem::path> alias_files() {
+  std::vector<std::filesystem::path> out;
+  for (const auto& dir : model_dirs()) {
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(dir / "aliases.json", ec)) out.push_back(dir / "aliases.json");
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<ModelAlias> list_model_aliases(std::vector<std::string>* problems) {
   std::vector<ModelAlias> out;
-  for (const auto& dir : model_dirs()) {
-    const auto file = dir / "aliases.json";
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(file, ec)) continue;
+  for (const auto& file : alias_files()) {
     try {
       for (auto& a : read_aliases(file)) {
         const bool seen = std::any_of(out.begin(), out.end(), [&](const ModelAlias& b) { return b.name == a.name; });
@@ -61,13 +68,9 @@ std::vector<ModelAlias> list_model_aliases(std::vector<std::string>* problems) {
 }
 
 std::optional<ModelAlias> find_model_alias(const std::string& name) {
-  for (const auto& dir : model_dirs()) {
-    const auto file = dir / "aliases.json";
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(file, ec)) continue;
+  for (const auto& file : alias_files())
     for (auto& a : read_aliases(file))
       if (a.name == name) return a;
-  }
   return std::nullopt;
 }
 

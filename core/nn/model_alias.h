@@ -29,7 +29,8 @@ struct ModelAlias {
 };
 
 // The alias `name` defines, if any folder of model_dirs() does. Throws Error(Input) naming the file when an
-// aliases.json cannot be read or an entry is malformed (a bad ensemble, a missing or aliased "model").
+// aliases.json cannot be read or an entry is malformed (a bad ensemble, a missing "model"); find_model_for
+// refuses an alias whose model is itself an alias.
 std::optional<ModelAlias> find_model_alias(const std::string& name);
 // Every alias, the first definition of each name; unreadable files are left out with a line in `problems`.
 std::vector<ModelAlias> list_model_aliases(std::vector<std::string>* problems = nullptr);

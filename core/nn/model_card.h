@@ -53,8 +53,8 @@ ModelCard model_card(const Model& model, const std::string& family);
 
 // Every family found in model_dirs() (the first folder that has a family wins, as find_model) and every alias,
 // sorted by cost, the bilateral filter first and OIDN's networks (when installed) last. An alias's card is its
-// model's as the alias runs it (ensemble, cost), with the alias's own description and measured numbers. Files that cannot be read are left out
-// with a line in `problems`.
+// model's as the alias runs it (ensemble, cost), with the alias's own description and measured numbers. Files
+// that cannot be read are left out with a line in `problems`.
 std::vector<ModelCard> list_model_cards(std::vector<std::string>* problems = nullptr);
 
 }  // namespace residue::nn

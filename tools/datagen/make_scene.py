@@ -641,7 +641,7 @@ def image_licence(path):
     return "see the package copyright"
 
 
-def photo_material(ctx, rng, m, path):
+def photo_material(rng, m, path):
     """Replace the Principled BSDF's base colour by the photograph, box-projected in object space."""
     nt = m.node_tree
     bsdf = next((n for n in nt.nodes if n.type == "BSDF_PRINCIPLED"), None)
@@ -673,7 +673,7 @@ def photo_material(ctx, rng, m, path):
             "gain": round(gain, 3)}
 
 
-def hdri_world(ctx, rng, path):
+def hdri_world(rng, path):
     """The world's background colour from an environment map (its strength, scaled by the exposure, is kept)."""
     w = bpy.context.scene.world
     nt = w.node_tree
@@ -701,7 +701,7 @@ def apply_photos(ctx, args):
         for m in sorted(bpy.data.materials, key=lambda m: m.name):
             if not m.use_nodes or m.name.startswith(PHOTO_SKIP) or rng.random() >= args.photo_share:
                 continue
-            info = photo_material(ctx, rng, m, rng.choice(photos))
+            info = photo_material(rng, m, rng.choice(photos))
             if info:
                 used.append(info)
         ctx.desc["photos"] = used
@@ -710,7 +710,7 @@ def apply_photos(ctx, args):
         maps = image_files(args.hdris, (".exr", ".hdr"))
         if not maps:
             raise SystemExit(f"make_scene: no .exr/.hdr maps under --hdris {args.hdris}")
-        ctx.desc["world"]["hdri"] = hdri_world(ctx, rng, rng.choice(maps))
+        ctx.desc["world"]["hdri"] = hdri_world(rng, rng.choice(maps))
         ctx.feature("hdri")
 
 
