@@ -115,8 +115,8 @@ TEST(ModelAlias, MalformedAliasesAreRefusedNamingTheFile) {
   }
 }
 
-// The shipped alias: `best` is base as a self-ensemble x8, what docs/MODELS.md measured most accurate.
-TEST(ModelAlias, ShippedBestIsBaseAsAnEnsemble) {
+// The shipped alias: `best` is multiscale as a self-ensemble x8, what docs/MODELS.md measured most accurate.
+TEST(ModelAlias, ShippedBestIsAnEnsemble) {
   const auto alias = nn::find_model_alias("best");
   ASSERT_TRUE(alias);
   EXPECT_EQ(nn::find_model_for("best", FeatureSet::Full), nn::find_model_for(alias->model, FeatureSet::Full));

@@ -7,7 +7,7 @@ input and the cross-bilateral baseline, the brightness ratio, seconds per megapi
   /usr/bin/python3 tools/model_card.py resources/models/base.safetensors --eval eval.json \\
       --label base --dataset /work/datasets/residue-v1 --curve models/base_training.png > card.md
 """
-import argparse, json, os, sys
+import argparse, json, os, subprocess, sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from safetensors_meta import metadata  # noqa: E402
@@ -32,6 +32,8 @@ def main():
     p.add_argument("--label", help="the model's column in the evaluation (default: the file's stem)")
     p.add_argument("--dataset", help="data set folder, for each scene's samples per pixel")
     p.add_argument("--curve", help="training curve PNG, as linked from the card")
+    p.add_argument("--cli", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build", "release",
+                                                 "app", "residue-cli", "residue-cli"))
     a = p.parse_args()
 
     md = metadata(a.model)
@@ -39,14 +41,24 @@ def main():
     training = json.loads(md.get("training", "{}"))
     bench = json.loads(md.get("benchmark", "{}"))
     ev = json.load(open(a.eval))
-    arch = f"{md['residue.blocks']}/{md['residue.width']}"
-    receptive = 3 + 2 * sum(
-        int(d) for d in ((md.get("residue.dilations", "1") + ",") * int(md["residue.blocks"])).split(",")[: int(md["residue.blocks"])])
-    dil = f", dilations {md['residue.dilations']}" if "residue.dilations" in md else ""
+    # The receptive field as core's graph computes it (`residue-cli models --json`), for flat and multi-scale alike.
+    cards = subprocess.run([a.cli, "models", "--json"], check=True, capture_output=True, text=True).stdout
+    cards = json.loads(cards[cards.index("["):])
+    card = [c for c in cards if c["file"] == os.path.abspath(a.model)] or \
+        [c for c in cards if md.get("name", "").startswith(c["family"] + "-")]  # a variant: its family's reach
+    receptive = card[0]["reach_px"] if card else "?"
+    if "residue.levels" in md:
+        arch = f"{md['residue.levels']}/{md['residue.widths']}"
+        shape = (f"{len(md['residue.levels'].split(','))} levels of {md['residue.levels']} ResBlocks, widths "
+                 f"{md['residue.widths']}" + (", autoexposed" if md.get("residue.autoexposure") == "1" else ""))
+    else:
+        arch = f"{md['residue.blocks']}/{md['residue.width']}"
+        dil = f", dilations {md['residue.dilations']}" if "residue.dilations" in md else ""
+        shape = f"{md['residue.blocks']} ResBlocks of width {md['residue.width']}{dil}"
 
     out = [f"## {md.get('name', label)}", ""]
-    out.append(f"- **Network**: {arch} ({md['residue.blocks']} ResBlocks of width {md['residue.width']}{dil}), "
-               f"features `{md['residue.features']}`, receptive field {receptive} px each side.")
+    out.append(f"- **Network**: {arch} ({shape}), features `{md['residue.features']}`, receptive field {receptive} px "
+               "each side.")
     if training:
         data = ", ".join(f"`{os.path.normpath(d)}`" for d in training.get("data", []))
         wall = training.get("wall_s", training.get("wall_s_this_run", 0))

@@ -25,10 +25,12 @@ def main():
     loss = [float(r["loss"]) for r in rows]
     val = [r for r in rows if r["val_relmse"]]
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 3.6))
+    for ax in (ax1, ax2):  # at most 6 step labels: five-digit step counts would run into each other
+        ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(6, integer=True))
     ax1.plot(steps, loss, lw=1)
     ax1.set_yscale("log")
     ax1.set_xlabel("step")
-    ax1.set_ylabel("training L1 loss (log colour)")
+    ax1.set_ylabel("training loss (the run's --loss)")
     ax1.grid(alpha=0.3)
     if val:
         vs = [int(r["step"]) for r in val]

@@ -45,7 +45,7 @@ cmake --preset release
 cmake --build --preset release -j "$(nproc)"
 
 # The default model: the one the README's first command denoises the example with.
-default_model=small
+default_model=multiscale
 
 if [ "${RESIDUE_SKIP_EXAMPLE:-0}" != 1 ]; then
   cli=build/release/app/residue-cli/residue-cli

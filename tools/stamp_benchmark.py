@@ -25,9 +25,10 @@ def main():
     for path in models:
         header, data = read_header(path)
         meta = header.setdefault("__metadata__", {})
-        arch = f"{meta['residue.blocks']}/{meta['residue.width']}"
-        cmd = [a.cli, "bench", "--models", arch, "--precisions", "fp32,bf16", "--size", str(a.size),
-               "--repeat", "2", "--json"]
+        # The file itself, not its BLOCKS/WIDTH: a multi-scale network has no such size, and the file's own
+        # settings (autoexposure, prefilters) are part of what it costs.
+        cmd = [a.cli, "bench", "--models", os.path.abspath(path), "--precisions", "fp32,bf16", "--size",
+               str(a.size), "--repeat", "2", "--json"]
         result = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
         best = {}
         for r in result["rows"]:
@@ -41,10 +42,10 @@ def main():
             "bf16_implementation": best["bf16"]["implementation"] if "bf16" in best else None,
             "machine": f"{result['cpu']}, {os.cpu_count()} cores",  # the CPU as bench names it
             "image": a.size,
-            "command": " ".join(["residue-cli"] + cmd[1:]),
+            "command": " ".join(["residue-cli"] + cmd[1:3] + [os.path.basename(path)] + cmd[4:]),
         }, separators=(",", ":"))
         write_header(path, header, data)
-        print(f"{os.path.basename(path)}: {arch} fp32 {best['fp32']['seconds_per_megapixel']:.3f} s/MP"
+        print(f"{os.path.basename(path)}: fp32 {best['fp32']['seconds_per_megapixel']:.3f} s/MP"
               + (f", bf16 {best['bf16']['seconds_per_megapixel']:.3f} s/MP" if "bf16" in best else ""))
 
 if __name__ == "__main__":

@@ -10,15 +10,17 @@
 # paper-ft"; base-variance reads the noise-level input; base-ft is base fine-tuned 3000 more steps with its own
 # inputs, the variants' control, and is what ships as base; paper-ft is paper fine-tuned 1500 more steps the same
 # way, and ships as paper; also known: base-dilated (dilations 1,2,4,8) and ms, issue 16's multi-scale network at
-# OIDN's cost: 4 levels 24-80 wide, autoexposed at key 1, 2 x 128-px patches, L1 + SSIM; docs/MODELS.md 2b-3c;
+# OIDN's cost: 4 levels 24-80 wide, autoexposed at key 1, 2 x 128-px patches, L1 + SSIM, shipped as multiscale with
+# its variants ms-albedo-normal and ms-color; docs/MODELS.md 2b-3c and session 4;
 # and post, lever 6's correction of OIDN's output, 4/32, its output conv starting at zero),
 # ZOO_THREADS (2),
 # ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=2000), ZOO_BF16=1 to train with CPU autocast
 # to bfloat16 (1.5-1.9x faster here), RESIDUE_BUILD (build/release).
 # Every model recomputes its BN statistics over 100 batches before each validation (--precise-bn) and trains
 # its last 10 % with them fixed (--freeze-bn-after): docs/MODELS.md, "Batch norm at inference".
-# Copy the finished OUT_DIR/<name>.safetensors into resources/models/ (base-ft as base.safetensors and paper-ft as
-# paper.safetensors, renamed with tools/safetensors_meta.py --set name=...) and run tools/stamp_benchmark.py.
+# Copy the finished OUT_DIR/<name>.safetensors into resources/models/ (base-ft as base.safetensors, paper-ft as
+# paper.safetensors, ms and its variants ms-albedo-normal and ms-color as multiscale*.safetensors, renamed with
+# tools/safetensors_meta.py --set name=...) and run tools/stamp_benchmark.py.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 out=${1:?usage: train_zoo.sh OUT_DIR DATA_DIR...}; shift
@@ -33,18 +35,23 @@ export OMP_WAIT_POLICY=passive
 # name: architecture, feature set, steps, validation interval
 declare -A arch=([tiny]=4/32 [small]=8/32 [base]=8/64 [base-albedo-normal]=8/64 [base-color]=8/64 [paper]=16/128
                  [base-variance]=8/64 [base-dilated]=8/64 [base-ft]=8/64 [paper-ft]=16/128 [ms]=2,2,2,2/24,40,56,80
-                 [post]=4/32)
+                 [ms-albedo-normal]=2,2,2,2/24,40,56,80 [ms-color]=2,2,2,2/24,40,56,80 [post]=4/32)
 declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=color+albedo+normal
                      [base-color]=color [paper]=full [base-variance]=full+variance [base-dilated]=full
-                     [base-ft]=full [paper-ft]=full [ms]=full [post]=full)
+                     [base-ft]=full [paper-ft]=full [ms]=full [ms-albedo-normal]=color+albedo+normal
+                     [ms-color]=color [post]=full)
 declare -A steps=([tiny]=16000 [small]=16000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=4000
-                  [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000 [paper-ft]=1500 [ms]=40000 [post]=10000)
+                  [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000 [paper-ft]=1500 [ms]=40000 [ms-albedo-normal]=3000
+                  [ms-color]=3000 [post]=10000)
 declare -A extra=([base-dilated]="--dilations 1,2,4,8"
                   [ms]="--batch 2 --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 7"
+                  [ms-albedo-normal]="--batch 2 --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 7"
+                  [ms-color]="--batch 2 --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 7"
                   [post]="--prior oidn --input-skip --loss l1-log+ssim --seed 7")
 # The feature-set variants of base, and the -ft runs, are fine-tuned from a trained model (--init-from: its
 # weights, the input planes matched by name) at a lower peak learning rate, for a quarter to a third of its steps.
-declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base [base-ft]=base [paper-ft]=paper)
+declare -A init=([base-albedo-normal]=base [base-color]=base [base-variance]=base [base-ft]=base [paper-ft]=paper
+            [ms-albedo-normal]=ms [ms-color]=ms)
 # Validations per run (default 10): a 16/128 validation takes 2-3 min on 2 cores, so paper-ft validates 3 times.
 declare -A validations=([paper-ft]=3)
 

@@ -1,6 +1,7 @@
 // residue-cli models: the model cards (core/nn/model_card.h) of every denoiser a -m name selects, as a table or
 // JSON: what each costs, how fast it was measured and on what, how accurate on the validation scenes. The
 // viewer's model table shows the same cards.
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -27,6 +28,7 @@ nlohmann::json to_json(const nn::ModelCard& c) {
                       {"bf16_s_per_mp", opt(c.benchmark->bf16_s_per_mp)},
                       {"machine", c.benchmark->machine}};
   }
+  if (c.method != nn::Method::Bilateral) j["reach_px"] = c.reach_px;  // a network's; the filter's is its radius
   if (c.blend_tau) j["blend_tau"] = *c.blend_tau;
   if (!c.alias_of.empty()) j["alias_of"] = c.alias_of;
   return j;
@@ -40,13 +42,22 @@ std::string cell(const std::optional<double>& v, const char* format) {
 }
 
 void print_table(const std::vector<nn::ModelCard>& cards) {
-  std::printf("%-14s %-10s %-34s %9s %9s %9s %9s %7s %6s\n", "model", "method", "architecture", "GFLOP/MP",
-              "s/MP fp32", "s/MP bf16", "relMSE", "SSIM", "scenes");
+  const auto name_of = [](const nn::ModelCard& c) {
+    return c.alias_of.empty() ? c.family : c.family + " = " + c.alias_of;
+  };
+  // The two text columns are as wide as their longest entry: an alias's name and a multi-scale architecture are
+  // long, and a cut-off architecture would hide the self-ensemble an alias runs.
+  int name_w = 5, arch_w = 12;
+  for (const auto& c : cards) {
+    name_w = std::max(name_w, static_cast<int>(name_of(c).size()));
+    arch_w = std::max(arch_w, static_cast<int>(c.architecture.size()));
+  }
+  std::printf("%-*s %-10s %-*s %9s %9s %9s %9s %7s %6s\n", name_w, "model", "method", arch_w, "architecture",
+              "GFLOP/MP", "s/MP fp32", "s/MP bf16", "relMSE", "SSIM", "scenes");
   for (const auto& c : cards) {
     const bool net = c.method != nn::Method::Bilateral;
-    const std::string name = c.alias_of.empty() ? c.family : c.family + " = " + c.alias_of;
-    std::printf("%-14s %-10s %-34.34s %9s %9s %9s %9s %7s %6s\n", name.c_str(), nn::to_string(c.method),
-                c.architecture.c_str(), net ? cell(c.gflop_per_mp, "%.0f").c_str() : "-",
+    std::printf("%-*s %-10s %-*s %9s %9s %9s %9s %7s %6s\n", name_w, name_of(c).c_str(), nn::to_string(c.method),
+                arch_w, c.architecture.c_str(), net ? cell(c.gflop_per_mp, "%.0f").c_str() : "-",
                 cell(c.seconds_per_mp(nn::Precision::FP32), "%.3g").c_str(),
                 cell(c.seconds_per_mp(nn::Precision::BF16), "%.3g").c_str(),
                 cell(c.validation ? std::optional<double>(c.validation->relmse) : std::nullopt, "%.3g").c_str(),

@@ -79,6 +79,7 @@ ModelCard model_card(const Model& model, const std::string& family) {
   c.method = model.method;
   c.file = model.path;
   c.gflop_per_mp = gflop_per_mp(model);
+  c.reach_px = model.graph.receptive_reach();
   if (model.method == Method::Oidn) {
     c.architecture = std::string("OIDN ") + oidn_network_name(model.graph);
     c.description = model.oidn.clean_aux ? "Intel Open Image Denoise 2.4, albedo and normal denoised first"

@@ -39,6 +39,7 @@ struct ModelCard {
   int ensemble = 1;            // the self-ensemble it runs with (its cost and numbers are for all its members)
   double gflop_per_mp = 0;     // network work per megapixel (the model's self-ensemble, prefilters and a
                                // post-correction's prior included)
+  int reach_px = 0;            // networks: how far an output pixel sees into the input, each side (pixels)
   std::vector<std::string> variants;  // feature sets present: "full", "color+albedo+normal", "color", ...
   std::string description;
   std::optional<Validation> validation;

@@ -343,7 +343,7 @@ class TestResults : public QObject {
     const Image expected_x2 = denoise(*stack, nn::load_model(nn::find_model_for("small", feature_set_for(*stack))), core_options);
     QVERIFY(maxAbsDiff(*session.result(session.a())->image, expected_x2, 3) < 1e-4);
     QVERIFY(maxAbsDiff(expected_x2, expected, 3) > 1e-3);  // the members changed the image
-    // An alias (resources/models/aliases.json): `best` runs base as a self-ensemble x8 unless told otherwise.
+    // An alias (resources/models/aliases.json): `best` runs multiscale as a self-ensemble x8 unless told otherwise.
     DenoiseController::Request best;
     best.model = "best";
     best.tile = 64;
@@ -352,7 +352,7 @@ class TestResults : public QObject {
     QVERIFY(finished.last().at(0).toBool());
     QVERIFY2(session.result(session.a())->description.contains("self-ensemble x8"),
              qPrintable(session.result(session.a())->description));
-    QVERIFY(session.result(session.a())->description.startsWith("base"));
+    QVERIFY(session.result(session.a())->description.startsWith("multiscale"));
     // An unknown model is refused with a message.
     r.model = "nonesuch";
     QVERIFY(!c.start(r));

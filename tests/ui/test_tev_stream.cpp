@@ -76,6 +76,8 @@ class TevStreamTest : public QObject {
     w.show();
     QCOMPARE(w.listenForRenderers(0), QString());  // any free port
     const quint16 port = w.tevServer()->port();
+    // small has no variant for colour and albedo alone (the default, multiscale, has one for colour alone).
+    QVERIFY(w.denoisePanel()->selectModel("small"));
 
     QTcpSocket renderer;
     renderer.connectToHost(QHostAddress::LocalHost, port);
@@ -91,8 +93,8 @@ class TevStreamTest : public QObject {
     QVERIFY(QTest::qWaitFor([&] { return w.session()->denoised() != nullptr && !w.denoisePanel()->running(); },
                             30000));
     QCOMPARE(w.session()->denoised()->width(), kWidth);
-    // Colour and albedo only: the selected family (small) has no variant for that, so the cheapest that has
-    // one ran, and the result says so.
+    // Colour and albedo only: the selected family has no variant for that, so the cheapest that has one ran,
+    // and the result says so.
     QVERIFY2(w.session()->denoisedDescription().contains("instead of small"), qPrintable(w.session()->denoisedDescription()));
 
     // Malformed clients: a length below a packet's, an unknown type, a huge declared length, a truncated update.
