@@ -138,6 +138,23 @@ TEST(VarianceBlend, DenoiseUsesItOnlyWithVarianceAndTiledEqualsUntiled) {
   EXPECT_TRUE(st.variance_blended);
 }
 
+// The tau a denoise uses, as the viewer reports it: the shipped models' own (base's fitted 1e-4, multiscale's 0),
+// an explicit one over the model's, and never for OIDN's networks, whose post-processing is their own.
+TEST(VarianceBlend, TauADenoiseUsesPerShippedModel) {
+  const nn::Model base = nn::load_model(nn::find_model_for("base", FeatureSet::Full));
+  const nn::Model multiscale = nn::load_model(nn::find_model_for("multiscale", FeatureSet::Full));
+  const nn::Model oidn = nn::load_model(nn::find_model_for("oidn", FeatureSet::Full));
+  DenoiseOptions o;
+  EXPECT_FLOAT_EQ(variance_blend_tau(o, base), 1e-4f);
+  EXPECT_EQ(variance_blend_tau(o, multiscale), 0.0f);
+  EXPECT_EQ(variance_blend_tau(o, oidn), 0.0f);
+  o.blend_tau = 0.003f;
+  EXPECT_EQ(variance_blend_tau(o, multiscale), 0.003f);
+  EXPECT_EQ(variance_blend_tau(o, oidn), 0.0f);
+  o.variance_blend = false;
+  EXPECT_EQ(variance_blend_tau(o, base), 0.0f);
+}
+
 TEST(VarianceBlend, StreamedEqualsInMemoryOnTungstensRender) {
   const auto dir = testing::shared_dataset("tungsten-example/cornell-box");
   RESIDUE_REQUIRE_SHARED(dir);

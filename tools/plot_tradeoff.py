@@ -6,9 +6,12 @@ the panels. This is the measured trade users pick from (docs/MODELS.md).
   /usr/bin/python3 tools/plot_tradeoff.py eval.json tradeoff.png [--title TEXT] [--models tiny,small,base]
 
 --models keeps only those columns (the label without its precision): the feature-set variants serve renders
-that lack AOVs, so they are not a choice on the same data and only crowd the plot.
+that lack AOVs, so they are not a choice on the same data and only crowd the plot. --speed cards takes each
+model's seconds per megapixel from its card (`residue-cli models --json`: benchmarked warm on a 1024-px image, on
+an idle machine) instead of the evaluation's own timing of small whole scenes, which a busy machine or a model's
+first run skews; a model without a benchmark (the bilateral filter) keeps the evaluation's.
 """
-import argparse, json, math
+import argparse, json, math, os, subprocess
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
@@ -19,9 +22,21 @@ def main():
     p.add_argument("png")
     p.add_argument("--title", default="")
     p.add_argument("--models", default="", help="comma-separated labels to plot (default: all)")
+    p.add_argument("--speed", choices=["eval", "cards"], default="eval")
+    p.add_argument("--cli", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build", "release",
+                                                 "app", "residue-cli", "residue-cli"))
     a = p.parse_args()
     d = json.load(open(a.json))
     rows = d["summary"]
+    speed_note = "this machine, whole scenes"
+    if a.speed == "cards":
+        out = subprocess.run([a.cli, "models", "--json"], check=True, capture_output=True, text=True).stdout
+        cards = {c["family"]: c.get("benchmark") or {} for c in json.loads(out[out.index("["):])}
+        for r in rows:
+            s = cards.get(r["model"], {}).get(f"{r['precision']}_s_per_mp")
+            if s:
+                r["seconds_per_megapixel"] = s
+        speed_note = "benchmarked: the model cards"
     noisy = next(r for r in rows if r["label"] == "noisy")
     keep = set(filter(None, a.models.split(",")))
     points = [r for r in rows if r["label"] != "noisy"
@@ -56,7 +71,7 @@ def main():
             ax.set_yscale("log")
             ax.yaxis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
             ax.yaxis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
-        ax.set_xlabel("seconds per megapixel (this machine, whole scenes)")
+        ax.set_xlabel(f"seconds per megapixel ({speed_note})")
         ax.set_ylabel(name)
         ax.grid(True, which="both", alpha=0.3)
     handles, labels = axes[0].get_legend_handles_labels()

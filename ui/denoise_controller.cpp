@@ -154,7 +154,11 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
     const int members = req.ensemble > 0 ? req.ensemble : net->ensemble;
     if (members > 1) description_ += tr(", self-ensemble x%1").arg(members);
     if (!req.energy_correction) description_ += tr(", no energy correction");
-    if (stack->variance) description_ += req.variance_blend ? tr(", variance blend") : tr(", no variance blend");
+    // The blend as it will run: OIDN's networks never use it, and a model with tau 0 keeps its whole output.
+    DenoiseOptions blend;
+    blend.variance_blend = req.variance_blend;
+    if (stack->variance && method == nn::Method::Residue)
+      description_ += variance_blend_tau(blend, *net) > 0 ? tr(", variance blend") : tr(", no variance blend");
     if (asked != req.model) description_ += tr(", instead of %1, which has no variant for this render's AOVs").arg(asked);
     else if (variant != req.model) description_ += tr(" — picked for the AOVs this render has");
   }

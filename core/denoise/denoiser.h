@@ -89,6 +89,11 @@ using TileCallback = std::function<bool(const TileEvent&, const Image& output)>;
 Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
               const TileCallback& on_tile = {}, DenoiseStats* stats = nullptr);
 
+// The variance blend's tau a denoise with these options uses (when the stack has variance); 0 when the blend is
+// off: unasked, a model that keeps its whole output (residue.blend_tau 0), or not a Residue network (OIDN's
+// networks have their own post-processing; a post-correction's prior is cleaner than the input it would keep).
+float variance_blend_tau(const DenoiseOptions& options, const nn::Model& model);
+
 // The same denoise, streamed: the render is read band by band (rows of tiles with their halos) and the EXR is
 // written band by band, so memory stays within options.max_memory whatever the image size (a 16K x 16K render
 // in 4 GiB). `exr` says how to write (its data/display windows and metadata are taken from the reader when
