@@ -604,7 +604,7 @@ TEST(ModelCard, ShippedFamiliesWithTheirNumbers) {
   std::vector<std::string> names;
   for (const auto& c : cards) names.push_back(c.family);
   // `best` is an alias (resources/models/aliases.json): multiscale x8, so it sorts after base by cost.
-  EXPECT_EQ(names, (std::vector<std::string>{"bilateral", "tiny", "multiscale", "small", "base", "best", "paper", "oidn",
+  ASSERT_EQ(names, (std::vector<std::string>{"bilateral", "tiny", "multiscale", "small", "base", "best", "paper", "oidn",
                                              "oidn-cleanaux"}));
   EXPECT_EQ(cards.front().method, nn::Method::Bilateral);
   for (const auto& c : cards) {
@@ -636,7 +636,7 @@ TEST(ModelCard, ShippedFamiliesWithTheirNumbers) {
   // base ships variants for fewer AOVs and for a variance AOV, multiscale for fewer AOVs. On the same scenes
   // (MODELS.md) multiscale is more accurate than base at a fifth of its cost, best (multiscale x8) more still, and
   // OIDN still ahead of both.
-  const auto card = [&](const std::string& family) {
+  const auto card = [&](const std::string& family) -> const nn::ModelCard& {  // each is there: asserted above
     return *std::find_if(cards.begin(), cards.end(), [&](const nn::ModelCard& c) { return c.family == family; });
   };
   EXPECT_EQ(card("base").variants.size(), size_t(4));

@@ -22,14 +22,15 @@ def main():
     p.add_argument("models", nargs="*")
     a = p.parse_args()
     models = a.models or sorted(glob.glob(os.path.join(root, "resources/models/*.safetensors")))
+    # The file itself, not its BLOCKS/WIDTH: a multi-scale network has no such size, and the file's own settings
+    # (autoexposure, prefilters) are part of what it costs.
+    bench = lambda model: ["bench", "--models", model, "--precisions", "fp32,bf16", "--size", str(a.size),
+                           "--repeat", "2", "--json"]
     for path in models:
         header, data = read_header(path)
         meta = header.setdefault("__metadata__", {})
-        # The file itself, not its BLOCKS/WIDTH: a multi-scale network has no such size, and the file's own
-        # settings (autoexposure, prefilters) are part of what it costs.
-        cmd = [a.cli, "bench", "--models", os.path.abspath(path), "--precisions", "fp32,bf16", "--size",
-               str(a.size), "--repeat", "2", "--json"]
-        result = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+        result = json.loads(subprocess.run([a.cli] + bench(os.path.abspath(path)), check=True, capture_output=True,
+                                           text=True).stdout)
         best = {}
         for r in result["rows"]:
             s = r["seconds_per_megapixel"]
@@ -42,7 +43,7 @@ def main():
             "bf16_implementation": best["bf16"]["implementation"] if "bf16" in best else None,
             "machine": f"{result['cpu']}, {os.cpu_count()} cores",  # the CPU as bench names it
             "image": a.size,
-            "command": " ".join(["residue-cli"] + cmd[1:3] + [os.path.basename(path)] + cmd[4:]),
+            "command": " ".join(["residue-cli"] + bench(os.path.basename(path))),
         }, separators=(",", ":"))
         write_header(path, header, data)
         print(f"{os.path.basename(path)}: fp32 {best['fp32']['seconds_per_megapixel']:.3f} s/MP"

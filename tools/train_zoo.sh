@@ -43,10 +43,9 @@ declare -A features=([tiny]=full [small]=full [base]=full [base-albedo-normal]=c
 declare -A steps=([tiny]=16000 [small]=16000 [base]=12000 [base-albedo-normal]=3000 [base-color]=3000 [paper]=4000
                   [base-variance]=3000 [base-dilated]=12000 [base-ft]=3000 [paper-ft]=1500 [ms]=40000 [ms-albedo-normal]=3000
                   [ms-color]=3000 [post]=10000)
+ms_recipe="--batch 2 --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 7"  # ms and its variants
 declare -A extra=([base-dilated]="--dilations 1,2,4,8"
-                  [ms]="--batch 2 --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 7"
-                  [ms-albedo-normal]="--batch 2 --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 7"
-                  [ms-color]="--batch 2 --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 7"
+                  [ms]=$ms_recipe [ms-albedo-normal]=$ms_recipe [ms-color]=$ms_recipe
                   [post]="--prior oidn --input-skip --loss l1-log+ssim --seed 7")
 # The feature-set variants of base, and the -ft runs, are fine-tuned from a trained model (--init-from: its
 # weights, the input planes matched by name) at a lower peak learning rate, for a quarter to a third of its steps.
