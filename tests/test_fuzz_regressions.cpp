@@ -160,10 +160,48 @@ TEST(FuzzRegressions, ExrHeaderDeclaringMoreThanTheFileIsRefusedBeforeOpening) {
   EXPECT_THROW((void)residue::list_channels(path), residue::Error);
 }
 
-// A 3 KB file whose data window is 33554438 x 6 pixels: opening it, OpenEXR 3.1 allocates a 2.6 GB line buffer
-// for its compressor, which libFuzzer reports as out of memory (found by fuzz_exr_loader in CI). The loader keeps no
-// size limit (a render that large is legitimate), so the harness skips such headers, now from the bytes alone
-// rather than by opening the file: the count it skips by must be the header's, checked against OpenImageIO's spec.
+// A 3 KB file whose data window is 33554438 x 6 pixels of 16 float channels: opening it, OpenEXR 3.1 allocates a
+// 2.6 GB line buffer, which libFuzzer reports as out of memory (found by fuzz_exr_loader in CI), and `residue-cli
+// info` used 8 GB and ended in bad_alloc. The loader refuses a window no codec could pack into the file, naming it
+// (48 bytes a pixel: the 12 float channels its channel list's declared size holds); every real seed passes.
+TEST(FuzzRegressions, ExrWindowLargerThanTheFileCanHoldIsRefusedBeforeOpening) {
+  const fs::path path = corpus_dir("fuzz_exr_loader") / "crash-oom-openexr-data-window-line-buffer.exr";
+  try {
+    (void)residue::load_aov_stack({path}, residue::LoadOptions{});
+    FAIL() << "expected residue::Error";
+  } catch (const residue::Error& e) {
+    EXPECT_EQ(e.kind(), residue::ErrorKind::Input);
+    const std::string what = e.what();
+    EXPECT_NE(what.find(path.filename().string()), std::string::npos) << what;
+    EXPECT_NE(what.find("a window of 33554438 x 6 pixels of 48 bytes, more than a file of 3108 bytes can hold"),
+              std::string::npos) << what;
+  }
+  for (const auto& e : fs::directory_iterator(corpus_dir("fuzz_exr_loader"))) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("crash-", 0) == 0 || name.rfind("slow-", 0) == 0) continue;  // the fuzzers' findings
+    const auto bytes = read_bytes(e.path());
+    EXPECT_FALSE(residue::exr_header_problem(bytes.data(), bytes.size(), bytes.size())) << e.path();
+  }
+  // The bundled render with its data window's xMax raised: 256 MiB of pixels pass whatever the file's size, more
+  // than 65536x the file's bytes does not.
+  auto room = read_bytes(fs::path(RESIDUE_SOURCE_RESOURCES) / "examples" / "room" / "noisy.exr");
+  const std::string window("dataWindow\0box2i", 16);
+  const auto at = std::search(room.begin(), room.end(), window.begin(), window.end());
+  ASSERT_NE(at, room.end());
+  const size_t x_max = static_cast<size_t>(at - room.begin()) + window.size() + 1 + 4 + 8;
+  auto set_x_max = [&](uint32_t v) {
+    for (size_t i = 0; i < 4; ++i) room[x_max + i] = static_cast<uint8_t>(v >> (8 * i));
+  };
+  const auto problem_at = [&](uint64_t file_size) { return residue::exr_header_problem(room.data(), room.size(), file_size); };
+  set_x_max(1000);  // 1001 columns x 256 lines (a chunk) x its bytes per pixel: far below 256 MiB
+  EXPECT_FALSE(problem_at(room.size()));
+  set_x_max(20000000);
+  EXPECT_TRUE(problem_at(room.size()));
+  EXPECT_FALSE(problem_at(uint64_t{1} << 40)) << "a file large enough for it";
+}
+
+// The harness's own size gate (1 Mi values) reads the bytes too, never OpenImageIO's open, which allocates: the
+// count it skips by must be the header's, checked against OpenImageIO's spec.
 TEST(FuzzRegressions, ExrDeclaringAHugeWindowIsSkippedBeforeOpening) {
   const auto found = read_bytes(corpus_dir("fuzz_exr_loader") / "crash-oom-openexr-data-window-line-buffer.exr");
   ASSERT_GT(found.size(), 1000u);

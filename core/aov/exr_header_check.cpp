@@ -1,5 +1,8 @@
 #include "core/aov/exr_header_check.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <vector>
@@ -44,6 +47,27 @@ std::optional<std::string> channel_list_problem(const uint8_t* p, size_t n) {
   return std::nullopt;
 }
 
+// Bytes per pixel of a channel list (`n` bytes at `p`): 2 per half channel, 4 per uint or float one.
+double channel_list_bytes(const uint8_t* p, size_t n) {
+  double bytes = 0;
+  for (size_t pos = 0; pos < n;) {
+    const void* nul = std::memchr(p + pos, 0, n - pos);
+    if (!nul || nul == p + pos) break;  // truncated, or the end of the list
+    pos = static_cast<size_t>(static_cast<const uint8_t*>(nul) - p) + 1;
+    if (n - pos < 16) break;
+    bytes += load_le32(p + pos) == 1 ? 2 : 4;
+    pos += 16;
+  }
+  return bytes;
+}
+
+// No OpenEXR codec comes near this ratio of pixel bytes to file bytes (zlib's limit is 1032:1; an all-black DWAB
+// image about 10^4:1); below kAlwaysPlausibleBytes a header is never refused for its size.
+constexpr double kMaxCompression = 65536;
+constexpr double kAlwaysPlausibleBytes = 256.0 * (1 << 20);
+// OpenEXR sizes a compressor's buffer for a whole chunk of lines (up to 256, DWAB's) even where the window is lower.
+constexpr double kMaxLinesPerChunk = 256;
+
 }  // namespace
 
 std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size, uint64_t file_size) {
@@ -70,6 +94,41 @@ std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size,
     const size_t value = p + sizeof kChlist + 4;
     const uint32_t n = load_le32(bytes + p + sizeof kChlist);
     if (auto problem = channel_list_problem(bytes + value, std::min<size_t>(n, size - value))) return problem;
+  }
+
+  // The pixels it declares must fit in the file: opening it, OpenEXR allocates line buffers by the data window, and
+  // a reader the whole image (a 3 KB file declaring 33554438 x 6 pixels of 16 float channels cost 8 GB of memory
+  // and ended in bad_alloc: found by fuzz_exr_loader). Every window (box2i) and tile size (tiledesc) is taken
+  // wherever it stands, with the widest channel list, so that a mutated header cannot hide one.
+  double pixel_bytes = 0;
+  for (size_t p = 0; p + sizeof kChlist + 4 <= size; ++p)
+    if (std::memcmp(bytes + p, kChlist, sizeof kChlist) == 0)
+      pixel_bytes = std::max(pixel_bytes, channel_list_bytes(bytes + p + sizeof kChlist + 4,
+                                                             std::min<size_t>(load_le32(bytes + p + sizeof kChlist),
+                                                                              size - (p + sizeof kChlist + 4))));
+  const double plausible = std::max(kAlwaysPlausibleBytes, static_cast<double>(file_size) * kMaxCompression);
+  auto too_many_pixels = [&](double width, double height, const char* what) -> std::optional<std::string> {
+    const double declared = width * std::max(height, kMaxLinesPerChunk) * std::max(pixel_bytes, 1.0);
+    if (declared <= plausible) return std::nullopt;
+    char text[160];
+    std::snprintf(text, sizeof text, "its header declares %s of %.0f x %.0f pixels of %.0f bytes, more than a file of ",
+                  what, width, height, pixel_bytes);
+    return text + std::to_string(file_size) + " bytes can hold (corrupt or truncated)";
+  };
+  auto i32 = [&](size_t at) { return static_cast<double>(static_cast<int32_t>(load_le32(bytes + at))); };
+  static constexpr char kBox[] = "box2i", kTiles[] = "tiledesc";
+  for (size_t p = 0; p + sizeof kBox + 4 + 16 <= size; ++p) {
+    if (std::memcmp(bytes + p, kBox, sizeof kBox) != 0) continue;
+    const size_t v = p + sizeof kBox + 4;  // xMin, yMin, xMax, yMax
+    if (auto problem = too_many_pixels(std::abs(i32(v + 8) - i32(v)) + 1, std::abs(i32(v + 12) - i32(v + 4)) + 1,
+                                       "a window"))
+      return problem;
+  }
+  for (size_t p = 0; p + sizeof kTiles + 4 + 8 <= size; ++p) {
+    if (std::memcmp(bytes + p, kTiles, sizeof kTiles) != 0) continue;
+    const size_t v = p + sizeof kTiles + 4;  // tile width, height (unsigned)
+    if (auto problem = too_many_pixels(load_le32(bytes + v), load_le32(bytes + v + 4), "tiles"))
+      return problem;
   }
 
   // The walk: per header (several in a multipart file, an empty one ending the list) name, type, size, value.

@@ -5,7 +5,9 @@
 // file whose header declares a 1.9 GB string attribute costs 1.9 GB of memory before "unexpected end of file"
 // (found by fuzz_exr_loader; docs/RELIABILITY.md). No valid file declares an attribute larger than itself, so
 // such a header is refused here, naming the attribute, before any allocation. Likewise a channel list with a
-// pixel type OpenEXR does not have (OpenImageIO 2.4 aborts the process on it) or a sampling below 1.
+// pixel type OpenEXR does not have (OpenImageIO 2.4 aborts the process on it) or a sampling below 1, and a window
+// or tile size whose pixels no codec could pack into the file (over 65536:1, and over 256 MiB): OpenEXR sizes its
+// buffers by them on opening, 8 GB for a 3 KB file.
 
 #include <cstddef>
 #include <cstdint>
