@@ -47,20 +47,6 @@ std::optional<std::string> channel_list_problem(const uint8_t* p, size_t n) {
   return std::nullopt;
 }
 
-// Bytes per pixel of a channel list (`n` bytes at `p`): 2 per half channel, 4 per uint or float one.
-double channel_list_bytes(const uint8_t* p, size_t n) {
-  double bytes = 0;
-  for (size_t pos = 0; pos < n;) {
-    const void* nul = std::memchr(p + pos, 0, n - pos);
-    if (!nul || nul == p + pos) break;  // truncated, or the end of the list
-    pos = static_cast<size_t>(static_cast<const uint8_t*>(nul) - p) + 1;
-    if (n - pos < 16) break;
-    bytes += load_le32(p + pos) == 1 ? 2 : 4;
-    pos += 16;
-  }
-  return bytes;
-}
-
 // No OpenEXR codec comes near this ratio of pixel bytes to file bytes (zlib's limit is 1032:1; an all-black DWAB
 // image about 10^4:1); below kAlwaysPlausibleBytes a header is never refused for its size.
 constexpr double kMaxCompression = 65536;
@@ -69,6 +55,39 @@ constexpr double kAlwaysPlausibleBytes = 256.0 * (1 << 20);
 constexpr double kMaxLinesPerChunk = 256;
 
 }  // namespace
+
+ExrDeclaredPixels exr_declared_pixels(const uint8_t* bytes, size_t size) {
+  ExrDeclaredPixels out;
+  // Each value sits after its type name, the name's NUL and a 4-byte size.
+  auto each = [&](const char* type, size_t value_bytes, auto&& visit) {
+    const size_t len = std::strlen(type) + 1;
+    for (size_t p = 0; p + len + 4 + value_bytes <= size; ++p)
+      if (std::memcmp(bytes + p, type, len) == 0) visit(p + len + 4, load_le32(bytes + p + len));
+  };
+  each("chlist", 0, [&](size_t list, uint32_t declared) {
+    const size_t n = std::min<size_t>(declared, size - list);
+    double channels = 0, pixel_bytes = 0;
+    for (size_t pos = 0; pos < n;) {  // name, NUL, then pixel type, linear, reserved, x and y sampling: 16 bytes
+      const void* nul = std::memchr(bytes + list + pos, 0, n - pos);
+      if (!nul || nul == bytes + list + pos) break;  // truncated, or the end of the list
+      pos = static_cast<size_t>(static_cast<const uint8_t*>(nul) - (bytes + list)) + 1;
+      if (n - pos < 16) break;
+      channels += 1;
+      pixel_bytes += load_le32(bytes + list + pos) == 1 ? 2 : 4;  // half, else uint or float
+      pos += 16;
+    }
+    out.channels = std::max(out.channels, channels);
+    out.pixel_bytes = std::max(out.pixel_bytes, pixel_bytes);
+  });
+  auto i32 = [&](size_t at) { return static_cast<double>(static_cast<int32_t>(load_le32(bytes + at))); };
+  each("box2i", 16, [&](size_t v, uint32_t) {  // xMin, yMin, xMax, yMax
+    out.windows.emplace_back(std::abs(i32(v + 8) - i32(v)) + 1, std::abs(i32(v + 12) - i32(v + 4)) + 1);
+  });
+  each("tiledesc", 8, [&](size_t v, uint32_t) {  // tile width, height (unsigned), level mode
+    out.tiles.emplace_back(load_le32(bytes + v), load_le32(bytes + v + 4));
+  });
+  return out;
+}
 
 std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size, uint64_t file_size) {
   static constexpr uint8_t kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
@@ -97,39 +116,18 @@ std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size,
   }
 
   // The pixels it declares must fit in the file: opening it, OpenEXR allocates line buffers by the data window, and
-  // a reader the whole image (a 3 KB file declaring 33554438 x 6 pixels of 16 float channels cost 8 GB of memory
-  // and ended in bad_alloc: found by fuzz_exr_loader). Every window (box2i) and tile size (tiledesc) is taken
-  // wherever it stands, with the widest channel list, so that a mutated header cannot hide one.
-  double pixel_bytes = 0;
-  for (size_t p = 0; p + sizeof kChlist + 4 <= size; ++p)
-    if (std::memcmp(bytes + p, kChlist, sizeof kChlist) == 0)
-      pixel_bytes = std::max(pixel_bytes, channel_list_bytes(bytes + p + sizeof kChlist + 4,
-                                                             std::min<size_t>(load_le32(bytes + p + sizeof kChlist),
-                                                                              size - (p + sizeof kChlist + 4))));
+  // a reader the whole image (a 3 KB file declaring 33554438 x 6 pixels of 12 float channels cost 8 GB of memory
+  // and ended in bad_alloc: found by fuzz_exr_loader).
+  const ExrDeclaredPixels declared = exr_declared_pixels(bytes, size);
   const double plausible = std::max(kAlwaysPlausibleBytes, static_cast<double>(file_size) * kMaxCompression);
-  auto too_many_pixels = [&](double width, double height, const char* what) -> std::optional<std::string> {
-    const double declared = width * std::max(height, kMaxLinesPerChunk) * std::max(pixel_bytes, 1.0);
-    if (declared <= plausible) return std::nullopt;
-    char text[160];
-    std::snprintf(text, sizeof text, "its header declares %s of %.0f x %.0f pixels of %.0f bytes, more than a file of ",
-                  what, width, height, pixel_bytes);
-    return text + std::to_string(file_size) + " bytes can hold (corrupt or truncated)";
-  };
-  auto i32 = [&](size_t at) { return static_cast<double>(static_cast<int32_t>(load_le32(bytes + at))); };
-  static constexpr char kBox[] = "box2i", kTiles[] = "tiledesc";
-  for (size_t p = 0; p + sizeof kBox + 4 + 16 <= size; ++p) {
-    if (std::memcmp(bytes + p, kBox, sizeof kBox) != 0) continue;
-    const size_t v = p + sizeof kBox + 4;  // xMin, yMin, xMax, yMax
-    if (auto problem = too_many_pixels(std::abs(i32(v + 8) - i32(v)) + 1, std::abs(i32(v + 12) - i32(v + 4)) + 1,
-                                       "a window"))
-      return problem;
-  }
-  for (size_t p = 0; p + sizeof kTiles + 4 + 8 <= size; ++p) {
-    if (std::memcmp(bytes + p, kTiles, sizeof kTiles) != 0) continue;
-    const size_t v = p + sizeof kTiles + 4;  // tile width, height (unsigned)
-    if (auto problem = too_many_pixels(load_le32(bytes + v), load_le32(bytes + v + 4), "tiles"))
-      return problem;
-  }
+  for (const auto& [extent, what] : {std::pair{&declared.windows, "a window"}, std::pair{&declared.tiles, "tiles"}})
+    for (const auto& [width, height] : *extent) {
+      if (width * std::max(height, kMaxLinesPerChunk) * std::max(declared.pixel_bytes, 1.0) <= plausible) continue;
+      char text[160];
+      std::snprintf(text, sizeof text, "its header declares %s of %.0f x %.0f pixels of %.0f bytes, more than a file of ",
+                    what, width, height, declared.pixel_bytes);
+      return text + std::to_string(file_size) + " bytes can hold (corrupt or truncated)";
+    }
 
   // The walk: per header (several in a multipart file, an empty one ending the list) name, type, size, value.
   const bool multipart = (bytes[5] & 0x10) != 0;  // version field, bit 12

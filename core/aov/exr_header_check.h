@@ -14,8 +14,22 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace residue {
+
+// What a header declares for its pixels, read from the bytes alone: every window (box2i) and tile size (tiledesc)
+// wherever it stands, and the channel list with the most channels / bytes, so that a mutated attribute size, which
+// puts a walk of the header out of step with OpenEXR's, cannot hide one. Extents are doubles: two 32-bit extents
+// overflow 64 bits.
+struct ExrDeclaredPixels {
+  std::vector<std::pair<double, double>> windows;  // width, height of each data or display window
+  std::vector<std::pair<double, double>> tiles;    // width, height of each tile description
+  double channels = 0;                             // of the longest channel list
+  double pixel_bytes = 0;                          // of the widest: 2 per half channel, 4 per uint or float
+};
+ExrDeclaredPixels exr_declared_pixels(const uint8_t* bytes, size_t size);
 
 // What is wrong with the header in `bytes` (the first bytes of a file of `file_size` bytes), or nothing when
 // every attribute it declares fits in the file. Bytes that are not OpenEXR pass (OpenImageIO judges them).

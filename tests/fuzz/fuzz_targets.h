@@ -8,7 +8,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -27,7 +26,6 @@
 #include "core/nn/oidn_network.h"
 #include "core/nn/safetensors.h"
 #include "core/nn/tza.h"
-#include "core/util/little_endian.h"
 
 namespace residue::fuzz {
 
@@ -66,36 +64,15 @@ inline std::filesystem::path write_input(const std::string& name, const uint8_t*
 // more than this many channel values (4 MiB of floats), or with over 16 subimages, are skipped.
 constexpr int64_t kMaxExrValues = int64_t{1} << 20;
 
-// The most channel values any window or tile of the header declares, read from the bytes alone: opening the file
-// already allocates by them (OpenEXR 3.1 sizes a compressor's line buffer by the data window, 2.6 GB for a 3 KB
-// file whose window is 33 million pixels wide: found by fuzz_exr_loader), so this gate cannot ask OpenImageIO.
-// Every box2i and tiledesc value is taken wherever it stands (a mutated attribute size puts a header walk out of
-// step with OpenEXR's), times the longest channel list; a double, as two 32-bit extents overflow 64 bits.
+// The most channel values any window or tile of the header declares, from the bytes alone
+// (core/aov/exr_header_check.h): opening the file already allocates by them (OpenEXR 3.1 sizes a compressor's line
+// buffer by the data window: found by fuzz_exr_loader), so this gate cannot ask OpenImageIO.
 inline double exr_declared_values(const uint8_t* bytes, size_t size) {
-  auto each = [&](const char* type, size_t value_bytes, auto&& visit) {
-    const size_t len = std::strlen(type) + 1;  // the type name and its NUL, then a 4-byte size, then the value
-    for (size_t p = 0; p + len + 4 + value_bytes <= size; ++p)
-      if (std::memcmp(bytes + p, type, len) == 0) visit(bytes + p + len + 4);
-  };
-  auto i32 = [](const uint8_t* p) { return static_cast<double>(static_cast<int32_t>(load_le32(p))); };
-  double channels = 1;
-  each("chlist", 0, [&](const uint8_t* list) {
-    double n = 0;
-    for (const uint8_t* p = list; p < bytes + size && *p != 0; ++n) {
-      const void* nul = std::memchr(p, 0, static_cast<size_t>(bytes + size - p));
-      if (!nul) break;
-      p = static_cast<const uint8_t*>(nul) + 1 + 16;  // name, NUL, pixel type, linear, reserved, x and y sampling
-    }
-    channels = std::max(channels, n);
-  });
+  const ExrDeclaredPixels declared = exr_declared_pixels(bytes, size);
   double largest = 0;
-  each("box2i", 16, [&](const uint8_t* v) {
-    largest = std::max(largest, (std::abs(i32(v + 8) - i32(v)) + 1) * (std::abs(i32(v + 12) - i32(v + 4)) + 1));
-  });
-  each("tiledesc", 8, [&](const uint8_t* v) {
-    largest = std::max(largest, static_cast<double>(load_le32(v)) * static_cast<double>(load_le32(v + 4)));
-  });
-  return largest * channels;
+  for (const auto* extent : {&declared.windows, &declared.tiles})
+    for (const auto& [width, height] : *extent) largest = std::max(largest, width * height);
+  return largest * std::max(declared.channels, 1.0);
 }
 
 // OpenEXR 3.1 allocates what a header declares before reading it; the loader refuses such headers first
