@@ -21,6 +21,21 @@ std::string too_large(const std::string& what, uint64_t declared, uint64_t file_
          std::to_string(file_size) + " (corrupt or truncated)";
 }
 
+// OpenEXR reads a fixed-size attribute (box2i, v2f, ...) by its type, whatever size the header declares, so after a
+// mutated size its position and a walk of the header part ways; so a type name is looked at wherever it stands.
+// Calls visit(value offset, declared size) for each place `type` (and its NUL) stands with its 4-byte size and at
+// least `value_bytes` after it; stops at the first problem a visit returns.
+template <class Visit>
+std::optional<std::string> for_each_typed_value(const uint8_t* bytes, size_t size, const char* type,
+                                                size_t value_bytes, Visit&& visit) {
+  const size_t len = std::strlen(type) + 1;
+  for (size_t p = 0; p + len + 4 + value_bytes <= size; ++p) {
+    if (std::memcmp(bytes + p, type, len) != 0) continue;
+    if (auto problem = visit(p + len + 4, load_le32(bytes + p + len))) return problem;
+  }
+  return std::nullopt;
+}
+
 // A channel list (the value of a "chlist" attribute at `p`, `n` bytes): what OpenImageIO cannot take. OpenImageIO
 // 2.4 aborts the process (an assertion) on a pixel type other than 0 (uint), 1 (half), 2 (float): found by
 // fuzz_exr_loader.
@@ -58,13 +73,8 @@ constexpr double kMaxLinesPerChunk = 256;
 
 ExrDeclaredPixels exr_declared_pixels(const uint8_t* bytes, size_t size) {
   ExrDeclaredPixels out;
-  // Each value sits after its type name, the name's NUL and a 4-byte size.
-  auto each = [&](const char* type, size_t value_bytes, auto&& visit) {
-    const size_t len = std::strlen(type) + 1;
-    for (size_t p = 0; p + len + 4 + value_bytes <= size; ++p)
-      if (std::memcmp(bytes + p, type, len) == 0) visit(p + len + 4, load_le32(bytes + p + len));
-  };
-  each("chlist", 0, [&](size_t list, uint32_t declared) {
+  const std::optional<std::string> none;
+  for_each_typed_value(bytes, size, "chlist", 0, [&](size_t list, uint32_t declared) {
     const size_t n = std::min<size_t>(declared, size - list);
     double channels = 0, pixel_bytes = 0;
     for (size_t pos = 0; pos < n;) {  // name, NUL, then pixel type, linear, reserved, x and y sampling: 16 bytes
@@ -78,13 +88,16 @@ ExrDeclaredPixels exr_declared_pixels(const uint8_t* bytes, size_t size) {
     }
     out.channels = std::max(out.channels, channels);
     out.pixel_bytes = std::max(out.pixel_bytes, pixel_bytes);
+    return none;
   });
   auto i32 = [&](size_t at) { return static_cast<double>(static_cast<int32_t>(load_le32(bytes + at))); };
-  each("box2i", 16, [&](size_t v, uint32_t) {  // xMin, yMin, xMax, yMax
+  for_each_typed_value(bytes, size, "box2i", 16, [&](size_t v, uint32_t) {  // xMin, yMin, xMax, yMax
     out.windows.emplace_back(std::abs(i32(v + 8) - i32(v)) + 1, std::abs(i32(v + 12) - i32(v + 4)) + 1);
+    return none;
   });
-  each("tiledesc", 8, [&](size_t v, uint32_t) {  // tile width, height (unsigned), level mode
+  for_each_typed_value(bytes, size, "tiledesc", 8, [&](size_t v, uint32_t) {  // tile width, height, level mode
     out.tiles.emplace_back(load_le32(bytes + v), load_le32(bytes + v + 4));
+    return none;
   });
   return out;
 }
@@ -93,27 +106,19 @@ std::optional<std::string> exr_header_problem(const uint8_t* bytes, size_t size,
   static constexpr uint8_t kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
   if (size < 8 || std::memcmp(bytes, kMagic, 4) != 0) return std::nullopt;
 
-  // OpenEXR reads a fixed-size attribute (box2i, v2f, ...) by its type, whatever size the header declares, so
-  // after a mutated size its position and the walk below part ways; so every string type name is also looked
-  // at wherever it stands, with the size after it (both inputs the fuzzer found are caught this way only).
-  for (const char* type : {"string", "stringvector"}) {
-    const size_t len = std::strlen(type) + 1;
-    for (size_t p = 0; p + len + 4 <= size; ++p) {
-      if (std::memcmp(bytes + p, type, len) != 0) continue;
-      const uint32_t n = load_le32(bytes + p + len);
-      if (n > file_size) return too_large(std::string("a ") + type + " attribute", n, file_size);
-    }
-  }
-
-  // Every channel list, wherever it stands (a multipart file has one per part; see above for why not only the
-  // walk's).
-  static constexpr char kChlist[] = "chlist";
-  for (size_t p = 0; p + sizeof kChlist + 4 <= size; ++p) {
-    if (std::memcmp(bytes + p, kChlist, sizeof kChlist) != 0) continue;
-    const size_t value = p + sizeof kChlist + 4;
-    const uint32_t n = load_le32(bytes + p + sizeof kChlist);
-    if (auto problem = channel_list_problem(bytes + value, std::min<size_t>(n, size - value))) return problem;
-  }
+  // Every string's size and every channel list, wherever they stand (for_each_typed_value says why not only the
+  // walk's below; both string inputs the fuzzer found are caught this way only; a multipart file has a channel
+  // list per part).
+  for (const char* type : {"string", "stringvector"})
+    if (auto problem = for_each_typed_value(bytes, size, type, 0, [&](size_t, uint32_t n) -> std::optional<std::string> {
+          if (n > file_size) return too_large(std::string("a ") + type + " attribute", n, file_size);
+          return std::nullopt;
+        }))
+      return problem;
+  if (auto problem = for_each_typed_value(bytes, size, "chlist", 0, [&](size_t value, uint32_t n) {
+        return channel_list_problem(bytes + value, std::min<size_t>(n, size - value));
+      }))
+    return problem;
 
   // The pixels it declares must fit in the file: opening it, OpenEXR allocates line buffers by the data window, and
   // a reader the whole image (a 3 KB file declaring 33554438 x 6 pixels of 12 float channels cost 8 GB of memory
