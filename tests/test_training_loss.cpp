@@ -49,6 +49,27 @@ TEST(TrainLoss, SsimIsCoresMetricOnARealRender) {
   }
 }
 
+// The relMSE term is core's float64 relMSE metric on the same real render, given log(1 + c) values, and its
+// gradient stays finite where the prediction is far above a black target.
+TEST(TrainLoss, RelativeMseIsCoresMetricOnARealRender) {
+  const auto starter = testing::shared_dataset("cycles-starter");
+  RESIDUE_REQUIRE_SHARED(starter);
+  const AovStack scene = load_dataset_scene(starter / "s158");
+  const Image& noisy = scene.color.image;
+  const Image& reference = scene.reference->image;
+  const double expected = metrics::compare(noisy, reference).relmse;
+  ASSERT_GT(expected, 0.01) << "a noisy image, so that the check is not near the trivial 0";
+  const auto x = torch::log1p(to_tensor(noisy, torch::kFloat64).slice(1, 0, 3));
+  const auto y = torch::log1p(to_tensor(reference, torch::kFloat64).slice(1, 0, 3));
+  EXPECT_NEAR(train::relative_mse(x, y).item<double>(), expected, 1e-9 * expected);
+  EXPECT_NEAR(train::relative_mse(y, y).item<double>(), 0.0, 1e-15);
+  auto far = torch::full({1, 3, 4, 4}, 30.0, torch::dtype(torch::kFloat32).requires_grad(true));
+  const auto loss = train::relative_mse(far, torch::zeros({1, 3, 4, 4}));
+  loss.backward();
+  EXPECT_TRUE(std::isfinite(loss.item<double>()));
+  EXPECT_TRUE(torch::isfinite(far.grad()).all().item<bool>()) << "the prediction is clamped before expm1";
+}
+
 TEST(TrainLoss, SsimTermIsZeroAtTheTargetAndGrowsWithTheError) {
   torch::manual_seed(5);
   const auto target = torch::log1p(torch::rand({2, 3, 64, 64}) * 4.0);

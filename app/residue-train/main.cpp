@@ -58,6 +58,7 @@ struct Options {
   bool bf16 = false;  // CPU autocast: convolutions in bfloat16, weights, loss and optimiser in float
   std::string loss = "l1-log";  // see training_loss.h
   double ssim_weight = 1.0;      // for l1-log+ssim
+  double relmse_weight = 0.0;    // adds relmse_weight x relMSE (eps 0.01) to the loss
   int precise_bn = 0;            // batches for recalibrating BN statistics before validation and export; 0: off
   double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
   std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
@@ -285,7 +286,8 @@ int run(const Options& o) {
       prediction = net->forward(x);
     }
     if (arch.demodulate) prediction = train::remodulate(prediction, x.slice(1, albedo_at, albedo_at + 3));
-    const torch::Tensor loss = train::training_loss(o.loss, prediction, y, o.ssim_weight);
+    torch::Tensor loss = train::training_loss(o.loss, prediction, y, o.ssim_weight);
+    if (o.relmse_weight > 0) loss = loss + o.relmse_weight * train::relative_mse(prediction, y);
     loss.backward();
     torch::nn::utils::clip_grad_norm_(net->parameters(), 1.0);
     opt.step();
@@ -330,13 +332,14 @@ int run(const Options& o) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
-                             {"loss", train::loss_description(o.loss)}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
+                             {"loss", train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "")}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
                              {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
                              {"wall_s", wall_before + wall},
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features},
                              {"precise_bn_batches", o.precise_bn}, {"freeze_bn_after", o.freeze_bn_after}};
   if (!init_from_name.empty()) training["init_from"] = init_from_name;
   if (o.loss == "l1-log+ssim") training["ssim_weight"] = o.ssim_weight;
+  if (o.relmse_weight > 0) training["relmse_weight"] = o.relmse_weight;
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -394,6 +397,9 @@ int main(int argc, char** argv) {
                  "l1-log (the paper's), l1-log+mean (adds the L1 of the log patch means) or l1-log+ssim (adds "
                  "--ssim-weight x (1 - SSIM) over 3 scales, on the SSIM metric's tonemap)")
       ->capture_default_str()->check(CLI::IsMember(train::loss_names()));
+  app.add_option("--relmse-weight", o.relmse_weight,
+                 "Adds this weight x relMSE (the metric's, eps 0.01, on linear colour) to the loss")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--ssim-weight", o.ssim_weight, "Weight of the SSIM term of l1-log+ssim")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--precise-bn", o.precise_bn,

@@ -114,4 +114,13 @@ torch::Tensor training_loss(const std::string& kind, const torch::Tensor& predic
   return loss;
 }
 
+// The metric the goal is scored on, as a loss term (issue 16, lever 1): L1 on log colour weighs a relative error
+// the same everywhere, while relMSE squares it, so that the few large errors of very noisy dark interiors (where
+// the mean relMSE is decided) pull harder than many small ones.
+torch::Tensor relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, double eps) {
+  const auto p = torch::expm1(prediction.clamp_max(20.0));
+  const auto t = torch::expm1(target);
+  return ((p - t).square() / (t.square() + eps)).mean();
+}
+
 }  // namespace residue::train

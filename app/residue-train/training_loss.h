@@ -20,6 +20,10 @@ std::string loss_description(const std::string& kind);
 torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target,
                             double ssim_weight = 1.0);
 
+// The relMSE metric (core/metrics) on the linear values of log(1 + c) predictions and targets: the mean of
+// (p - t)^2 / (t^2 + eps) over pixels and channels. --relmse-weight adds it to any loss.
+torch::Tensor relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, double eps = 0.01);
+
 // A demodulated network's output, log(1 + c / f), back to log(1 + c): f = a + 0.01 as core multiplies back
 // (core/features/features.h), the albedo a recovered from its input planes log(1 + a). Products below -0.99 (a
 // negative prediction times an emissive albedo) are clamped there, so the log stays finite.
