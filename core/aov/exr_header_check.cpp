@@ -36,30 +36,38 @@ std::optional<std::string> for_each_typed_value(const uint8_t* bytes, size_t siz
   return std::nullopt;
 }
 
-// A channel list (the value of a "chlist" attribute at `p`, `n` bytes): what OpenImageIO cannot take. OpenImageIO
-// 2.4 aborts the process (an assertion) on a pixel type other than 0 (uint), 1 (half), 2 (float): found by
-// fuzz_exr_loader.
-std::optional<std::string> channel_list_problem(const uint8_t* p, size_t n) {
-  size_t pos = 0;
-  while (pos < n) {
+// Walks a channel list (the value of a "chlist" attribute at `p`, `n` bytes): per channel a name and its NUL, then
+// 16 bytes: pixel type, pLinear and reserved, x and y sampling. Calls visit(name, pixel type, x sampling, y sampling)
+// until the list ends or is cut short (OpenEXR reports a truncated list itself), or a visit returns a problem.
+template <class Visit>
+std::optional<std::string> for_each_channel(const uint8_t* p, size_t n, Visit&& visit) {
+  for (size_t pos = 0; pos < n;) {
     const void* nul = std::memchr(p + pos, 0, n - pos);
-    if (!nul) return std::nullopt;  // OpenEXR reports a truncated list itself
+    if (!nul) return std::nullopt;
     const std::string name(reinterpret_cast<const char*>(p + pos), static_cast<const uint8_t*>(nul) - (p + pos));
     pos += name.size() + 1;
-    if (name.empty()) return std::nullopt;  // the end of the list
-    if (n - pos < 16) return std::nullopt;
-    const uint32_t type = load_le32(p + pos);
-    const auto x_sampling = static_cast<int32_t>(load_le32(p + pos + 8));
-    const auto y_sampling = static_cast<int32_t>(load_le32(p + pos + 12));
+    if (name.empty() || n - pos < 16) return std::nullopt;
+    if (auto problem = visit(name, load_le32(p + pos), static_cast<int32_t>(load_le32(p + pos + 8)),
+                             static_cast<int32_t>(load_le32(p + pos + 12))))
+      return problem;
+    pos += 16;
+  }
+  return std::nullopt;
+}
+
+// A channel list: what OpenImageIO cannot take. OpenImageIO 2.4 aborts the process (an assertion) on a pixel type
+// other than 0 (uint), 1 (half), 2 (float): found by fuzz_exr_loader.
+std::optional<std::string> channel_list_problem(const uint8_t* p, size_t n) {
+  return for_each_channel(p, n, [](const std::string& name, uint32_t type, int32_t x_sampling,
+                                   int32_t y_sampling) -> std::optional<std::string> {
     if (type > 2)
       return "the channel '" + name + "' has pixel type " + std::to_string(type) +
              "; OpenEXR has 0 (uint), 1 (half) and 2 (float) (corrupt file)";
     if (x_sampling < 1 || y_sampling < 1)
       return "the channel '" + name + "' has sampling " + std::to_string(x_sampling) + "x" +
              std::to_string(y_sampling) + "; expected 1 or more (corrupt file)";
-    pos += 16;
-  }
-  return std::nullopt;
+    return std::nullopt;
+  });
 }
 
 // No OpenEXR codec comes near this ratio of pixel bytes to file bytes (zlib's limit is 1032:1; an all-black DWAB
@@ -75,17 +83,13 @@ ExrDeclaredPixels exr_declared_pixels(const uint8_t* bytes, size_t size) {
   ExrDeclaredPixels out;
   const std::optional<std::string> none;
   for_each_typed_value(bytes, size, "chlist", 0, [&](size_t list, uint32_t declared) {
-    const size_t n = std::min<size_t>(declared, size - list);
     double channels = 0, pixel_bytes = 0;
-    for (size_t pos = 0; pos < n;) {  // name, NUL, then pixel type, linear, reserved, x and y sampling: 16 bytes
-      const void* nul = std::memchr(bytes + list + pos, 0, n - pos);
-      if (!nul || nul == bytes + list + pos) break;  // truncated, or the end of the list
-      pos = static_cast<size_t>(static_cast<const uint8_t*>(nul) - (bytes + list)) + 1;
-      if (n - pos < 16) break;
+    for_each_channel(bytes + list, std::min<size_t>(declared, size - list), [&](const std::string&, uint32_t type,
+                                                                                int32_t, int32_t) {
       channels += 1;
-      pixel_bytes += load_le32(bytes + list + pos) == 1 ? 2 : 4;  // half, else uint or float
-      pos += 16;
-    }
+      pixel_bytes += type == 1 ? 2 : 4;  // half, else uint or float
+      return none;
+    });
     out.channels = std::max(out.channels, channels);
     out.pixel_bytes = std::max(out.pixel_bytes, pixel_bytes);
     return none;
