@@ -29,19 +29,33 @@ TEST(TrainLoss, TonemapIsCoresCurve) {
     EXPECT_NEAR(t[static_cast<int64_t>(i)].item<double>(), tonemap_filmic_srgb_f64(xs[i]), 1e-12) << "x = " << xs[i];
 }
 
-// On a real render (a noisy Cycles image against its 512-spp reference) the loss's single-scale SSIM is core's
-// float64 metric: in float64 to rounding, in float32 (as training runs it) to 1e-5.
-TEST(TrainLoss, SsimIsCoresMetricOnARealRender) {
-  const auto starter = testing::shared_dataset("cycles-starter");
-  RESIDUE_REQUIRE_SHARED(starter);
-  const AovStack scene = load_dataset_scene(starter / "s158");
-  const Image& noisy = scene.color.image;
-  const Image& reference = scene.reference->image;
-  const double expected = metrics::compare(noisy, reference).ssim;
+// A real render: a noisy Cycles image (starter s158) and its 512-spp reference, with core's float64 scores of
+// the pair, which the loss terms must reproduce.
+class TrainLossOnARealRender : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto starter = testing::shared_dataset("cycles-starter");
+    RESIDUE_REQUIRE_SHARED(starter);
+    scene_ = load_dataset_scene(starter / "s158");
+    scores_ = metrics::compare(noisy(), reference());
+  }
+  const Image& noisy() const { return scene_.color.image; }
+  const Image& reference() const { return scene_.reference->image; }
+  // The render's colour as a 1 x 3 x H x W tensor of the given type.
+  torch::Tensor colour(const Image& image, torch::ScalarType type) const {
+    return to_tensor(image, type).slice(1, 0, 3);
+  }
+  AovStack scene_;
+  metrics::Scores scores_;
+};
+
+// The loss's single-scale SSIM is core's metric: in float64 to rounding, in float32 (as training runs it) to 1e-5.
+TEST_F(TrainLossOnARealRender, SsimIsCoresMetric) {
+  const double expected = scores_.ssim;
   ASSERT_LT(expected, 0.95) << "a noisy image, so that the check is not near the trivial 1";
   for (const auto type : {torch::kFloat64, torch::kFloat32}) {
-    const auto x = train::tonemap_filmic_srgb(to_tensor(noisy, type).slice(1, 0, 3));
-    const auto y = train::tonemap_filmic_srgb(to_tensor(reference, type).slice(1, 0, 3));
+    const auto x = train::tonemap_filmic_srgb(colour(noisy(), type));
+    const auto y = train::tonemap_filmic_srgb(colour(reference(), type));
     EXPECT_NEAR(train::ssim(x, y).item<double>(), expected, type == torch::kFloat64 ? 1e-10 : 1e-5);
     const double ms = train::multiscale_ssim(x, y, 3).item<double>();
     EXPECT_GT(ms, expected) << "coarser scales average the noise away";
@@ -49,18 +63,13 @@ TEST(TrainLoss, SsimIsCoresMetricOnARealRender) {
   }
 }
 
-// The relMSE term is core's float64 relMSE metric on the same real render, given log(1 + c) values, and its
-// gradient stays finite where the prediction is far above a black target.
-TEST(TrainLoss, RelativeMseIsCoresMetricOnARealRender) {
-  const auto starter = testing::shared_dataset("cycles-starter");
-  RESIDUE_REQUIRE_SHARED(starter);
-  const AovStack scene = load_dataset_scene(starter / "s158");
-  const Image& noisy = scene.color.image;
-  const Image& reference = scene.reference->image;
-  const double expected = metrics::compare(noisy, reference).relmse;
+// The relMSE term is core's relMSE metric, given log(1 + c) values, and its gradient stays finite where the
+// prediction is far above a black target.
+TEST_F(TrainLossOnARealRender, RelativeMseIsCoresMetric) {
+  const double expected = scores_.relmse;
   ASSERT_GT(expected, 0.01) << "a noisy image, so that the check is not near the trivial 0";
-  const auto x = torch::log1p(to_tensor(noisy, torch::kFloat64).slice(1, 0, 3));
-  const auto y = torch::log1p(to_tensor(reference, torch::kFloat64).slice(1, 0, 3));
+  const auto x = torch::log1p(colour(noisy(), torch::kFloat64));
+  const auto y = torch::log1p(colour(reference(), torch::kFloat64));
   EXPECT_NEAR(train::relative_mse(x, y).item<double>(), expected, 1e-9 * expected);
   EXPECT_NEAR(train::relative_mse(y, y).item<double>(), 0.0, 1e-15);
   auto far = torch::full({1, 3, 4, 4}, 30.0, torch::dtype(torch::kFloat32).requires_grad(true));
