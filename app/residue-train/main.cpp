@@ -330,9 +330,10 @@ int run(const Options& o) {
   }
   net->eval();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  const std::string loss_text = train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "");
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
-                             {"loss", train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "")}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
+                             {"loss", loss_text}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
                              {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
                              {"wall_s", wall_before + wall},
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features},
