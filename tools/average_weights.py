@@ -18,7 +18,10 @@ from safetensors_meta import read_header, write_header  # noqa: E402
 def parse_input(text):
     path, sep, weight = text.rpartition(":")
     if sep and path.endswith(".safetensors"):
-        return path, float(weight)
+        try:
+            return path, float(weight)
+        except ValueError:
+            sys.exit(f"average_weights: {text}: the weight after ':' must be a number, not '{weight}'")
     return text, 1.0
 
 
@@ -42,6 +45,9 @@ def main():
     if os.path.exists(a.out) and not a.force:
         p.error(f"{a.out} exists (--force replaces it)")
     inputs = [parse_input(t) for t in a.inputs]
+    for path, _ in inputs:
+        if not os.path.isfile(path):
+            sys.exit(f"average_weights: {path}: no such model file")
     if any(w < 0 for _, w in inputs) or sum(w for _, w in inputs) <= 0:
         p.error("weights must be non-negative, and not all zero")
     total = sum(w for _, w in inputs)

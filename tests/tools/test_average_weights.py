@@ -85,6 +85,11 @@ with tempfile.TemporaryDirectory() as tmp:
           f"another network shape is refused, naming the tensor: {r.stderr.strip()}")
     r = run(bad, f"{model}:-1", b_path)
     check(r.returncode != 0 and not os.path.exists(bad), "a negative weight is refused")
+    r = run(bad, f"{model}:half", b_path)
+    check(r.returncode != 0 and "half" in r.stderr and not os.path.exists(bad), "a weight that is no number is named")
+    r = run(bad, model, os.path.join(tmp, "missing.safetensors"))
+    check(r.returncode != 0 and "missing.safetensors" in r.stderr and not os.path.exists(bad),
+          "a missing input is named")
 
 print("ok" if not failures else f"{len(failures)} failure(s)")
 sys.exit(1 if failures else 0)
