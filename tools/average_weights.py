@@ -12,7 +12,7 @@ import argparse, json, os, sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from safetensors_meta import read_header, write_header  # noqa: E402
+from safetensors_meta import read_tensors, write_tensors  # noqa: E402
 
 
 def parse_input(text):
@@ -23,17 +23,6 @@ def parse_input(text):
         except ValueError:
             sys.exit(f"average_weights: {text}: the weight after ':' must be a number, not '{weight}'")
     return text, 1.0
-
-
-def tensors(path):
-    header, data = read_header(path)
-    out = {}
-    for name, info in header.items():
-        if name == "__metadata__":
-            continue
-        begin, end = info["data_offsets"]
-        out[name] = (info["dtype"], tuple(info["shape"]), data[begin:end])
-    return header.get("__metadata__", {}), out
 
 
 def main():
@@ -51,7 +40,7 @@ def main():
     if any(w < 0 for _, w in inputs) or sum(w for _, w in inputs) <= 0:
         p.error("weights must be non-negative, and not all zero")
     total = sum(w for _, w in inputs)
-    loaded = [tensors(path) for path, _ in inputs]
+    loaded = [read_tensors(path) for path, _ in inputs]
     meta, first = loaded[0]
     for (path, _), (_, other) in zip(inputs[1:], loaded[1:]):
         if other.keys() != first.keys():
@@ -61,24 +50,21 @@ def main():
                 sys.exit(f"average_weights: {path}: tensor '{name}' is {other[name][0]} {list(other[name][1])}, "
                          f"expected {dtype} {list(shape)}")
 
-    header, blobs, offset = {}, [], 0
-    for name, (dtype, shape, raw) in sorted(first.items()):
+    averaged = {}
+    for name, (dtype, shape, raw) in first.items():
         if dtype == "F32":
             acc = np.zeros(shape, np.float64)
             for (_, w), (_, t) in zip(inputs, loaded):
                 acc += (w / total) * np.frombuffer(t[name][2], "<f4").reshape(shape)
-            raw = acc.astype("<f4").tobytes()
             if not np.isfinite(acc).all():
                 sys.exit(f"average_weights: tensor '{name}' is not finite")
+            raw = acc.astype("<f4").tobytes()
         elif any(t[name][2] != raw for _, t in loaded[1:]):
             sys.exit(f"average_weights: tensor '{name}' ({dtype}) differs between the inputs and cannot be averaged")
-        header[name] = {"dtype": dtype, "shape": list(shape), "data_offsets": [offset, offset + len(raw)]}
-        blobs.append(raw)
-        offset += len(raw)
+        averaged[name] = (dtype, shape, raw)
     meta = dict(meta)
     meta["averaged_from"] = json.dumps([{"file": os.path.basename(path), "weight": w / total} for path, w in inputs])
-    header["__metadata__"] = meta
-    write_header(a.out, header, b"".join(blobs))
+    write_tensors(a.out, meta, averaged)
     print(f"wrote {a.out}: {len(first)} tensors, the mean of {len(inputs)} models")
 
 

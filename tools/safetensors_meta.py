@@ -1,6 +1,6 @@
-"""Reading and rewriting a safetensors file's JSON header (the model's metadata), for the tools that stamp
-measurements into model files. Only the header changes (the tensors are copied byte for byte), and the file is
-replaced atomically."""
+"""Reading and writing safetensors files for the tools: the JSON header (the model's metadata), rewritten with the
+tensors copied byte for byte, as the tools that stamp measurements into model files do; and whole files of tensors
+(average_weights.py, the fuzz seeds). Files are replaced atomically."""
 import json, os, struct, tempfile
 
 
@@ -19,6 +19,28 @@ def write_header(path, header, data):
     with os.fdopen(fd, "wb") as f:
         f.write(struct.pack("<Q", len(text)) + text + data)
     os.replace(tmp, path)
+
+
+def read_tensors(path):
+    """A file's metadata and its tensors as {name: (dtype, shape, raw little-endian bytes)}."""
+    header, data = read_header(path)
+    tensors = {}
+    for name, info in header.items():
+        if name != "__metadata__":
+            begin, end = info["data_offsets"]
+            tensors[name] = (info["dtype"], tuple(info["shape"]), data[begin:end])
+    return header.get("__metadata__", {}), tensors
+
+
+def write_tensors(path, metadata, tensors):
+    """Writes the metadata and {name: (dtype, shape, raw bytes)} (in name order) as a safetensors file."""
+    header, blobs, offset = {"__metadata__": metadata}, [], 0
+    for name in sorted(tensors):
+        dtype, shape, raw = tensors[name]
+        header[name] = {"dtype": dtype, "shape": list(shape), "data_offsets": [offset, offset + len(raw)]}
+        blobs.append(raw)
+        offset += len(raw)
+    write_header(path, header, b"".join(blobs))
 
 
 def metadata(path):

@@ -4,48 +4,35 @@ so that the fuzzer can mutate them quickly: the real weights of resources/models
 channels (valid Residue models of each feature set, plain and multi-scale, in F32, F16 and BF16), and OIDN's
 rt_hdr_alb_nrm / rt_hdr / rt_hdr_calb_cnrm_large .tza with every width divided by 16 (32 for the large one), so
 that they still load as UNet / UNetLarge. Run from anywhere; the seeds are committed."""
-import json
 import os
 import struct
+import sys
 
 import numpy as np
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+sys.path.insert(0, os.path.join(ROOT, "tools"))
+from safetensors_meta import read_tensors, write_tensors  # noqa: E402
 CORPUS = os.path.join(ROOT, "tests", "fuzz", "corpus")
 MODELS = os.path.join(ROOT, "resources", "models")
 
 
 def read_safetensors(path):
-    b = open(path, "rb").read()
-    n = struct.unpack_from("<Q", b)[0]
-    header = json.loads(b[8:8 + n])
-    data = b[8 + n:]
-    out = {}
-    for k, v in header.items():
-        if k == "__metadata__":
-            continue
-        lo, hi = v["data_offsets"]
-        out[k] = np.frombuffer(data[lo:hi], dtype=np.float32).reshape(v["shape"])
-    return header.get("__metadata__", {}), out
+    metadata, tensors = read_tensors(path)
+    return metadata, {k: np.frombuffer(raw, dtype=np.float32).reshape(shape) for k, (_, shape, raw) in tensors.items()}
 
 
 def write_safetensors(path, metadata, tensors, dtype="F32"):
-    header, blobs, off = {"__metadata__": metadata}, [], 0
-    for k in sorted(tensors):
-        a = tensors[k]
+    encoded = {}
+    for k, a in tensors.items():
         if dtype == "F32":
             raw = a.astype("<f4").tobytes()
         elif dtype == "F16":
             raw = a.astype("<f2").tobytes()
         else:  # BF16: the top 16 bits of the float32
             raw = (a.astype("<f4").view("<u4") >> 16).astype("<u2").tobytes()
-        header[k] = {"dtype": dtype, "shape": list(a.shape), "data_offsets": [off, off + len(raw)]}
-        blobs.append(raw)
-        off += len(raw)
-    h = json.dumps(header, separators=(",", ":")).encode()
-    h += b" " * ((8 - len(h) % 8) % 8)
-    with open(path, "wb") as f:
-        f.write(struct.pack("<Q", len(h)) + h + b"".join(blobs))
+        encoded[k] = (dtype, a.shape, raw)
+    write_tensors(path, metadata, encoded)
 
 
 _, tiny = read_safetensors(os.path.join(MODELS, "tiny.safetensors"))  # 4 blocks, width 32, 9 input channels

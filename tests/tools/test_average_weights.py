@@ -10,7 +10,7 @@ import numpy as np
 
 repo, cli = sys.argv[1], sys.argv[2]
 sys.path.insert(0, os.path.join(repo, "tools"))
-from safetensors_meta import read_header, write_header  # noqa: E402
+from safetensors_meta import read_tensors, write_tensors  # noqa: E402
 
 tool = os.path.join(repo, "tools", "average_weights.py")
 model = os.path.join(repo, "resources", "models", "multiscale.safetensors")
@@ -25,9 +25,10 @@ def check(ok, what):
 
 
 def arrays(path):
-    header, data = read_header(path)
-    return {k: np.frombuffer(data[v["data_offsets"][0]:v["data_offsets"][1]], "<f4").reshape(v["shape"])
-            for k, v in header.items() if k != "__metadata__" and v["dtype"] == "F32"}, header
+    """A file's float32 tensors as arrays, and its metadata."""
+    meta, tensors = read_tensors(path)
+    return {k: np.frombuffer(raw, "<f4").reshape(shape) for k, (dtype, shape, raw) in tensors.items()
+            if dtype == "F32"}, meta
 
 
 def run(*args):
@@ -36,29 +37,22 @@ def run(*args):
 
 with tempfile.TemporaryDirectory() as tmp:
     # B: the shipped weights, each tensor scaled by its own factor (so that a mix-up of names would show).
-    a, header = arrays(model)
-    _, data = read_header(model)
-    scaled = bytearray(data)
-    factors = {}
-    for i, (name, info) in enumerate(sorted((k, v) for k, v in header.items() if k != "__metadata__")):
-        factors[name] = 1.0 + 0.01 * (i % 7)
-        begin, end = info["data_offsets"]
-        scaled[begin:end] = (a[name] * np.float32(factors[name])).astype("<f4").tobytes()
+    a, meta = arrays(model)
     b_path = os.path.join(tmp, "b.safetensors")
-    write_header(b_path, dict(header), bytes(scaled))
+    write_tensors(b_path, meta, {k: ("F32", v.shape, (v * np.float32(1.0 + 0.01 * (i % 7))).astype("<f4").tobytes())
+                                 for i, (k, v) in enumerate(sorted(a.items()))})
     b, _ = arrays(b_path)
 
     out = os.path.join(tmp, "mean.safetensors")
     r = run(out, f"{model}:1", f"{b_path}:3")
     check(r.returncode == 0, f"the average runs: {r.stderr}")
-    mean, mean_header = arrays(out)
+    mean, meta = arrays(out)
     check(mean.keys() == a.keys(), "every tensor is kept")
     def relative_error(k):  # float32 rounding of the float64 mean: within one unit in the last place
         expected = 0.25 * a[k].astype(np.float64) + 0.75 * b[k].astype(np.float64)
         return float(np.max(np.abs(mean[k] - expected) / np.maximum(np.abs(expected), 1e-30)))
     worst = max(relative_error(k) for k in a)
     check(worst <= 1.2e-7, f"weights 1:3 give 0.25 A + 0.75 B (largest relative difference {worst})")
-    meta = mean_header["__metadata__"]
     check(meta.get("name") == "multiscale", "the first file's metadata is kept")
     check([e["weight"] for e in json.loads(meta["averaged_from"])] == [0.25, 0.75], "averaged_from records the weights")
 
