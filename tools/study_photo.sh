@@ -33,13 +33,13 @@ fit() {
   local name=$1; shift
   [ -f "$name.safetensors" ] || "$train" "$@" --threads 1 --log "$name.csv" -o "$name.safetensors" > "$name.out" 2>&1
 }
-ms=(--arch 2,2,2,2/24,40,56,80 --steps "${MS_STEPS:-3000}" --val-every 1000 --checkpoint-every 250 --bf16 --batch 2
+ms=(--arch 2,2,2,2/24,40,56,80 --steps "${MS_STEPS:-1500}" --val-every 500 --checkpoint-every 250 --bf16 --batch 2
     --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 14 --precise-bn 100 --freeze-bn-after 0.9
     --init-from "$work/init.safetensors" --lr 3e-4 --name multiscale)
 fit control --data "$starter" "$plain" "${ms[@]}" &
 fit photo --data "$starter" "$photo" "${ms[@]}" &
 wait
-flat=(--data "$starter" "$photo" --arch 8/32 --steps "${FLAT_STEPS:-5000}" --batch 8 --patch 64 --bf16 --val-every 1000
+flat=(--data "$starter" "$photo" --arch 8/32 --steps "${FLAT_STEPS:-2000}" --batch 8 --patch 64 --bf16 --val-every 1000
       --seed 7)
 fit flat "${flat[@]}" &
 fit flat_demod "${flat[@]}" --demodulate &
