@@ -51,6 +51,9 @@ for m in "${models[@]}"; do
 done
 list=$(printf "$work/%s.safetensors," "${models[@]}")multiscale,oidn,bilateral
 [ -f eval_photo.json ] || "$cli" evaluate-set "$photo" --split validation --models "$list" --md eval_photo.md --json eval_photo.json
+# -m best's view of the textured scenes: multiscale and oidn, both as self-ensembles x8.
+[ -f eval_photo_x8.json ] || "$cli" evaluate-set "$photo" --split validation --models multiscale,oidn --ensembles 8 \
+  --md eval_photo_x8.md --json eval_photo_x8.json
 [ -f eval_starter.json ] || "$cli" evaluate-set "$starter" --last 6 --models "$list" --md eval_starter.md --json eval_starter.json
 # The Cornell box: the metrics table's "denoised" row (relMSE, MSE, PSNR, SSIM).
 for m in "${models[@]/%/.safetensors}" multiscale oidn bilateral; do
