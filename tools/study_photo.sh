@@ -31,19 +31,22 @@ cp -n "$repo/resources/models/multiscale.safetensors" init.safetensors
 # fit NAME ARGS...: trains NAME.safetensors unless it exists (its checkpoint folder makes it resumable).
 fit() {
   local name=$1; shift
-  [ -f "$name.safetensors" ] || "$train" "$@" --threads 1 --log "$name.csv" -o "$name.safetensors" > "$name.out" 2>&1
+  [ -f "$name.safetensors" ] || "$train" "$@" --threads 1 --log "$name.csv" -o "$name.safetensors" > "$name.out" 2>&1 ||
+    { echo "study_photo.sh: training $name failed, see $work/$name.out" >&2; return 1; }
 }
+# pair A B: waits for two background fits and fails if either did.
+pair() { wait "$1" && wait "$2"; }
 ms=(--arch 2,2,2,2/24,40,56,80 --steps "${MS_STEPS:-1500}" --val-every 500 --checkpoint-every 250 --bf16 --batch 2
     --patch 128 --loss l1-log+ssim --autoexposure --exposure-key 1 --seed 14 --precise-bn 100 --freeze-bn-after 0.9
     --init-from "$work/init.safetensors" --lr 3e-4 --name multiscale)
-fit control --data "$starter" "$plain" "${ms[@]}" &
-fit photo --data "$starter" "$photo" "${ms[@]}" &
-wait
+fit control --data "$starter" "$plain" "${ms[@]}" & a=$!
+fit photo --data "$starter" "$photo" "${ms[@]}" & b=$!
+pair $a $b
 flat=(--data "$starter" "$photo" --arch 8/32 --steps "${FLAT_STEPS:-2000}" --batch 8 --patch 64 --bf16 --val-every 1000
       --seed 7)
-fit flat "${flat[@]}" &
-fit flat_demod "${flat[@]}" --demodulate &
-wait
+fit flat "${flat[@]}" & a=$!
+fit flat_demod "${flat[@]}" --demodulate & b=$!
+pair $a $b
 
 models=(control photo flat flat_demod)
 for m in "${models[@]}"; do
