@@ -12,13 +12,17 @@ command resumes. The noisy spp cycles over --spp by seed pairs (spp[(seed // 2) 
 open-air scene per level, as even seeds are interiors and odd ones open-air); sampling seeds are 1001 and 1002
 for the two noisy renders and 1007 for the reference. Training scenes get --ref-spp references (a noisy target
 only adds zero-mean noise to the loss), validation scenes --val-ref-spp (the reference's own error is a floor
-under every relMSE we report, so it is kept lower where we measure). One line per scene is printed and appended to
+under every relMSE we report, so it is kept lower where we measure). With --pseudo-ref MODEL, training scenes
+get a pseudo-reference instead: a --pseudo-ref-spp render (sampling seed 1009, full AOVs) denoised by MODEL as a
+self-ensemble, recorded in scene.json's "reference"; an interior costs a quarter of a 512-spp reference, and
+tools/datagen/pseudo_reference_check.py measures how far such references are from the truth. One line per scene is printed and appended to
 OUT/render_log.txt; Blender's own output goes to OUT/logs/s<seed>.log. OUT/index.json lists every complete
 scene of OUT with its split (seed % 11 == 10: validation, else train), rewritten after each scene.
 Exit status: 0 when every requested scene exists at the end, 1 otherwise.
 """
 import argparse
 import datetime
+import hashlib
 import json
 import os
 import shutil
@@ -29,7 +33,8 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 MAKE_SCENE = os.path.join(HERE, "make_scene.py")
-SEEDS = {"noisy_a": 1001, "noisy_b": 1002, "reference": 1007}
+SEEDS = {"noisy_a": 1001, "noisy_b": 1002, "reference": 1007, "pseudo": 1009}
+REPO = os.path.dirname(os.path.dirname(HERE))
 
 
 def parse_seeds(text):
@@ -76,6 +81,7 @@ def write_index(out, args):
             "kind": doc.get("kind"),
             "spp": doc.get("spp", {}).get("noisy_a"),
             "ref_spp": doc.get("spp", {}).get("reference"),
+            "ref_kind": doc.get("reference", {}).get("kind", "render"),
             "resolution": doc.get("resolution"),
             "relmse_noisy_a": m.get("relmse_noisy_a"),
             "all_finite": m.get("all_finite"),
@@ -107,6 +113,82 @@ def ref_spp_of(args, seed):
     return args.val_ref_spp if split_of(seed) == "validation" else args.ref_spp
 
 
+def pseudo_of(args, seed):
+    """Whether this scene's reference is a denoised moderate-spp render (training scenes under --pseudo-ref)."""
+    return bool(args.pseudo_ref) and split_of(seed) == "train"
+
+
+def make_pseudo_reference(args, tmp, logpath):
+    """Denoises DIR/pseudo_input.exr with --pseudo-ref (a self-ensemble) into DIR/reference.exr (the data set's
+    layout: ViewLayer.Combined RGBA, half) and rewrites scene.json's metrics and reference record against it."""
+    sys.path.insert(0, HERE)
+    import exr_metrics  # noqa: E402 - OpenImageIO and numpy, needed only here
+    import numpy as np
+    import OpenImageIO as oiio
+    denoised = os.path.join(tmp, "pseudo_denoised.exr")
+    cmd = [args.cli, "denoise", os.path.join(tmp, "pseudo_input.exr"), "-m", args.pseudo_ref, "--ensemble",
+           str(args.pseudo_ref_ensemble), "--float", "--force",
+           "--threads", str(args.threads), "-o", denoised]
+    with open(logpath, "a") as logf:
+        logf.write("\n" + " ".join(cmd) + "\n")
+        logf.flush()
+        rc = subprocess.call(cmd, stdout=logf, stderr=subprocess.STDOUT)
+    if rc != 0 or not os.path.isfile(denoised):
+        return False, f"the pseudo-reference denoise failed (exit {rc}; see {logpath})"
+    rgb = exr_metrics.read_exr(denoised)
+    idx = [rgb["channels"].index(c) for c in "RGB"]
+    pixels = np.ascontiguousarray(np.concatenate(
+        [rgb["pixels"][:, :, idx], np.ones(rgb["pixels"].shape[:2] + (1,), np.float32)], axis=2))
+    if not np.isfinite(pixels).all():
+        return False, "the pseudo-reference is not finite"
+    spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], 4, "half")
+    spec.channelnames = tuple(f"{exr_metrics.COMBINED}.{c}" for c in "RGBA")
+    spec.attribute("compression", "zip")
+    written = os.path.join(tmp, "pseudo_reference.exr")  # renamed over the placeholder once complete
+    out = oiio.ImageOutput.create(written)
+    if not out or not out.open(written, spec) or not out.write_image(pixels):
+        return False, f"cannot write the pseudo-reference: {out.geterror() if out else oiio.geterror()}"
+    out.close()
+    os.replace(written, os.path.join(tmp, "reference.exr"))
+    path = os.path.join(tmp, "scene.json")
+    with open(path) as f:
+        doc = json.load(f)
+    images = {n: exr_metrics.read_exr(os.path.join(tmp, n + ".exr")) for n in ("noisy_a", "noisy_b", "reference")}
+    doc["metrics"] = exr_metrics.scene_metrics(images["noisy_a"], images["noisy_b"], images["reference"])
+    doc["metrics"]["relmse_pseudo_input"] = exr_metrics.relmse(
+        exr_metrics.layer_rgb(exr_metrics.read_exr(os.path.join(tmp, "pseudo_input.exr"))),
+        exr_metrics.layer_rgb(images["reference"]))
+    doc.setdefault("spp", {})["reference"] = args.pseudo_ref_spp
+    doc["reference"] = {
+        "kind": "pseudo",
+        "what": f"a {args.pseudo_ref_spp}-spp render (sampling seed {SEEDS['pseudo']}, full AOVs) denoised by "
+                f"{args.pseudo_ref} as a self-ensemble x{args.pseudo_ref_ensemble}, written as half RGBA",
+        "model": args.pseudo_ref,
+        "model_sha256": sha256_of(model_path(args.pseudo_ref)),
+        "command": " ".join(os.path.relpath(c, REPO) if c.startswith(REPO) else c.replace(tmp, "<scene>")
+                            for c in cmd),
+    }
+    write_json(path, doc)
+    os.remove(denoised)
+    os.remove(os.path.join(tmp, "pseudo_input.exr"))
+    return True, ""
+
+
+def model_path(name):
+    """A model name of resources/models or a file path (for the record in scene.json)."""
+    return name if os.path.isfile(name) else os.path.join(REPO, "resources", "models", name + ".safetensors")
+
+
+def sha256_of(path):
+    if not os.path.isfile(path):
+        return None
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def render_scene(args, seed, spp):
     """Renders one scene into OUT/.tmp-s<seed> and renames it; returns (ok, message)."""
     final = os.path.join(args.out, f"s{seed}")
@@ -116,10 +198,18 @@ def render_scene(args, seed, spp):
     tmp = os.path.join(tmp_root, "scene")
     shutil.rmtree(tmp_root, ignore_errors=True)
     os.makedirs(tmp)
-    renders = f"{spp}:{SEEDS['noisy_a']},{spp}:{SEEDS['noisy_b']},{ref_spp_of(args, seed)}:{SEEDS['reference']}"
+    halves = f"{spp}:{SEEDS['noisy_a']},{spp}:{SEEDS['noisy_b']}"
+    if pseudo_of(args, seed):
+        # make_scene's last render is the reference (Combined only): a 1-spp placeholder that the denoised
+        # pseudo-reference input (full AOVs, its own sampling seed) replaces below.
+        renders = f"{halves},{args.pseudo_ref_spp}:{SEEDS['pseudo']},1:{SEEDS['reference']}"
+        names = ["--names", "noisy_a,noisy_b,pseudo_input,reference"]
+    else:
+        renders = f"{halves},{ref_spp_of(args, seed)}:{SEEDS['reference']}"
+        names = []
     cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python", MAKE_SCENE,
            "--", "--scene-seed", str(seed), "--renders", renders, "--outdir", tmp, "--res", str(args.res),
-           "--threads", str(args.threads)]
+           "--threads", str(args.threads)] + names
     if args.photos:
         cmd += ["--photos", args.photos, "--photo-share", str(args.photo_share)]
     if args.hdris:
@@ -141,9 +231,14 @@ def render_scene(args, seed, spp):
             proc.wait()
             raise
     expected = ["noisy_a.exr", "noisy_b.exr", "reference.exr", "scene.json"]
-    missing = [f for f in expected if not os.path.isfile(os.path.join(tmp, f))]
+    missing = [f for f in expected + (["pseudo_input.exr"] if pseudo_of(args, seed) else [])
+               if not os.path.isfile(os.path.join(tmp, f))]
     if rc != 0 or missing:
         return False, f"blender exit {rc}, missing {missing} (see logs/s{seed}.log)"
+    if pseudo_of(args, seed):
+        ok, msg = make_pseudo_reference(args, tmp, os.path.join(logdir, f"s{seed}.log"))
+        if not ok:
+            return False, msg
     for f in os.listdir(tmp):  # nothing but the four files in a scene folder
         if f not in expected:
             os.remove(os.path.join(tmp, f))
@@ -169,7 +264,17 @@ def main():
     p.add_argument("--photo-share", type=float, default=0.5)
     p.add_argument("--hdris", default=None, help="environment maps for the world (make_scene.py --hdris), e.g. "
                    "/usr/share/blender/datafiles/studiolights/world (Blender's CC0 HDRIs)")
+    p.add_argument("--pseudo-ref", default=None, metavar="MODEL",
+                   help="training scenes get a pseudo-reference: a --pseudo-ref-spp render denoised by MODEL (a "
+                        "residue-cli model name or file) as a self-ensemble, instead of a --ref-spp render "
+                        "(validation scenes keep true references)")
+    p.add_argument("--pseudo-ref-spp", type=int, default=128)
+    p.add_argument("--pseudo-ref-ensemble", type=int, default=8, choices=[1, 2, 4, 8])
+    p.add_argument("--cli", default=os.path.join(REPO, "build", "release", "app", "residue-cli", "residue-cli"),
+                   help="residue-cli, for --pseudo-ref")
     args = p.parse_args()
+    if args.pseudo_ref and not os.path.isfile(args.cli):
+        sys.exit(f"render_dataset: --pseudo-ref needs residue-cli, not found at {args.cli} (build it, or --cli)")
     args.out = os.path.abspath(args.out)
     spp_list = [int(s) for s in args.spp.split(",")]
     seeds = parse_seeds(args.seeds)
@@ -181,6 +286,8 @@ def main():
     log(args.out, f"render_dataset: {len(seeds)} scenes requested, {len(seeds) - len(todo)} already done, "
                   f"{len(todo)} to render at {args.res}x{args.res}, spp {spp_list}, reference {args.ref_spp} spp "
                   f"(validation {args.val_ref_spp}), "
+                  + (f"training references pseudo ({args.pseudo_ref_spp} spp denoised by {args.pseudo_ref} "
+                     f"x{args.pseudo_ref_ensemble}), " if args.pseudo_ref else "") +
                   f"{args.threads} threads -> {args.out}")
     failed, times = [], []
     t_all = time.time()
