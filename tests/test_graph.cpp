@@ -117,9 +117,15 @@ TEST_P(GraphBackend, EveryOpMatchesFloat64Graph) {
     ASSERT_EQ(y.width(), w);
     EXPECT_LT(testing::max_relative_error(y, ref), GetParam().tolerance) << w << "x" << h << " " << backend->description();
   }
-  // Tiles that are not multiples of the alignment are refused, not run on a misaligned grid.
+  // Tiles that are not multiples of the alignment are refused, not run on a misaligned grid; a tile with the wrong
+  // number of planes is refused with the number the network expects.
   Image y;
-  EXPECT_THROW(backend->run(testing::random_image(30, 20, 5, 1), y), Error);
+  EXPECT_NE(testing::error_message([&] { backend->run(testing::random_image(30, 20, 5, 1), y); }, ErrorKind::Usage)
+                .find("is not a multiple of the network's alignment 4"),
+            std::string::npos);
+  EXPECT_NE(testing::error_message([&] { backend->run(testing::random_image(32, 20, 4, 1), y); }, ErrorKind::Input)
+                .find("expects 5 input channels, the tile has 4"),
+            std::string::npos);
 }
 
 TEST_P(GraphBackend, OidnUNetMatchesFloat64Graph) {

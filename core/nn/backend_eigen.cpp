@@ -281,14 +281,8 @@ class EigenBackend final : public Backend {
   }
 
   void execute(const Image& input, Image& output, const CancelToken* cancel, const std::optional<Rect>& needed) override {
+    graph_.check_tile(input);
     const int64_t h = input.height(), w = input.width();
-    if (input.channels() != graph_.input_channels())
-      throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
-                                        " input channels, the tile has " + std::to_string(input.channels()));
-    if (h % graph_.alignment() != 0 || w % graph_.alignment() != 0)
-      throw Error(ErrorKind::Usage, "tile " + std::to_string(w) + "x" + std::to_string(h) +
-                                        " is not a multiple of the network's alignment " +
-                                        std::to_string(graph_.alignment()));
     output = Image(w, h, graph_.output_channels());
     if (h == 0 || w == 0) return;
     const Plan& plan = plan_for(h, w);

@@ -163,14 +163,8 @@ class OneDnnBackend final : public Backend {
 
   // Computes the whole tile whatever is `needed`: a conv over part of a value would need a primitive per region.
   void execute(const Image& input, Image& output, const CancelToken* cancel, const std::optional<Rect>&) override {
-    if (input.channels() != graph_.input_channels())
-      throw Error(ErrorKind::Input, "the network expects " + std::to_string(graph_.input_channels()) +
-                                        " input channels, the tile has " + std::to_string(input.channels()));
+    graph_.check_tile(input);
     const int64_t h = input.height(), w = input.width();
-    if (h % graph_.alignment() != 0 || w % graph_.alignment() != 0)
-      throw Error(ErrorKind::Usage, "tile " + std::to_string(w) + "x" + std::to_string(h) +
-                                        " is not a multiple of the network's alignment " +
-                                        std::to_string(graph_.alignment()));
     output = Image(w, h, graph_.output_channels());
     if (h == 0 || w == 0) return;
     const int threads = tbb::this_task_arena::max_concurrency();

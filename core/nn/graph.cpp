@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "core/util/error.h"
+
 namespace residue::nn {
 
 int Graph::push(GraphOp op) {
@@ -121,6 +123,15 @@ int Graph::input_channels() const {
   for (const GraphOp& o : ops_)
     if (o.kind == OpKind::Input) return o.channels;
   return 0;
+}
+
+void Graph::check_tile(const Image& input) const {
+  if (input.channels() != input_channels())
+    throw Error(ErrorKind::Input, "the network expects " + std::to_string(input_channels()) +
+                                      " input channels, the tile has " + std::to_string(input.channels()));
+  if (input.height() % alignment() != 0 || input.width() % alignment() != 0)
+    throw Error(ErrorKind::Usage, "tile " + std::to_string(input.width()) + "x" + std::to_string(input.height()) +
+                                      " is not a multiple of the network's alignment " + std::to_string(alignment()));
 }
 
 int Graph::max_level() const {

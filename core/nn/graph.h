@@ -70,6 +70,9 @@ class Graph {
   int max_level() const;
   // Tile width and height must be multiples of this (2^max_level); so must the tile's origin in the image.
   int alignment() const { return 1 << max_level(); }
+  // Throws residue::Error when a tile cannot run: Input for the wrong number of planes, Usage for a width or
+  // height off the alignment.
+  void check_tile(const Image& input) const;
   // How far (tile pixels) an output pixel's value reaches into the input, beyond its own footprint.
   int receptive_reach() const;
   // The tiler's halo: the reach rounded up to the alignment, so tiles with halo stay on the pooling grid.
