@@ -22,8 +22,6 @@ import sys
 
 import render_dataset
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-
 
 def scene_flags(doc):
     """make_scene.py's --photos/--photo-share/--hdris flags, as the scene was rendered (from its scene.json)."""
@@ -53,11 +51,9 @@ def check_scene(args, scene_dir, work):
     shutil.rmtree(out, ignore_errors=True)
     os.makedirs(out)
     # The last render of make_scene.py is a reference (Combined only): a 1-spp placeholder, unused.
-    cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python",
-           render_dataset.MAKE_SCENE, "--", "--scene-seed", str(seed), "--renders",
-           f"{args.spp}:{render_dataset.SEEDS['pseudo']},1:{render_dataset.SEEDS['reference']}",
-           "--names", "pseudo_input,placeholder", "--outdir", out, "--res", str(doc["resolution"][0]),
-           "--threads", str(args.threads)] + scene_flags(doc)
+    renders = f"{args.spp}:{render_dataset.SEEDS['pseudo']},1:{render_dataset.SEEDS['reference']}"
+    cmd = render_dataset.make_scene_command(args.blender, args.threads, seed, renders, out, doc["resolution"][0],
+                                            ["--names", "pseudo_input,placeholder"] + scene_flags(doc))
     with open(os.path.join(out, "blender.log"), "w") as logf:
         if subprocess.call(cmd, stdout=logf, stderr=subprocess.STDOUT) != 0:
             sys.exit(f"pseudo_reference_check: Blender failed on s{seed}, see {out}/blender.log")
@@ -93,8 +89,7 @@ def main():
     p.add_argument("--ensemble", type=int, default=8, choices=[1, 2, 4, 8])
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--blender", default="/usr/bin/blender")
-    p.add_argument("--cli", default=os.path.join(render_dataset.REPO, "build", "release", "app", "residue-cli",
-                                                 "residue-cli"))
+    p.add_argument("--cli", default=render_dataset.DEFAULT_CLI)
     p.add_argument("--work", default="/tmp/residue-pseudo-check")
     p.add_argument("--out", required=True, help="OUT.json and OUT.md are written")
     args = p.parse_args()

@@ -36,6 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 MAKE_SCENE = os.path.join(HERE, "make_scene.py")
 SEEDS = {"noisy_a": 1001, "noisy_b": 1002, "reference": 1007, "pseudo": 1009}
 REPO = os.path.dirname(os.path.dirname(HERE))
+DEFAULT_CLI = os.path.join(REPO, "build", "release", "app", "residue-cli", "residue-cli")
 
 
 def parse_seeds(text):
@@ -192,6 +193,13 @@ def sha256_of(path):
     return h.hexdigest()
 
 
+def make_scene_command(blender, threads, seed, renders, outdir, res, extra=()):
+    """The Blender command line that renders one scene with make_scene.py (renders: "SPP:SEED,...")."""
+    return [blender, "-b", "--factory-startup", "-noaudio", "-t", str(threads), "--python", MAKE_SCENE, "--",
+            "--scene-seed", str(seed), "--renders", renders, "--outdir", outdir, "--res", str(res),
+            "--threads", str(threads)] + list(extra)
+
+
 def render_scene(args, seed, spp):
     """Renders one scene into OUT/.tmp-s<seed> and renames it; returns (ok, message)."""
     final = os.path.join(args.out, f"s{seed}")
@@ -210,9 +218,7 @@ def render_scene(args, seed, spp):
     else:
         renders = f"{halves},{ref_spp_of(args, seed)}:{SEEDS['reference']}"
         names = []
-    cmd = [args.blender, "-b", "--factory-startup", "-noaudio", "-t", str(args.threads), "--python", MAKE_SCENE,
-           "--", "--scene-seed", str(seed), "--renders", renders, "--outdir", tmp, "--res", str(args.res),
-           "--threads", str(args.threads)] + names
+    cmd = make_scene_command(args.blender, args.threads, seed, renders, tmp, args.res, names)
     if args.photos:
         cmd += ["--photos", args.photos, "--photo-share", str(args.photo_share)]
     if args.hdris:
@@ -278,7 +284,7 @@ def main():
                         "than a 512-spp render in all 6 interiors, farther in 5 of 6 open-air scenes (where a "
                         "512-spp render is also cheaper)")
     p.add_argument("--pseudo-ref-ensemble", type=int, default=8, choices=[1, 2, 4, 8])
-    p.add_argument("--cli", default=os.path.join(REPO, "build", "release", "app", "residue-cli", "residue-cli"),
+    p.add_argument("--cli", default=DEFAULT_CLI,
                    help="residue-cli, for --pseudo-ref")
     args = p.parse_args()
     if args.pseudo_ref and not os.path.isfile(args.cli):
