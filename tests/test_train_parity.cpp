@@ -136,6 +136,78 @@ TEST(TrainInitFrom, AVariantStartsAsItsSourceWithTheMissingPlanesZero) {
   }
 }
 
+// --grow-from: a multi-scale network grown by one level computes what its source computes (in libtorch and in
+// core, from the exported file), while the new level gets a gradient; a source of other widths is refused.
+TEST(TrainGrowFrom, AGrownNetworkStartsAsItsSourceAndItsNewLevelLearns) {
+  torch::manual_seed(11);
+  const nn::Architecture small{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {8, 12, 16}};
+  train::ResidueNet source(small);
+  train::initialise(source);
+  {
+    torch::NoGradGuard no_grad;
+    for (auto& p : source->named_parameters())
+      if (p.key().find("bn") != std::string::npos || p.key().find("prelu") != std::string::npos)
+        p.value().uniform_(0.5, 1.5);
+    source->train();
+    for (int i = 0; i < 3; ++i) source->forward(torch::randn({4, 9, 32, 32}) * 0.7 + 0.2);
+  }
+  source->eval();
+  testing::TempDir tmp;
+  const auto file = tmp / "source.safetensors";
+  nn::write_safetensors(file, train::export_model(source, {{"name", "src"}}), false);
+  const nn::SafetensorsFile read = nn::read_safetensors(file);
+
+  train::ResidueNet grown(nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 2, 1, 2}, {8, 12, 16, 24}});
+  train::initialise(grown);
+  int batches = 0;
+  train::grow_from(grown, read, file, [&] { ++batches; return torch::randn({2, 9, 32, 32}); }, 4);
+  EXPECT_EQ(batches, 4);
+  grown->eval();
+  const torch::Tensor x = torch::randn({2, 9, 32, 48}) * 0.7 + 0.2;
+  {
+    torch::NoGradGuard no_grad;
+    const torch::Tensor expect = source->forward(x), got = grown->forward(x);
+    EXPECT_TRUE(torch::allclose(got, expect, 1e-5, 1e-5)) << "max difference " << (got - expect).abs().max().item<float>();
+  }
+  // The new bottom's batch norms were measured (not left at mean 0, variance 1); the new level is not dead.
+  auto* bottom = grown->levels[3]->as<train::ScaleLevel>();
+  auto* enc = bottom->enc[0]->as<train::ResBlock>();
+  EXPECT_GT(enc->bn1->running_mean.abs().sum().item<float>(), 0.f);
+  grown->train();
+  train::freeze_batch_norm(grown);
+  grown->forward(x).abs().mean().backward();
+  auto* above = grown->levels[2]->as<train::ScaleLevel>();
+  EXPECT_GT(above->up->conv->weight.grad().slice(1, 0, 24).abs().sum().item<float>(), 0.f)
+      << "the upsampled channels of the old bottom's up step must get a gradient";
+  EXPECT_GT(above->dec[0]->as<train::ResBlock>()->bn2->weight.grad().abs().sum().item<float>(), 0.f);
+
+  // Core runs the exported grown network as it runs the source.
+  grown->eval();
+  const auto grown_file = tmp / "grown.safetensors";
+  nn::write_safetensors(grown_file, train::export_model(grown, {{"name", "grown"}}), false);
+  const Image in = testing::random_image(48, 32, 9, 5, -0.5f, 1.5f);
+  Image out_source, out_grown;
+  nn::make_backend("eigen", nn::load_model(file).graph, {})->run(in, out_source);
+  nn::make_backend("eigen", nn::load_model(grown_file).graph, {})->run(in, out_grown);
+  double err = 0, scale = 1e-3;
+  for (int64_t y = 0; y < 32; ++y)
+    for (int64_t xx = 0; xx < 48; ++xx)
+      for (int c = 0; c < 3; ++c) {
+        scale = std::max(scale, static_cast<double>(std::abs(out_source.at(xx, y, c))));
+        err = std::max(err, static_cast<double>(std::abs(out_source.at(xx, y, c) - out_grown.at(xx, y, c))));
+      }
+  EXPECT_LT(err / scale, 1e-5);
+
+  train::ResidueNet other(nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 2, 1, 2}, {8, 12, 20, 24}});
+  try {
+    train::grow_from(other, read, file, [] { return torch::randn({2, 9, 32, 32}); }, 1);
+    ADD_FAILURE() << "an 8,12,16 network grew into 8,12,20,24";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("8,12,16"), std::string::npos) << e.what();
+  }
+}
+
 // A fresh post-correction network is the identity on its prior's planes (its output conv starts at zero), and it
 // still learns: the output conv gets a gradient.
 TEST(TrainPlanes, NormalAndAlbedoPlanesFollowTheFeatureSet) {

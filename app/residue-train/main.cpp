@@ -62,6 +62,7 @@ struct Options {
   int precise_bn = 0;            // batches for recalibrating BN statistics before validation and export; 0: off
   double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
   std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
+  std::string grow_from;         // a multi-scale model file one level shallower to start from (a fresh run only)
 };
 
 struct Validation {
@@ -205,6 +206,18 @@ int run(const Options& o) {
     const auto name = source.metadata.find("name");
     init_from_name = name != source.metadata.end() ? name->second : fs::path(o.init_from).stem().string();
   }
+  if (!o.grow_from.empty()) {
+    const nn::SafetensorsFile source = nn::read_safetensors(o.grow_from);
+    std::mt19937 bn_rng(o.seed * 104729u);
+    train::grow_from(net, source, o.grow_from, [&] {
+      torch::Tensor x, y;
+      set.sample(bn_rng, o.batch, x, y);
+      return x;
+    }, 100);
+    const auto name = source.metadata.find("name");
+    init_from_name = (name != source.metadata.end() ? name->second : fs::path(o.grow_from).stem().string()) +
+                     ", grown by one level";
+  }
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(o.lr).betas({0.9, 0.999}));
   const fs::path ckpt = o.checkpoint.empty() ? fs::path(o.out).replace_extension(".ckpt") : fs::path(o.checkpoint);
   int step = 0;
@@ -216,7 +229,7 @@ int run(const Options& o) {
     if (fs::exists(ckpt / "wall_s")) std::ifstream(ckpt / "wall_s") >> wall_before;
     std::printf("resumed from %s at step %d (%.0f s of training before)\n", ckpt.string().c_str(), step, wall_before);
   } else if (!init_from_name.empty()) {
-    std::printf("initialised from %s (%s)\n", o.init_from.c_str(), init_from_name.c_str());
+    std::printf("initialised from %s (%s)\n", (o.init_from + o.grow_from).c_str(), init_from_name.c_str());
   }
   std::ofstream log;
   if (!o.log.empty()) {
@@ -415,6 +428,11 @@ int main(int argc, char** argv) {
                  "Start from this model file's weights (same blocks/width; the input planes matched by name, new "
                  "ones zero) instead of He initialisation: fine-tunes a feature-set variant of a trained model")
       ->check(CLI::ExistingFile);
+  app.add_option("--grow-from", o.grow_from,
+                 "Start from this multi-scale model file with one level added below its bottom, computing exactly "
+                 "what the file computes until training teaches the new level (same features, levels and widths "
+                 "above it)")
+      ->check(CLI::ExistingFile)->excludes("--init-from");
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -157,6 +157,80 @@ void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const s
   for (auto& b : net->named_buffers()) copy(b.key(), b.value());
 }
 
+void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path,
+               const std::function<torch::Tensor()>& next_batch, int bn_batches) {
+  const std::string file = path.string();
+  const nn::Architecture& a = net->arch;
+  const int L = static_cast<int>(a.levels.size()), bottom = L - 2;  // the source's bottom level
+  auto meta = [&](const std::string& key) {
+    const auto it = source.metadata.find(key);
+    return it == source.metadata.end() ? std::string() : it->second;
+  };
+  const std::vector<int> levels(a.levels.begin(), a.levels.end() - (L > 0 ? 1 : 0));
+  std::vector<int> widths;
+  for (int l = 0; l + 1 < L; ++l) widths.push_back(a.level_width(l));
+  if (!a.multiscale() || L < 3 || meta("residue.levels") != nn::ints_to_string(levels) ||
+      meta("residue.widths") != nn::ints_to_string(widths) || meta("residue.features") != to_string(a.features))
+    throw Error(ErrorKind::Input, file + ": a " + meta("residue.levels") + "/" + meta("residue.widths") + " " +
+                                      meta("residue.features") + " network cannot grow into " + a.to_string() +
+                                      " (the same levels, widths and features plus one level below)");
+  torch::NoGradGuard no_grad;
+  std::vector<torch::nn::BatchNorm2dImpl*> fresh;  // batch norms the source has no statistics for
+  for (auto& m : net->named_modules("", /*include_self=*/false))
+    if (auto* bn = m.value()->as<torch::nn::BatchNorm2d>())
+      if (!source.tensors.count(m.key() + ".running_mean")) fresh.push_back(bn);
+  auto copy = [&](const std::string& name, torch::Tensor& target) {
+    const auto it = source.tensors.find(name);
+    if (it == source.tensors.end() || name.find("num_batches_tracked") != std::string::npos) return;
+    const nn::Tensor& t = it->second;
+    const torch::Tensor value = torch::from_blob(const_cast<float*>(t.values.data()),
+                                                 std::vector<int64_t>(t.shape.begin(), t.shape.end()), torch::kFloat32);
+    if (value.sizes() != target.sizes())
+      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has the wrong shape for this network");
+    target.copy_(value);
+  };
+  auto params = net->named_parameters(), buffers = net->named_buffers();
+  for (auto& p : params) copy(p.key(), p.value());
+  for (auto& b : buffers) copy(b.key(), b.value());
+  for (const auto& [name, t] : source.tensors)
+    if (!params.contains(name) && !buffers.contains(name))
+      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has no place in " + a.to_string());
+
+  auto* level = net->levels[static_cast<size_t>(bottom)]->as<ScaleLevel>();
+  const int64_t w = a.level_width(bottom), below = a.level_width(bottom + 1);
+  auto& up = *level->up;
+  up.conv->weight.zero_();
+  for (int64_t c = 0; c < w; ++c) up.conv->weight[c][below + c][1][1] = 1;  // cat(upsampled, skip): skip second
+  up.bn->weight.fill_(1);
+  up.bn->bias.zero_();
+  up.bn->running_mean.zero_();
+  up.bn->running_var.fill_(1 - up.bn->options.eps());  // (x - 0) / sqrt(var + eps) = x
+  up.prelu->weight.fill_(1);
+  fresh.erase(std::remove(fresh.begin(), fresh.end(), up.bn.get()), fresh.end());
+  for (const auto& m : *level->dec) {
+    auto* block = m->as<ResBlock>();
+    block->bn2->weight.zero_();
+    block->bn2->bias.zero_();
+  }
+
+  // The new batch norms' statistics, measured with the rest of the network as inference runs it.
+  const bool was_training = net->is_training();
+  net->eval();
+  std::vector<c10::optional<double>> momentum;
+  for (auto* bn : fresh) {
+    momentum.push_back(bn->options.momentum());
+    bn->reset_running_stats();
+    bn->options.momentum(c10::nullopt);  // a cumulative average
+    bn->train();
+  }
+  for (int i = 0; i < bn_batches; ++i) net->forward(next_batch());
+  for (size_t i = 0; i < fresh.size(); ++i) {
+    fresh[i]->options.momentum(momentum[i]);
+    fresh[i]->eval();
+  }
+  net->train(was_training);
+}
+
 namespace {
 
 std::vector<torch::nn::BatchNorm2dImpl*> batch_norms(ResidueNet& net) {

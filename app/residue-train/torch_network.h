@@ -86,6 +86,17 @@ void initialise(ResidueNet& net);
 // source computes with those planes set to zero. Throws Error(Input) naming the file and the tensor on a mismatch.
 void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path);
 
+// Warm start of a multi-scale network one level deeper than `source` (same features, the same blocks and widths
+// at the source's levels): every source tensor is copied, and the parts the new bottom level adds start as the
+// identity on the source's path, so the grown network computes exactly what the source computes. The old bottom's
+// `up` step passes its skip through (an identity centre tap on the skip channels, zero on the upsampled ones; BN
+// and PReLU as identities) and its new decoder blocks add zero (their second BN's gamma and beta at 0); the new
+// `down` step and bottom blocks keep He initialisation, and their BN statistics (with those of the new decoder
+// blocks) are measured over `bn_batches` batches from `next_batch`. Training then learns what the coarser level
+// adds (issue 16: our error against OIDN's in interiors is low-frequency). Throws Error(Input) naming the file.
+void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path,
+               const std::function<torch::Tensor()>& next_batch, int bn_batches);
+
 // "Precise BN": replaces every BatchNorm's running statistics (an exponential average of the last few dozen
 // batches, which drifts with the weights and with one unusual batch) by their plain average over `batches`
 // batches drawn by `next_batch`, in fp32 with the current weights. Inference uses only these statistics.
