@@ -3,9 +3,11 @@
 class, per scene kind (interior / exterior), for two or more models on a data set's scenes.
 
   /usr/bin/python3 tools/error_bands.py DATASET --models best,oidn [--split validation] [--widths 4,16,48]
-      [--json OUT.json] [--cli build/release/app/residue-cli/residue-cli] [--work DIR (keeps the denoised EXRs)]
+      [--json OUT.json] [--cli build/release/app/residue-cli/residue-cli] [--work DIR]
 
-Each model denoises each scene's first half (`residue-cli denoise SCENE/noisy_a.exr -m MODEL`). The relative error
+Each model denoises each scene's first half (`residue-cli denoise SCENE/noisy_a.exr -m MODEL`) into --work (a
+temporary folder by default) as SCENE_MODEL.exr, MODEL's file name without its folder; an output already there is
+reused, so a --work folder serves one set of models (a changed file under the same name needs a new one). The relative error
 e = (x - r) / sqrt(r^2 + eps) (so that mean(e^2) is the scene's relMSE, eps 0.01) is split at each width W into
 its W x W box mean ("low": blotches, shading bias, anything wider than W pixels) and the rest ("high": noise
 and detail); each part's mean square is reported. The pixel classes come from the reference and the first

@@ -4,6 +4,7 @@
 # the photographed and plain sets, the starter set), averaged 0.6 / 0.4 with its start (the recipe that won in
 # sessions 7 and 9: MODELS.md levers 1b and 5), then scored by tools/goal_check.py x1 and x8 beside the start.
 #   tools/finetune_full.sh WORKDIR
+# Writes start/run/soup.safetensors, goal_{start,run,soup}_x{1,8}.{txt,json} and bands.{md,json} (error_bands.py).
 # Data (render first; each command is resumable):
 #   R="/usr/bin/python3 tools/datagen/render_dataset.py"
 #   $R --out .cache/datasets/residue-v1 --seeds <the 30 seeds in 1000-1329 with seed % 11 == 10>   # validation
@@ -43,3 +44,8 @@ for m in start run soup; do
     echo "== $m x$e"; sed -n 2,5p goal_${m}_x$e.txt
   done
 done
+# Where the error moved: interiors' low frequencies (48 px) are where OIDN leads (MODELS.md lever 2).
+[ -f bands.md ] || /usr/bin/python3 "$repo/tools/error_bands.py" "$repo/.cache/datasets/residue-v1" --widths 16,48 \
+  --models "$work/start.safetensors,$work/run.safetensors,$work/soup.safetensors,oidn" --work "$work/bands" \
+  --json bands.json > bands.md
+cat bands.md
