@@ -197,39 +197,43 @@ int run(const Options& o) {
   const train::TrainingSet set(train_scenes, arch, o.patch, prior ? &*prior : nullptr);
   std::printf("loaded in %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count());
 
+  // Input batches for batch-norm statistics, drawn as training draws them.
+  auto input_batches = [&set, &o](std::mt19937& rng) {
+    return [&set, &o, &rng] {
+      torch::Tensor x, y;
+      set.sample(rng, o.batch, x, y);
+      return x;
+    };
+  };
   train::ResidueNet net(arch);
   train::initialise(net);
+  const fs::path ckpt = o.checkpoint.empty() ? fs::path(o.out).replace_extension(".ckpt") : fs::path(o.checkpoint);
+  const bool resuming = fs::exists(ckpt / "step");
+  const fs::path start_file = o.init_from.empty() ? o.grow_from : o.init_from;  // at most one (CLI11 excludes)
   std::string init_from_name;  // for the metadata
-  if (!o.init_from.empty()) {
-    const nn::SafetensorsFile source = nn::read_safetensors(o.init_from);
-    train::initialise_from(net, source, o.init_from);
+  if (!start_file.empty()) {
+    const nn::SafetensorsFile source = nn::read_safetensors(start_file);
     const auto name = source.metadata.find("name");
-    init_from_name = name != source.metadata.end() ? name->second : fs::path(o.init_from).stem().string();
-  }
-  if (!o.grow_from.empty()) {
-    const nn::SafetensorsFile source = nn::read_safetensors(o.grow_from);
-    std::mt19937 bn_rng(o.seed * 104729u);
-    train::grow_from(net, source, o.grow_from, [&] {
-      torch::Tensor x, y;
-      set.sample(bn_rng, o.batch, x, y);
-      return x;
-    }, 100);
-    const auto name = source.metadata.find("name");
-    init_from_name = (name != source.metadata.end() ? name->second : fs::path(o.grow_from).stem().string()) +
-                     ", grown by one level";
+    init_from_name = name != source.metadata.end() ? name->second : start_file.stem().string();
+    if (o.grow_from.empty()) {
+      train::initialise_from(net, source, start_file);
+    } else {  // a resumed run's statistics come from its checkpoint: no batches to measure them over
+      std::mt19937 bn_rng(o.seed * 104729u);
+      train::grow_from(net, source, start_file, input_batches(bn_rng), resuming ? 0 : 100);
+      init_from_name += ", grown by one level";
+    }
   }
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(o.lr).betas({0.9, 0.999}));
-  const fs::path ckpt = o.checkpoint.empty() ? fs::path(o.out).replace_extension(".ckpt") : fs::path(o.checkpoint);
   int step = 0;
   double wall_before = 0;  // training time of earlier runs of this model
-  if (fs::exists(ckpt / "step")) {
+  if (resuming) {
     torch::load(net, (ckpt / "model.pt").string());
     torch::load(opt, (ckpt / "optim.pt").string());
     std::ifstream(ckpt / "step") >> step;
     if (fs::exists(ckpt / "wall_s")) std::ifstream(ckpt / "wall_s") >> wall_before;
     std::printf("resumed from %s at step %d (%.0f s of training before)\n", ckpt.string().c_str(), step, wall_before);
   } else if (!init_from_name.empty()) {
-    std::printf("initialised from %s (%s)\n", (o.init_from + o.grow_from).c_str(), init_from_name.c_str());
+    std::printf("initialised from %s (%s)\n", start_file.string().c_str(), init_from_name.c_str());
   }
   std::ofstream log;
   if (!o.log.empty()) {
@@ -254,11 +258,7 @@ int run(const Options& o) {
     if (o.precise_bn <= 0) return;
     if (frozen() && step > freeze_step) return;  // the statistics were fixed at freeze_step and trained with
     std::mt19937 bn_rng(o.seed * 7919u + static_cast<uint32_t>(step));
-    train::recalibrate_batch_norm(net, [&] {
-      torch::Tensor x, y;
-      set.sample(bn_rng, o.batch, x, y);
-      return x;
-    }, o.precise_bn);
+    train::recalibrate_batch_norm(net, input_batches(bn_rng), o.precise_bn);
   };
   // Each validation's per-scene numbers go to LOG.scenes.jsonl (one line per validation), so that a spike in
   // the mean can be traced to the scene that caused it.

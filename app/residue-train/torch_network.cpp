@@ -12,6 +12,37 @@ torch::nn::Conv2dOptions conv3x3(int in, int out, bool bias, int dilation = 1) {
   return torch::nn::Conv2dOptions(in, out, 3).padding(dilation).dilation(dilation).bias(bias);
 }
 
+// A model file's tensor as a libtorch view of its values (no copy).
+torch::Tensor view_of(const nn::Tensor& t) {
+  return torch::from_blob(const_cast<float*>(t.values.data()), std::vector<int64_t>(t.shape.begin(), t.shape.end()),
+                          torch::kFloat32);
+}
+
+// Copies a model file's tensor into the network's, refusing another shape.
+void copy_checked(const torch::Tensor& value, torch::Tensor& target, const std::string& file, const std::string& name) {
+  if (value.sizes() != target.sizes())
+    throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has the wrong shape for this network");
+  target.copy_(value);
+}
+
+// Replaces the running statistics of `norms` by their plain average over `batches` forward passes of `net` (in its
+// current mode: the other batch norms keep theirs), then restores each one's momentum. Leaves `norms` training.
+void measure_batch_norms(ResidueNet& net, const std::vector<torch::nn::BatchNorm2dImpl*>& norms,
+                         const std::function<torch::Tensor()>& next_batch, int batches) {
+  std::vector<c10::optional<double>> momentum;
+  for (auto* bn : norms) {
+    momentum.push_back(bn->options.momentum());
+    bn->reset_running_stats();
+    bn->options.momentum(c10::nullopt);  // a cumulative average over the batches below
+    bn->train();
+  }
+  {
+    torch::NoGradGuard no_grad;
+    for (int i = 0; i < batches; ++i) net->forward(next_batch());
+  }
+  for (size_t i = 0; i < norms.size(); ++i) norms[i]->options.momentum(momentum[i]);
+}
+
 }  // namespace
 
 ResBlockImpl::ResBlockImpl(int width, int dilation) {
@@ -138,9 +169,7 @@ void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const s
     if (name.find("num_batches_tracked") != std::string::npos) return;
     const auto it = source.tensors.find(name);
     if (it == source.tensors.end()) throw Error(ErrorKind::Input, file + ": no tensor '" + name + "'");
-    const nn::Tensor& t = it->second;
-    torch::Tensor value = torch::from_blob(const_cast<float*>(t.values.data()),
-                                           std::vector<int64_t>(t.shape.begin(), t.shape.end()), torch::kFloat32);
+    torch::Tensor value = view_of(it->second);
     if (name == "head.conv.weight" && value.dim() == 4 && value.size(1) == static_cast<int64_t>(from.size())) {
       torch::Tensor matched = torch::zeros({value.size(0), static_cast<int64_t>(to.size()), value.size(2), value.size(3)});
       for (size_t c = 0; c < to.size(); ++c) {
@@ -149,9 +178,7 @@ void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const s
       }
       value = matched;
     }
-    if (value.sizes() != target.sizes())
-      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has the wrong shape for this network");
-    target.copy_(value);
+    copy_checked(value, target, file, name);
   };
   for (auto& p : net->named_parameters()) copy(p.key(), p.value());
   for (auto& b : net->named_buffers()) copy(b.key(), b.value());
@@ -166,10 +193,12 @@ void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::fi
     const auto it = source.metadata.find(key);
     return it == source.metadata.end() ? std::string() : it->second;
   };
-  const std::vector<int> levels(a.levels.begin(), a.levels.end() - (L > 0 ? 1 : 0));
-  std::vector<int> widths;
-  for (int l = 0; l + 1 < L; ++l) widths.push_back(a.level_width(l));
-  if (!a.multiscale() || L < 3 || meta("residue.levels") != nn::ints_to_string(levels) ||
+  std::vector<int> levels, widths;  // the source's: every level but the new bottom
+  for (int l = 0; l + 1 < L; ++l) {
+    levels.push_back(a.levels[static_cast<size_t>(l)]);
+    widths.push_back(a.level_width(l));
+  }
+  if (L < 3 || meta("residue.levels") != nn::ints_to_string(levels) ||
       meta("residue.widths") != nn::ints_to_string(widths) || meta("residue.features") != to_string(a.features))
     throw Error(ErrorKind::Input, file + ": a " + meta("residue.levels") + "/" + meta("residue.widths") + " " +
                                       meta("residue.features") + " network cannot grow into " + a.to_string() +
@@ -179,15 +208,10 @@ void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::fi
   for (auto& m : net->named_modules("", /*include_self=*/false))
     if (auto* bn = m.value()->as<torch::nn::BatchNorm2d>())
       if (!source.tensors.count(m.key() + ".running_mean")) fresh.push_back(bn);
-  auto copy = [&](const std::string& name, torch::Tensor& target) {
+  auto copy = [&](const std::string& name, torch::Tensor& target) {  // the new level's tensors are not in the file
     const auto it = source.tensors.find(name);
-    if (it == source.tensors.end() || name.find("num_batches_tracked") != std::string::npos) return;
-    const nn::Tensor& t = it->second;
-    const torch::Tensor value = torch::from_blob(const_cast<float*>(t.values.data()),
-                                                 std::vector<int64_t>(t.shape.begin(), t.shape.end()), torch::kFloat32);
-    if (value.sizes() != target.sizes())
-      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has the wrong shape for this network");
-    target.copy_(value);
+    if (it != source.tensors.end() && name.find("num_batches_tracked") == std::string::npos)
+      copy_checked(view_of(it->second), target, file, name);
   };
   auto params = net->named_parameters(), buffers = net->named_buffers();
   for (auto& p : params) copy(p.key(), p.value());
@@ -216,18 +240,7 @@ void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::fi
   // The new batch norms' statistics, measured with the rest of the network as inference runs it.
   const bool was_training = net->is_training();
   net->eval();
-  std::vector<c10::optional<double>> momentum;
-  for (auto* bn : fresh) {
-    momentum.push_back(bn->options.momentum());
-    bn->reset_running_stats();
-    bn->options.momentum(c10::nullopt);  // a cumulative average
-    bn->train();
-  }
-  for (int i = 0; i < bn_batches; ++i) net->forward(next_batch());
-  for (size_t i = 0; i < fresh.size(); ++i) {
-    fresh[i]->options.momentum(momentum[i]);
-    fresh[i]->eval();
-  }
+  measure_batch_norms(net, fresh, next_batch, bn_batches);
   net->train(was_training);
 }
 
@@ -243,20 +256,9 @@ std::vector<torch::nn::BatchNorm2dImpl*> batch_norms(ResidueNet& net) {
 }  // namespace
 
 void recalibrate_batch_norm(ResidueNet& net, const std::function<torch::Tensor()>& next_batch, int batches) {
-  const auto norms = batch_norms(net);
-  std::vector<c10::optional<double>> momentum;
-  for (auto* bn : norms) {
-    momentum.push_back(bn->options.momentum());
-    bn->reset_running_stats();
-    bn->options.momentum(c10::nullopt);  // a cumulative average over the batches below
-  }
   const bool was_training = net->is_training();
   net->train();
-  {
-    torch::NoGradGuard no_grad;
-    for (int i = 0; i < batches; ++i) net->forward(next_batch());
-  }
-  for (size_t i = 0; i < norms.size(); ++i) norms[i]->options.momentum(momentum[i]);
+  measure_batch_norms(net, batch_norms(net), next_batch, batches);
   net->train(was_training);
 }
 
