@@ -9,6 +9,7 @@
 #   FUZZ_HARNESSES="fuzz_tza" tools/fuzz.sh 600    only those
 #   FUZZ_KEEP_CORPUS=DIR tools/fuzz.sh      keep the grown corpora in DIR/<harness> (default: a temp dir, removed)
 #   FUZZ_NO_BUILD=1 tools/fuzz.sh           skip the build (already built)
+#   FUZZ_JOBS=1 tools/fuzz.sh               one harness at a time (default: one per core)
 set -uo pipefail
 cd "$(dirname "$0")/.."
 
@@ -36,18 +37,34 @@ fi
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 
-failed=()
-printf '%-22s %8s %12s %10s %8s %8s  %s\n' harness seconds execs exec/s cov ft result
-for h in $harnesses; do
-  [ -x "$bin/$h" ] || { echo "fuzz: $bin/$h is missing" >&2; failed+=("$h"); continue; }
-  corpus=$work/$h
+# One harness: fuzz its corpus copy, then leave libFuzzer's exit status beside its log.
+fuzz_one() {
+  local h=$1 corpus=$work/$1
   mkdir -p "$corpus"
   cp -n tests/fuzz/corpus/$h/* "$corpus"/ 2>/dev/null
-  log=$logs/$h.log
   # -timeout: an input that takes over 60 s is a hang; -rss_limit_mb: libFuzzer's default, written out.
   "$bin/$h" "$corpus" -max_total_time="$seconds" -timeout=60 -rss_limit_mb=2048 -print_final_stats=1 \
-    -artifact_prefix="$artifacts/$h-" >"$log" 2>&1
-  rc=$?
+    -artifact_prefix="$artifacts/$h-" >"$logs/$h.log" 2>&1
+  echo $? >"$logs/$h.rc"
+}
+
+# Harnesses are single-threaded: run up to FUZZ_JOBS (default: one per core) at a time.
+jobs=${FUZZ_JOBS:-$(nproc)}
+failed=()
+running=0
+for h in $harnesses; do
+  [ -x "$bin/$h" ] || { echo "fuzz: $bin/$h is missing" >&2; failed+=("$h"); continue; }
+  rm -f "$logs/$h.rc"
+  fuzz_one "$h" &
+  if ((++running >= jobs)); then wait -n; ((running--)); fi
+done
+wait
+
+printf '%-22s %8s %12s %10s %8s %8s  %s\n' harness seconds execs exec/s cov ft result
+for h in $harnesses; do
+  [ -x "$bin/$h" ] || continue
+  log=$logs/$h.log
+  rc=$(cat "$logs/$h.rc" 2>/dev/null || echo "?")
   last=$(grep -E '^#[0-9]+' "$log" | tail -n 1)
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -n 1)
   [ -n "$execs" ] || execs=$(sed -E -n 's/^#([0-9]+).*/\1/p' <<<"$last")
@@ -55,7 +72,7 @@ for h in $harnesses; do
   cov=$(sed -E -n 's/.* cov: ([0-9]+).*/\1/p' <<<"$last")
   ft=$(sed -E -n 's/.* ft: ([0-9]+).*/\1/p' <<<"$last")
   result=ok
-  if [ $rc -ne 0 ]; then
+  if [ "$rc" != 0 ]; then
     result="FAILED (exit $rc; see $log)"
     failed+=("$h")
   fi

@@ -31,9 +31,9 @@ std::optional<FramePattern> FramePattern::parse(const std::string& text) {
   const auto slash = text.rfind('/');
   const size_t name_start = slash == std::string::npos ? 0 : slash + 1;
   std::optional<FramePattern> found;
-  auto take = [&](size_t begin, size_t end, int width) {
+  auto take = [&](size_t begin, size_t end, int digits) {
     if (found) throw Error(ErrorKind::Usage, "'" + text + "' has more than one frame-number field");
-    found = FramePattern{text.substr(0, begin), text.substr(end), width};
+    found = FramePattern{text.substr(0, begin), text.substr(end), digits};
   };
   for (size_t i = name_start; i < text.size();) {
     if (text[i] == '#') {
