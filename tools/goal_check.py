@@ -13,16 +13,20 @@ with that many flips and transposes. Exit status 0 when the goal holds, 1 when i
 import argparse, json, os, re, subprocess, sys, tempfile
 
 
+def denoised_scores(cli_output):
+    """relMSE and SSIM from the "denoised" row of `residue-cli denoise --reference`'s metrics table (relMSE, MSE,
+    PSNR, SSIM, pixels, excluded)."""
+    row = next(line for line in cli_output.splitlines() if line.startswith("denoised"))
+    fields = re.split(r"\s+", row.strip())
+    return {"relmse": float(fields[1]), "ssim": float(fields[4])}
+
+
 def cornell_scores(cli, folder, model, ensemble, tmp):
     out = os.path.join(tmp, "cornell.exr")
     cmd = [cli, "denoise", folder, "-m", model, "-o", out, "--force"]
     if ensemble:
         cmd += ["--ensemble", str(ensemble)]
-    text = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-    # The metrics table's "denoised" row: relMSE, MSE, PSNR, SSIM, pixels, excluded.
-    row = next(line for line in text.splitlines() if line.startswith("denoised"))
-    fields = re.split(r"\s+", row.strip())
-    return {"relmse": float(fields[1]), "ssim": float(fields[4])}
+    return denoised_scores(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
 
 
 def main():

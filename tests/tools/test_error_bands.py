@@ -5,13 +5,14 @@ as a one-scene data set, where its relMSE must equal residue-cli's own for the s
 
   test_error_bands.py REPO RESIDUE_CLI
 """
-import json, os, re, shutil, subprocess, sys, tempfile
+import json, os, shutil, subprocess, sys, tempfile
 
 import numpy as np
 
 repo, cli = sys.argv[1], sys.argv[2]
 sys.path.insert(0, os.path.join(repo, "tools"))
 import error_bands  # noqa: E402
+from goal_check import denoised_scores  # noqa: E402
 
 failures = []
 
@@ -54,11 +55,11 @@ with tempfile.TemporaryDirectory() as tmp:
     check(run.returncode == 0, f"the tool runs: {run.stderr}")
     result = json.load(open(out))
     scene = result["scenes"][0]["models"]
-    # residue-cli's relMSE of the same denoise (its metrics table's "denoised" row).
+    # residue-cli's relMSE of the same denoise.
     text = subprocess.run([cli, "denoise", os.path.join(data, "s0", "noisy_a.exr"), "--reference",
                            os.path.join(data, "s0", "reference.exr"), "-m", "multiscale", "-o",
                            os.path.join(tmp, "d.exr")], check=True, capture_output=True, text=True).stdout
-    cli_relmse = float(re.split(r"\s+", next(l for l in text.splitlines() if l.startswith("denoised")).strip())[1])
+    cli_relmse = denoised_scores(text)["relmse"]
     check(abs(scene["multiscale"]["relmse"] / cli_relmse - 1) < 1e-3,
           f"relMSE {scene['multiscale']['relmse']} against residue-cli's {cli_relmse}")
     for m in ("multiscale", "bilateral"):
