@@ -51,9 +51,11 @@ fuzz_one() {
 # Harnesses are single-threaded: run up to FUZZ_JOBS (default: one per core) at a time.
 jobs=${FUZZ_JOBS:-$(nproc)}
 failed=()
+started=()
 running=0
 for h in $harnesses; do
   [ -x "$bin/$h" ] || { echo "fuzz: $bin/$h is missing" >&2; failed+=("$h"); continue; }
+  started+=("$h")
   rm -f "$logs/$h.rc"
   fuzz_one "$h" &
   if ((++running >= jobs)); then wait -n; ((running--)); fi
@@ -61,8 +63,7 @@ done
 wait
 
 printf '%-22s %8s %12s %10s %8s %8s  %s\n' harness seconds execs exec/s cov ft result
-for h in $harnesses; do
-  [ -x "$bin/$h" ] || continue
+for h in "${started[@]}"; do
   log=$logs/$h.log
   rc=$(cat "$logs/$h.rc" 2>/dev/null || echo "?")
   last=$(grep -E '^#[0-9]+' "$log" | tail -n 1)
