@@ -52,6 +52,30 @@ TEST_P(TrainParity, ExportedModelGivesTheSameOutputInCore) {
     torch::NoGradGuard no_grad;
     expect = net->forward(t);
   }
+  // The trainer's layout (channels-last weights and inputs) computes the same and exports the same file.
+  {
+    train::ResidueNet nhwc(arch);
+    {
+      torch::NoGradGuard no_grad;
+      const auto from = net->named_parameters(), to = nhwc->named_parameters();
+      for (const auto& p : from) to[p.key()].copy_(p.value());
+      const auto from_buffers = net->named_buffers(), to_buffers = nhwc->named_buffers();
+      for (const auto& b : from_buffers) to_buffers[b.key()].copy_(b.value());
+    }
+    train::use_channels_last(nhwc);
+    nhwc->eval();
+    ASSERT_TRUE(nhwc->head->conv->weight.is_contiguous(at::MemoryFormat::ChannelsLast));
+    torch::NoGradGuard no_grad;
+    const torch::Tensor out = nhwc->forward(train::to_channels_last(t));
+    EXPECT_LT((out - expect).abs().max().item<double>(), 1e-5 * std::max(1.0, expect.abs().max().item<double>()));
+    const nn::SafetensorsFile a = train::export_model(net, {}), b = train::export_model(nhwc, {});
+    ASSERT_EQ(a.tensors.size(), b.tensors.size());
+    for (const auto& [name, tensor] : a.tensors) {
+      ASSERT_TRUE(b.tensors.count(name)) << name;
+      EXPECT_EQ(tensor.shape, b.tensors.at(name).shape) << name;
+      EXPECT_EQ(tensor.values, b.tensors.at(name).values) << name << ": the export must not depend on the layout";
+    }
+  }
   for (const auto& backend : nn::available_backends()) {
     auto b = nn::make_backend(backend, model.graph, {});
     Image out;

@@ -12,7 +12,8 @@
 #   residue-pseudo, residue-photo, residue-photo-plain: MODELS.md lever 5 and tools/study_photo.sh
 # The trainer's validation is the cards' 36 scenes (residue-v1's 30 and the starter set's last 6): it only
 # monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), SEED (16),
-# THREADS (2). Resumable: the run continues from its checkpoint folder, finished files and tables are kept.
+# THREADS (2), PRECISION (fp32, or bf16: slower on the Intel CPU measured, faster on Zen; MODELS.md "Training
+# speed"). Resumable: the run continues from its checkpoint folder, finished files and tables are kept.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/finetune_full.sh WORKDIR}")
@@ -24,12 +25,14 @@ done
 data+=("$(realpath "$repo/../shared/datasets/cycles-starter")")
 mkdir -p "$work" && cd "$work"
 cp -n "$repo/resources/models/multiscale.safetensors" start.safetensors
+precision=()
+case "${PRECISION:-fp32}" in fp32) ;; bf16) precision=(--bf16) ;; *) echo "finetune_full.sh: PRECISION is fp32 or bf16" >&2; exit 2 ;; esac
 if [ ! -f run.safetensors ]; then
   "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch 2,2,2,2/24,40,56,80 \
-    --steps "${STEPS:-5000}" --val-every 1000 --checkpoint-every 250 --bf16 --batch 2 --patch 128 \
+    --steps "${STEPS:-5000}" --val-every 1000 --checkpoint-every 250 --batch 2 --patch 128 \
     --loss l1-log+ssim --relmse-weight "${RELMSE_WEIGHT:-2}" --autoexposure --exposure-key 1 --seed "${SEED:-16}" \
     --freeze-bn-after 0 --init-from start.safetensors --lr "${LR:-1e-4}" --name multiscale \
-    --threads "${THREADS:-2}" --log run.csv -o run.safetensors > run.out 2>&1 ||
+    --threads "${THREADS:-2}" "${precision[@]}" --log run.csv -o run.safetensors > run.out 2>&1 ||
     { echo "finetune_full.sh: training failed, see $work/run.out" >&2; exit 1; }
 fi
 [ -f soup.safetensors ] || /usr/bin/python3 "$repo/tools/average_weights.py" soup.safetensors \

@@ -202,7 +202,7 @@ int run(const Options& o) {
     return [&set, &o, &rng] {
       torch::Tensor x, y;
       set.sample(rng, o.batch, x, y);
-      return x;
+      return train::to_channels_last(x);
     };
   };
   train::ResidueNet net(arch);
@@ -235,6 +235,7 @@ int run(const Options& o) {
   } else if (!init_from_name.empty()) {
     std::printf("initialised from %s (%s)\n", start_file.string().c_str(), init_from_name.c_str());
   }
+  train::use_channels_last(net);  // after any loading, which may set the stored layout
   std::ofstream log;
   if (!o.log.empty()) {
     const bool fresh = !fs::exists(o.log) || step == 0;
@@ -287,6 +288,7 @@ int run(const Options& o) {
     if (frozen()) train::freeze_batch_norm(net);
     torch::Tensor x, y;
     set.sample(rng, o.batch, x, y);
+    x = train::to_channels_last(x);
     opt.zero_grad();
     torch::Tensor prediction;
     if (o.bf16) {
@@ -433,7 +435,7 @@ int main(int argc, char** argv) {
                  "what the file computes until training teaches the new level (same features, levels and widths "
                  "above it)")
       ->check(CLI::ExistingFile)->excludes("--init-from");
-  app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser");
+  app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser: faster on the Zen CPUs measured, slower on an Intel one (MODELS.md, \"Training speed\")");
   CLI11_PARSE(app, argc, argv);
   try {
     return run(o);

@@ -266,6 +266,14 @@ void freeze_batch_norm(ResidueNet& net) {
   for (auto* bn : batch_norms(net)) bn->eval();
 }
 
+void use_channels_last(ResidueNet& net) {
+  torch::NoGradGuard no_grad;
+  for (auto& p : net->parameters())
+    if (p.dim() == 4) p.set_data(p.data().contiguous(at::MemoryFormat::ChannelsLast));
+}
+
+torch::Tensor to_channels_last(const torch::Tensor& batch) { return batch.contiguous(at::MemoryFormat::ChannelsLast); }
+
 nn::SafetensorsFile export_model(ResidueNet& net, std::map<std::string, std::string> metadata) {
   nn::SafetensorsFile f;
   f.metadata = std::move(metadata);
