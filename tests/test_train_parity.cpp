@@ -232,6 +232,84 @@ TEST(TrainGrowFrom, AGrownNetworkStartsAsItsSourceAndItsNewLevelLearns) {
   }
 }
 
+// --widen-from: every level wider (the full-resolution one most), the source's function exactly, the new channels
+// measured and learning; core runs the export as it runs the source; a network of another shape is refused.
+TEST(TrainWidenFrom, AWidenedNetworkStartsAsItsSourceAndItsNewChannelsLearn) {
+  torch::manual_seed(13);
+  const nn::Architecture narrow{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {8, 12, 16}};
+  train::ResidueNet source(narrow);
+  train::initialise(source);
+  {
+    torch::NoGradGuard no_grad;
+    for (auto& p : source->named_parameters())
+      if (p.key().find("bn") != std::string::npos || p.key().find("prelu") != std::string::npos)
+        p.value().uniform_(0.5, 1.5);
+    source->train();
+    for (int i = 0; i < 3; ++i) source->forward(torch::randn({4, 9, 32, 32}) * 0.7 + 0.2);
+  }
+  source->eval();
+  testing::TempDir tmp;
+  const auto file = tmp / "source.safetensors";
+  nn::write_safetensors(file, train::export_model(source, {{"name", "src"}}), false);
+  const nn::SafetensorsFile read = nn::read_safetensors(file);
+
+  train::ResidueNet wide(nn::Architecture{1, 12, FeatureSet::Full, {}, false, {1, 2, 1}, {12, 12, 20}});  // width: the first level's, as parsed
+  train::initialise(wide);
+  int batches = 0;
+  train::widen_from(wide, read, file, [&] { ++batches; return torch::randn({2, 9, 32, 32}); }, 4);
+  EXPECT_EQ(batches, 4);
+  wide->eval();
+  const torch::Tensor x = torch::randn({2, 9, 32, 48}) * 0.7 + 0.2;
+  {
+    torch::NoGradGuard no_grad;
+    const torch::Tensor expect = source->forward(x), got = wide->forward(x);
+    EXPECT_TRUE(torch::allclose(got, expect, 1e-5, 1e-5)) << "max difference " << (got - expect).abs().max().item<float>();
+  }
+  // The old channels keep the source's statistics; the new ones were measured.
+  auto* top = wide->levels[0]->as<train::ScaleLevel>();
+  auto* block = top->enc[0]->as<train::ResBlock>();
+  EXPECT_TRUE(torch::equal(block->bn1->running_var.slice(0, 0, 8),
+                           torch::tensor(read.tensors.at("levels.0.enc.0.bn1.running_var").values)));
+  EXPECT_NE(block->bn1->running_var.slice(0, 8, 12).sub(1).abs().sum().item<float>(), 0.f);
+  // The new channels reach the output through weights that start at zero: those get a gradient at once.
+  wide->train();
+  train::freeze_batch_norm(wide);
+  wide->forward(x).abs().mean().backward();
+  EXPECT_GT(wide->out->conv->weight.grad().slice(1, 8, 12).abs().sum().item<float>(), 0.f);
+  auto* middle = wide->levels[1]->as<train::ScaleLevel>();
+  EXPECT_GT(middle->up->conv->weight.grad().slice(1, 16, 20).abs().sum().item<float>(), 0.f)
+      << "the upsampled bottom's new channels sit after its old ones, before the skip";
+
+  wide->eval();
+  const auto wide_file = tmp / "wide.safetensors";
+  nn::write_safetensors(wide_file, train::export_model(wide, {{"name", "wide"}}), false);
+  const Image in = testing::random_image(48, 32, 9, 5, -0.5f, 1.5f);
+  Image out_source, out_wide;
+  nn::make_backend("eigen", nn::load_model(file).graph, {})->run(in, out_source);
+  nn::make_backend("eigen", nn::load_model(wide_file).graph, {})->run(in, out_wide);
+  double err = 0, scale = 1e-3;
+  for (int64_t y = 0; y < 32; ++y)
+    for (int64_t xx = 0; xx < 48; ++xx)
+      for (int c = 0; c < 3; ++c) {
+        scale = std::max(scale, static_cast<double>(std::abs(out_source.at(xx, y, c))));
+        err = std::max(err, static_cast<double>(std::abs(out_source.at(xx, y, c) - out_wide.at(xx, y, c))));
+      }
+  EXPECT_LT(err / scale, 1e-5);
+
+  for (const auto& other : std::vector<nn::Architecture>{nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {12, 8, 20}},
+                            nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 1, 1}, {12, 12, 20}},
+                            nn::Architecture{1, 8, FeatureSet::ColorOnly, {}, false, {1, 2, 1}, {12, 12, 20}}}) {
+    train::ResidueNet net(other);
+    try {
+      train::widen_from(net, read, file, [] { return torch::randn({2, 9, 32, 32}); }, 1);
+      ADD_FAILURE() << "an 8,12,16 network widened into " << other.to_string();
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("8,12,16"), std::string::npos) << e.what();
+    }
+  }
+}
+
 // A fresh post-correction network is the identity on its prior's planes (its output conv starts at zero), and it
 // still learns: the output conv gets a gradient.
 TEST(TrainPlanes, NormalAndAlbedoPlanesFollowTheFeatureSet) {

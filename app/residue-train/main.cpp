@@ -63,6 +63,7 @@ struct Options {
   double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
   std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
   std::string grow_from;         // a multi-scale model file one level shallower to start from (a fresh run only)
+  std::string widen_from;        // a model file of the same architecture, narrower, to start from (a fresh run only)
 };
 
 struct Validation {
@@ -209,18 +210,22 @@ int run(const Options& o) {
   train::initialise(net);
   const fs::path ckpt = o.checkpoint.empty() ? fs::path(o.out).replace_extension(".ckpt") : fs::path(o.checkpoint);
   const bool resuming = fs::exists(ckpt / "step");
-  const fs::path start_file = o.init_from.empty() ? o.grow_from : o.init_from;  // at most one (CLI11 excludes)
+  const fs::path start_file = !o.init_from.empty() ? o.init_from : !o.grow_from.empty() ? o.grow_from : o.widen_from;
   std::string init_from_name;  // for the metadata
   if (!start_file.empty()) {
     const nn::SafetensorsFile source = nn::read_safetensors(start_file);
     const auto name = source.metadata.find("name");
     init_from_name = name != source.metadata.end() ? name->second : start_file.stem().string();
-    if (o.grow_from.empty()) {
-      train::initialise_from(net, source, start_file);
-    } else {  // a resumed run's statistics come from its checkpoint: no batches to measure them over
-      std::mt19937 bn_rng(o.seed * 104729u);
+    // A resumed run's statistics come from its checkpoint: no batches to measure them over.
+    std::mt19937 bn_rng(o.seed * 104729u);
+    if (!o.grow_from.empty()) {
       train::grow_from(net, source, start_file, input_batches(bn_rng), resuming ? 0 : 100);
       init_from_name += ", grown by one level";
+    } else if (!o.widen_from.empty()) {
+      train::widen_from(net, source, start_file, input_batches(bn_rng), resuming ? 0 : 100);
+      init_from_name += ", widened";
+    } else {
+      train::initialise_from(net, source, start_file);
     }
   }
   torch::optim::Adam opt(net->parameters(), torch::optim::AdamOptions(o.lr).betas({0.9, 0.999}));
@@ -435,6 +440,11 @@ int main(int argc, char** argv) {
                  "what the file computes until training teaches the new level (same features, levels and widths "
                  "above it)")
       ->check(CLI::ExistingFile)->excludes("--init-from");
+  app.add_option("--widen-from", o.widen_from,
+                 "Start from this model file of the same architecture with each level (or the flat network) at "
+                 "least as wide here, computing exactly what the file computes until training teaches the new "
+                 "channels")
+      ->check(CLI::ExistingFile)->excludes("--init-from")->excludes("--grow-from");
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser: faster on the Zen CPUs measured, slower on an Intel one (MODELS.md, \"Training speed\")");
   CLI11_PARSE(app, argc, argv);
   try {

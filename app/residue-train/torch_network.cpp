@@ -244,6 +244,93 @@ void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::fi
   net->train(was_training);
 }
 
+void widen_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path,
+                const std::function<torch::Tensor()>& next_batch, int bn_batches) {
+  const std::string file = path.string();
+  const nn::Architecture& a = net->arch;
+  auto meta = [&](const std::string& key) {
+    const auto it = source.metadata.find(key);
+    return it == source.metadata.end() ? std::string() : it->second;
+  };
+  // The source's architecture is this one at the source's widths: every residue.* key must then agree.
+  nn::Architecture narrow = a;
+  std::vector<int> old_widths;
+  if (const auto w = nn::parse_ints(meta(a.multiscale() ? "residue.widths" : "residue.width"), 1, 4096)) old_widths = *w;
+  if (a.multiscale()) narrow.widths = old_widths;  // residue.width is then the first level's (model_file.cpp)
+  if (!old_widths.empty()) narrow.width = old_widths[0];
+  std::map<std::string, std::string> expected;
+  if (!old_widths.empty()) nn::write_architecture_metadata(narrow, expected);
+  bool same = !old_widths.empty() && old_widths.size() == (a.multiscale() ? a.widths.size() : 1u);
+  for (const auto& [key, value] : expected) same = same && meta(key) == value;
+  for (size_t l = 0; same && l < old_widths.size(); ++l) same = old_widths[l] <= a.level_width(static_cast<int>(l));
+  if (!same)
+    throw Error(ErrorKind::Input, file + ": a " + meta("residue.blocks") + "/" + meta("residue.width") + " " +
+                                      meta("residue.levels") + "/" + meta("residue.widths") + " " +
+                                      meta("residue.features") + " network cannot widen into " + a.to_string() +
+                                      " (the same architecture, each level at least as wide)");
+  auto old_width = [&](int l) { return old_widths[static_cast<size_t>(l)]; };
+
+  torch::NoGradGuard no_grad;
+  // Where a source tensor's channels go, per dimension: runs of (from, to, count). Every dimension is a prefix
+  // but an up step's input, cat(upsampled level below, skip): two runs.
+  using Runs = std::vector<std::array<int64_t, 3>>;
+  auto input_runs = [&](const std::string& name, int64_t count) -> Runs {
+    for (int l = 0; a.multiscale() && l + 1 < static_cast<int>(a.levels.size()); ++l)
+      if (name == "levels." + std::to_string(l) + ".up.conv.weight")
+        return {{0, 0, old_width(l + 1)}, {old_width(l + 1), a.level_width(l + 1), old_width(l)}};
+    return {{0, 0, count}};
+  };
+  std::vector<torch::nn::BatchNorm2dImpl*> widened;  // and their channels in the source
+  std::vector<int64_t> old_channels;
+  for (auto& m : net->named_modules("", /*include_self=*/false))
+    if (auto* bn = m.value()->as<torch::nn::BatchNorm2d>())
+      if (const auto it = source.tensors.find(m.key() + ".running_mean");
+          it != source.tensors.end() && it->second.shape[0] < bn->options.num_features()) {
+        widened.push_back(bn);
+        old_channels.push_back(it->second.shape[0]);
+      }
+  auto place = [&](const std::string& name, torch::Tensor& target) {
+    if (name.find("num_batches_tracked") != std::string::npos) return;
+    const auto it = source.tensors.find(name);
+    if (it == source.tensors.end()) throw Error(ErrorKind::Input, file + ": no tensor '" + name + "'");
+    const torch::Tensor value = view_of(it->second);
+    bool fits = value.dim() == target.dim();
+    for (int64_t d = 0; fits && d < value.dim(); ++d)
+      fits = value.size(d) <= target.size(d) && (d < 2 || value.size(d) == target.size(d));
+    if (!fits) throw Error(ErrorKind::Input, file + ": tensor '" + name + "' does not fit the wider network");
+    const int64_t outs = value.size(0);
+    if (value.dim() == 1) {
+      target.slice(0, 0, outs).copy_(value);
+      return;
+    }
+    torch::Tensor old_rows = target.slice(0, 0, outs);
+    old_rows.zero_();  // the old outputs read nothing from the new inputs
+    for (const auto& [from, to, count] : input_runs(name, value.size(1)))
+      old_rows.slice(1, to, to + count).copy_(value.slice(1, from, from + count));
+  };
+  for (auto& p : net->named_parameters()) place(p.key(), p.value());
+  for (auto& b : net->named_buffers()) place(b.key(), b.value());
+  for (const auto& [name, t] : source.tensors)
+    if (!net->named_parameters().contains(name) && !net->named_buffers().contains(name))
+      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has no place in " + a.to_string());
+
+  // The new channels' statistics, measured with the network as inference runs it; then the old channels' back.
+  std::vector<torch::Tensor> kept_mean, kept_var;
+  for (auto* bn : widened) {
+    kept_mean.push_back(bn->running_mean.clone());
+    kept_var.push_back(bn->running_var.clone());
+  }
+  const bool was_training = net->is_training();
+  net->eval();
+  measure_batch_norms(net, widened, next_batch, bn_batches);
+  for (size_t i = 0; i < widened.size(); ++i) {
+    const int64_t n = old_channels[i];
+    widened[i]->running_mean.slice(0, 0, n).copy_(kept_mean[i].slice(0, 0, n));
+    widened[i]->running_var.slice(0, 0, n).copy_(kept_var[i].slice(0, 0, n));
+  }
+  net->train(was_training);
+}
+
 namespace {
 
 std::vector<torch::nn::BatchNorm2dImpl*> batch_norms(ResidueNet& net) {

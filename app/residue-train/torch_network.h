@@ -97,6 +97,15 @@ void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const s
 void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path,
                const std::function<torch::Tensor()>& next_batch, int bn_batches);
 
+// Warm start of a wider network: the same architecture as `source` with each level (or the flat network) at least
+// as wide. Every source tensor is copied into the leading channels of its counterpart; the weights from the new
+// channels into the old ones start at zero, so the widened network computes exactly what the source computes, and
+// everything into the new channels keeps He initialisation. The new channels' BN statistics are measured over
+// `bn_batches` batches from `next_batch` (the old channels keep the source's). Issue 16: the full-resolution level,
+// 24 channels against OIDN's 32, is the capacity a noisy wall is denoised with. Throws Error(Input) naming the file.
+void widen_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path,
+                const std::function<torch::Tensor()>& next_batch, int bn_batches);
+
 // "Precise BN": replaces every BatchNorm's running statistics (an exponential average of the last few dozen
 // batches, which drifts with the weights and with one unusual batch) by their plain average over `batches`
 // batches drawn by `next_batch`, in fp32 with the current weights. Inference uses only these statistics.
