@@ -13,30 +13,39 @@
 # The trainer's validation is the cards' 36 scenes (residue-v1's 30 and the starter set's last 6): it only
 # monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), SEED (16),
 # THREADS (2), PRECISION (fp32, or bf16: slower on the Intel CPU measured, faster on Zen; MODELS.md "Training
-# speed"). Resumable: the run continues from its checkpoint folder, finished files and tables are kept.
+# speed"); ARCH (2,2,2,2/24,40,56,80: the shipped one, so --init-from) with WIDEN=1 for a wider ARCH that starts as
+# the shipped network (--widen-from); V1_PSEUDO (.cache/datasets/residue-v1-pseudo: another folder of that set, e.g.
+# a fixed subset for an A/B). Resumable: the run continues from its checkpoint folder, finished files and tables
+# are kept.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/finetune_full.sh WORKDIR}")
 data=()
-for d in residue-v1 residue-v1-pseudo residue-pseudo residue-photo residue-photo-plain; do
-  [ -f "$repo/.cache/datasets/$d/index.json" ] && data+=("$repo/.cache/datasets/$d") ||
-    echo "finetune_full.sh: .cache/datasets/$d is missing; training without it" >&2
+for d in residue-v1 "${V1_PSEUDO:-residue-v1-pseudo}" residue-pseudo residue-photo residue-photo-plain; do
+  d=$(cd "$repo/.cache/datasets" && realpath -m "$d")
+  [ -f "$d/index.json" ] && data+=("$d") || echo "finetune_full.sh: $d is missing; training without it" >&2
 done
 data+=("$(realpath "$repo/../shared/datasets/cycles-starter")")
 mkdir -p "$work" && cd "$work"
 cp -n "$repo/resources/models/multiscale.safetensors" start.safetensors
+start=(--init-from start.safetensors) base=start
+[ "${WIDEN:-0}" = 1 ] && start=(--widen-from start.safetensors) base=start_wide
 precision=()
 case "${PRECISION:-fp32}" in fp32) ;; bf16) precision=(--bf16) ;; *) echo "finetune_full.sh: PRECISION is fp32 or bf16" >&2; exit 2 ;; esac
-if [ ! -f run.safetensors ]; then
-  "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch 2,2,2,2/24,40,56,80 \
-    --steps "${STEPS:-5000}" --val-every 1000 --checkpoint-every 250 --batch 2 --patch 128 \
+train() {  # NAME STEPS: NAME.safetensors, its log and checkpoint
+  [ -f "$1.safetensors" ] && return
+  "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch "${ARCH:-2,2,2,2/24,40,56,80}" \
+    --steps "$2" --val-every 1000 --checkpoint-every 250 --batch 2 --patch 128 \
     --loss l1-log+ssim --relmse-weight "${RELMSE_WEIGHT:-2}" --autoexposure --exposure-key 1 --seed "${SEED:-16}" \
-    --freeze-bn-after 0 --init-from start.safetensors --lr "${LR:-1e-4}" --name multiscale \
-    --threads "${THREADS:-2}" "${precision[@]}" --log run.csv -o run.safetensors > run.out 2>&1 ||
-    { echo "finetune_full.sh: training failed, see $work/run.out" >&2; exit 1; }
-fi
+    --freeze-bn-after 0 "${start[@]}" --lr "${LR:-1e-4}" --name multiscale \
+    --threads "${THREADS:-2}" "${precision[@]}" --log "$1.csv" -o "$1.safetensors" > "$1.out" 2>&1 ||
+    { echo "finetune_full.sh: training failed, see $work/$1.out" >&2; exit 1; }
+}
+# A widened run averages with its own start (the shipped network widened, new channels as initialised): 0 steps.
+[ "$base" = start ] || train start_wide 0
+train run "${STEPS:-5000}"
 [ -f soup.safetensors ] || /usr/bin/python3 "$repo/tools/average_weights.py" soup.safetensors \
-  start.safetensors:0.6 run.safetensors:0.4
+  $base.safetensors:0.6 run.safetensors:0.4
 for m in run soup; do
   /usr/bin/python3 "$repo/tools/safetensors_meta.py" $m.safetensors --set residue.blend_tau=0 > /dev/null
 done
