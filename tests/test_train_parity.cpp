@@ -160,12 +160,10 @@ TEST(TrainInitFrom, AVariantStartsAsItsSourceWithTheMissingPlanesZero) {
   }
 }
 
-// --grow-from: a multi-scale network grown by one level computes what its source computes (in libtorch and in
-// core, from the exported file), while the new level gets a gradient; a source of other widths is refused.
-TEST(TrainGrowFrom, AGrownNetworkStartsAsItsSourceAndItsNewLevelLearns) {
-  torch::manual_seed(11);
-  const nn::Architecture small{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {8, 12, 16}};
-  train::ResidueNet source(small);
+// A network with non-trivial BN and PReLU parameters and real BN statistics, in inference mode, written to `file`
+// and read back: the source of the warm-start tests below.
+train::ResidueNet trained_source(const nn::Architecture& arch, const std::filesystem::path& file, nn::SafetensorsFile& read) {
+  train::ResidueNet source(arch);
   train::initialise(source);
   {
     torch::NoGradGuard no_grad;
@@ -176,10 +174,37 @@ TEST(TrainGrowFrom, AGrownNetworkStartsAsItsSourceAndItsNewLevelLearns) {
     for (int i = 0; i < 3; ++i) source->forward(torch::randn({4, 9, 32, 32}) * 0.7 + 0.2);
   }
   source->eval();
+  nn::write_safetensors(file, train::export_model(source, {{"name", "src"}}), false);
+  read = nn::read_safetensors(file);
+  return source;
+}
+
+// Core's outputs for two model files on one random 48 x 32 input: the largest difference relative to the largest
+// output (at least 1e-3).
+double core_difference(const std::filesystem::path& a, const std::filesystem::path& b) {
+  const Image in = testing::random_image(48, 32, 9, 5, -0.5f, 1.5f);
+  Image out_a, out_b;
+  nn::make_backend("eigen", nn::load_model(a).graph, {})->run(in, out_a);
+  nn::make_backend("eigen", nn::load_model(b).graph, {})->run(in, out_b);
+  double err = 0, scale = 1e-3;
+  for (int64_t y = 0; y < 32; ++y)
+    for (int64_t xx = 0; xx < 48; ++xx)
+      for (int c = 0; c < 3; ++c) {
+        scale = std::max(scale, static_cast<double>(std::abs(out_a.at(xx, y, c))));
+        err = std::max(err, static_cast<double>(std::abs(out_a.at(xx, y, c) - out_b.at(xx, y, c))));
+      }
+  return err / scale;
+}
+
+// --grow-from: a multi-scale network grown by one level computes what its source computes (in libtorch and in
+// core, from the exported file), while the new level gets a gradient; a source of other widths is refused.
+TEST(TrainGrowFrom, AGrownNetworkStartsAsItsSourceAndItsNewLevelLearns) {
+  torch::manual_seed(11);
+  const nn::Architecture small{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {8, 12, 16}};
   testing::TempDir tmp;
   const auto file = tmp / "source.safetensors";
-  nn::write_safetensors(file, train::export_model(source, {{"name", "src"}}), false);
-  const nn::SafetensorsFile read = nn::read_safetensors(file);
+  nn::SafetensorsFile read;
+  train::ResidueNet source = trained_source(small, file, read);
 
   train::ResidueNet grown(nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 2, 1, 2}, {8, 12, 16, 24}});
   train::initialise(grown);
@@ -209,18 +234,7 @@ TEST(TrainGrowFrom, AGrownNetworkStartsAsItsSourceAndItsNewLevelLearns) {
   grown->eval();
   const auto grown_file = tmp / "grown.safetensors";
   nn::write_safetensors(grown_file, train::export_model(grown, {{"name", "grown"}}), false);
-  const Image in = testing::random_image(48, 32, 9, 5, -0.5f, 1.5f);
-  Image out_source, out_grown;
-  nn::make_backend("eigen", nn::load_model(file).graph, {})->run(in, out_source);
-  nn::make_backend("eigen", nn::load_model(grown_file).graph, {})->run(in, out_grown);
-  double err = 0, scale = 1e-3;
-  for (int64_t y = 0; y < 32; ++y)
-    for (int64_t xx = 0; xx < 48; ++xx)
-      for (int c = 0; c < 3; ++c) {
-        scale = std::max(scale, static_cast<double>(std::abs(out_source.at(xx, y, c))));
-        err = std::max(err, static_cast<double>(std::abs(out_source.at(xx, y, c) - out_grown.at(xx, y, c))));
-      }
-  EXPECT_LT(err / scale, 1e-5);
+  EXPECT_LT(core_difference(file, grown_file), 1e-5);
 
   train::ResidueNet other(nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 2, 1, 2}, {8, 12, 20, 24}});
   try {
@@ -237,21 +251,10 @@ TEST(TrainGrowFrom, AGrownNetworkStartsAsItsSourceAndItsNewLevelLearns) {
 TEST(TrainWidenFrom, AWidenedNetworkStartsAsItsSourceAndItsNewChannelsLearn) {
   torch::manual_seed(13);
   const nn::Architecture narrow{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {8, 12, 16}};
-  train::ResidueNet source(narrow);
-  train::initialise(source);
-  {
-    torch::NoGradGuard no_grad;
-    for (auto& p : source->named_parameters())
-      if (p.key().find("bn") != std::string::npos || p.key().find("prelu") != std::string::npos)
-        p.value().uniform_(0.5, 1.5);
-    source->train();
-    for (int i = 0; i < 3; ++i) source->forward(torch::randn({4, 9, 32, 32}) * 0.7 + 0.2);
-  }
-  source->eval();
   testing::TempDir tmp;
   const auto file = tmp / "source.safetensors";
-  nn::write_safetensors(file, train::export_model(source, {{"name", "src"}}), false);
-  const nn::SafetensorsFile read = nn::read_safetensors(file);
+  nn::SafetensorsFile read;
+  train::ResidueNet source = trained_source(narrow, file, read);
 
   train::ResidueNet wide(nn::Architecture{1, 12, FeatureSet::Full, {}, false, {1, 2, 1}, {12, 12, 20}});  // width: the first level's, as parsed
   train::initialise(wide);
@@ -283,18 +286,7 @@ TEST(TrainWidenFrom, AWidenedNetworkStartsAsItsSourceAndItsNewChannelsLearn) {
   wide->eval();
   const auto wide_file = tmp / "wide.safetensors";
   nn::write_safetensors(wide_file, train::export_model(wide, {{"name", "wide"}}), false);
-  const Image in = testing::random_image(48, 32, 9, 5, -0.5f, 1.5f);
-  Image out_source, out_wide;
-  nn::make_backend("eigen", nn::load_model(file).graph, {})->run(in, out_source);
-  nn::make_backend("eigen", nn::load_model(wide_file).graph, {})->run(in, out_wide);
-  double err = 0, scale = 1e-3;
-  for (int64_t y = 0; y < 32; ++y)
-    for (int64_t xx = 0; xx < 48; ++xx)
-      for (int c = 0; c < 3; ++c) {
-        scale = std::max(scale, static_cast<double>(std::abs(out_source.at(xx, y, c))));
-        err = std::max(err, static_cast<double>(std::abs(out_source.at(xx, y, c) - out_wide.at(xx, y, c))));
-      }
-  EXPECT_LT(err / scale, 1e-5);
+  EXPECT_LT(core_difference(file, wide_file), 1e-5);
 
   for (const auto& other : std::vector<nn::Architecture>{nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 2, 1}, {12, 8, 20}},
                             nn::Architecture{1, 8, FeatureSet::Full, {}, false, {1, 1, 1}, {12, 12, 20}},
