@@ -8,7 +8,9 @@
 # Data (render first; each command is resumable):
 #   R="/usr/bin/python3 tools/datagen/render_dataset.py"
 #   $R --out .cache/datasets/residue-v1 --seeds <the 30 seeds in 1000-1329 with seed % 11 == 10>   # validation
-#   $R --out .cache/datasets/residue-v1-pseudo --seeds <the other 300> --pseudo-ref multiscale       # ~4 h
+#   $R --out .cache/datasets/residue-v1-pseudo --seeds <the other 300> --pseudo-ref multiscale       # ~5-9 h
+#   (session 12 orders the seeds interiors first: $(/usr/bin/python3 -c "t=[s for s in range(1000,1330) if s%11!=10];
+#   print(','.join(map(str,[s for s in t if s%2==0]+[s for s in t if s%2])))"); stop it while training
 #   residue-pseudo, residue-photo, residue-photo-plain: MODELS.md lever 5 and tools/study_photo.sh
 # The trainer's validation is the cards' 36 scenes (residue-v1's 30 and the starter set's last 6): it only
 # monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), SEED (16),
