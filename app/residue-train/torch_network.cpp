@@ -25,6 +25,20 @@ void copy_checked(const torch::Tensor& value, torch::Tensor& target, const std::
   target.copy_(value);
 }
 
+// A model file's metadata value, or `fallback` where it has none.
+std::string metadata_or(const nn::SafetensorsFile& file, const std::string& key, const std::string& fallback = "") {
+  const auto it = file.metadata.find(key);
+  return it == file.metadata.end() ? fallback : it->second;
+}
+
+// Refuses a file with a tensor the network has no parameter or buffer for (a network of another shape).
+void require_a_place_for_every_tensor(ResidueNet& net, const nn::SafetensorsFile& source, const std::string& file) {
+  const auto params = net->named_parameters(), buffers = net->named_buffers();
+  for (const auto& [name, t] : source.tensors)
+    if (!params.contains(name) && !buffers.contains(name))
+      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has no place in " + net->arch.to_string());
+}
+
 // Replaces the running statistics of `norms` by their plain average over `batches` forward passes of `net` (in its
 // current mode: the other batch norms keep theirs), then restores each one's momentum. Leaves `norms` training.
 void measure_batch_norms(ResidueNet& net, const std::vector<torch::nn::BatchNorm2dImpl*>& norms,
@@ -148,10 +162,7 @@ void initialise(ResidueNet& net) {
 
 void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::filesystem::path& path) {
   const std::string file = path.string();
-  auto meta = [&](const std::string& key, const std::string& fallback) {
-    const auto it = source.metadata.find(key);
-    return it == source.metadata.end() ? fallback : it->second;
-  };
+  auto meta = [&](const std::string& key, const std::string& fallback) { return metadata_or(source, key, fallback); };
   const auto source_features = feature_set_from_string(meta("residue.features", "full"));
   if (!source_features) throw Error(ErrorKind::Input, file + ": unknown feature set '" + meta("residue.features", "") + "'");
   const std::string dilations = net->arch.max_dilation() > 1 ? nn::dilations_to_string(net->arch.dilations) : "";
@@ -189,10 +200,7 @@ void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::fi
   const std::string file = path.string();
   const nn::Architecture& a = net->arch;
   const int L = static_cast<int>(a.levels.size()), bottom = L - 2;  // the source's bottom level
-  auto meta = [&](const std::string& key) {
-    const auto it = source.metadata.find(key);
-    return it == source.metadata.end() ? std::string() : it->second;
-  };
+  auto meta = [&](const std::string& key) { return metadata_or(source, key); };
   std::vector<int> levels, widths;  // the source's: every level but the new bottom
   for (int l = 0; l + 1 < L; ++l) {
     levels.push_back(a.levels[static_cast<size_t>(l)]);
@@ -213,12 +221,9 @@ void grow_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::fi
     if (it != source.tensors.end() && name.find("num_batches_tracked") == std::string::npos)
       copy_checked(view_of(it->second), target, file, name);
   };
-  auto params = net->named_parameters(), buffers = net->named_buffers();
-  for (auto& p : params) copy(p.key(), p.value());
-  for (auto& b : buffers) copy(b.key(), b.value());
-  for (const auto& [name, t] : source.tensors)
-    if (!params.contains(name) && !buffers.contains(name))
-      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has no place in " + a.to_string());
+  for (auto& p : net->named_parameters()) copy(p.key(), p.value());
+  for (auto& b : net->named_buffers()) copy(b.key(), b.value());
+  require_a_place_for_every_tensor(net, source, file);
 
   auto* level = net->levels[static_cast<size_t>(bottom)]->as<ScaleLevel>();
   const int64_t w = a.level_width(bottom), below = a.level_width(bottom + 1);
@@ -248,10 +253,7 @@ void widen_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::f
                 const std::function<torch::Tensor()>& next_batch, int bn_batches) {
   const std::string file = path.string();
   const nn::Architecture& a = net->arch;
-  auto meta = [&](const std::string& key) {
-    const auto it = source.metadata.find(key);
-    return it == source.metadata.end() ? std::string() : it->second;
-  };
+  auto meta = [&](const std::string& key) { return metadata_or(source, key); };
   // The source's architecture is this one at the source's widths: every residue.* key must then agree.
   nn::Architecture narrow = a;
   std::vector<int> old_widths;
@@ -280,14 +282,14 @@ void widen_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::f
         return {{0, 0, old_width(l + 1)}, {old_width(l + 1), a.level_width(l + 1), old_width(l)}};
     return {{0, 0, count}};
   };
-  std::vector<torch::nn::BatchNorm2dImpl*> widened;  // and their channels in the source
-  std::vector<int64_t> old_channels;
+  std::vector<torch::nn::BatchNorm2dImpl*> widened;  // batch norms with new channels, and their names
+  std::vector<std::string> widened_names;
   for (auto& m : net->named_modules("", /*include_self=*/false))
     if (auto* bn = m.value()->as<torch::nn::BatchNorm2d>())
       if (const auto it = source.tensors.find(m.key() + ".running_mean");
           it != source.tensors.end() && it->second.shape[0] < bn->options.num_features()) {
         widened.push_back(bn);
-        old_channels.push_back(it->second.shape[0]);
+        widened_names.push_back(m.key());
       }
   auto place = [&](const std::string& name, torch::Tensor& target) {
     if (name.find("num_batches_tracked") != std::string::npos) return;
@@ -310,23 +312,18 @@ void widen_from(ResidueNet& net, const nn::SafetensorsFile& source, const std::f
   };
   for (auto& p : net->named_parameters()) place(p.key(), p.value());
   for (auto& b : net->named_buffers()) place(b.key(), b.value());
-  for (const auto& [name, t] : source.tensors)
-    if (!net->named_parameters().contains(name) && !net->named_buffers().contains(name))
-      throw Error(ErrorKind::Input, file + ": tensor '" + name + "' has no place in " + a.to_string());
+  require_a_place_for_every_tensor(net, source, file);
 
-  // The new channels' statistics, measured with the network as inference runs it; then the old channels' back.
-  std::vector<torch::Tensor> kept_mean, kept_var;
-  for (auto* bn : widened) {
-    kept_mean.push_back(bn->running_mean.clone());
-    kept_var.push_back(bn->running_var.clone());
-  }
+  // The new channels' statistics, measured with the network as inference runs it; then the source's back into the
+  // old channels.
   const bool was_training = net->is_training();
   net->eval();
   measure_batch_norms(net, widened, next_batch, bn_batches);
-  for (size_t i = 0; i < widened.size(); ++i) {
-    const int64_t n = old_channels[i];
-    widened[i]->running_mean.slice(0, 0, n).copy_(kept_mean[i].slice(0, 0, n));
-    widened[i]->running_var.slice(0, 0, n).copy_(kept_var[i].slice(0, 0, n));
+  for (size_t i = 0; i < widened.size(); ++i) {  // place() found both in the file
+    const torch::Tensor mean = view_of(source.tensors.at(widened_names[i] + ".running_mean"));
+    const torch::Tensor var = view_of(source.tensors.at(widened_names[i] + ".running_var"));
+    widened[i]->running_mean.slice(0, 0, mean.size(0)).copy_(mean);
+    widened[i]->running_var.slice(0, 0, var.size(0)).copy_(var);
   }
   net->train(was_training);
 }
