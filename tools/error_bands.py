@@ -25,17 +25,9 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "datagen"))
-from exr_metrics import EPS, layer_rgb, luminance, read_exr  # noqa: E402
+from exr_metrics import EPS, box_mean, layer_rgb, luminance, read_exr  # noqa: E402
 
 LAYER = "ViewLayer"
-
-
-def box_mean(e, w):
-    """The W x W box mean of each channel of e (H x W x C), the border reflected."""
-    p = np.pad(e, ((w // 2, w - 1 - w // 2), (w // 2, w - 1 - w // 2), (0, 0)), mode="reflect")
-    c = np.pad(p.cumsum(0).cumsum(1), ((1, 0), (1, 0), (0, 0)))
-    h, wd = e.shape[:2]
-    return (c[w:w + h, w:w + wd] - c[:h, w:w + wd] - c[w:w + h, :wd] + c[:h, :wd]) / (w * w)
 
 
 def gradient(a):

@@ -16,7 +16,8 @@
 # monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), SEED (16),
 # THREADS (2), PRECISION (fp32, or bf16: slower on the Intel CPU measured, faster on Zen; MODELS.md "Training
 # speed"); ARCH (2,2,2,2/24,40,56,80: the shipped one, so --init-from) with WIDEN=1 for a wider ARCH that starts as
-# the shipped network (--widen-from); V1_PSEUDO (.cache/datasets/residue-v1-pseudo: another folder of that set, e.g.
+# the shipped network (--widen-from), or GROW=1 for an ARCH one level deeper that starts as it (--grow-from); PATCH
+# (128) and BATCH (2); V1_PSEUDO (.cache/datasets/residue-v1-pseudo: another folder of that set, e.g.
 # a fixed subset for an A/B). Resumable: the run continues from its checkpoint folder, finished files and tables
 # are kept.
 set -euo pipefail
@@ -31,20 +32,22 @@ data+=("$(realpath "$repo/../shared/datasets/cycles-starter")")
 mkdir -p "$work" && cd "$work"
 cp -n "$repo/resources/models/multiscale.safetensors" start.safetensors
 start=(--init-from start.safetensors) base=start
-[ "${WIDEN:-0}" = 1 ] && start=(--widen-from start.safetensors) base=start_wide
+[ "${WIDEN:-0}" = 1 ] && start=(--widen-from start.safetensors) base=start_reshaped
+[ "${GROW:-0}" = 1 ] && start=(--grow-from start.safetensors) base=start_reshaped
 precision=()
 case "${PRECISION:-fp32}" in fp32) ;; bf16) precision=(--bf16) ;; *) echo "finetune_full.sh: PRECISION is fp32 or bf16" >&2; exit 2 ;; esac
 train() {  # NAME STEPS: NAME.safetensors, its log and checkpoint
   [ -f "$1.safetensors" ] && return
   "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch "${ARCH:-2,2,2,2/24,40,56,80}" \
-    --steps "$2" --val-every 1000 --checkpoint-every 250 --batch 2 --patch 128 \
+    --steps "$2" --val-every 1000 --checkpoint-every 250 --batch "${BATCH:-2}" --patch "${PATCH:-128}" \
     --loss l1-log+ssim --relmse-weight "${RELMSE_WEIGHT:-2}" --autoexposure --exposure-key 1 --seed "${SEED:-16}" \
     --freeze-bn-after 0 "${start[@]}" --lr "${LR:-1e-4}" --name multiscale \
     --threads "${THREADS:-2}" "${precision[@]}" --log "$1.csv" -o "$1.safetensors" > "$1.out" 2>&1 ||
     { echo "finetune_full.sh: training failed, see $work/$1.out" >&2; exit 1; }
 }
-# A widened run averages with its own start (the shipped network widened, new channels as initialised): 0 steps.
-[ "$base" = start ] || train start_wide 0
+# A widened or grown run averages with its own start (the shipped network in the new shape, computing what it
+# computes; new channels or level as initialised): 0 steps.
+[ "$base" = start ] || train start_reshaped 0
 train run "${STEPS:-5000}"
 [ -f soup.safetensors ] || /usr/bin/python3 "$repo/tools/average_weights.py" soup.safetensors \
   $base.safetensors:0.6 run.safetensors:0.4

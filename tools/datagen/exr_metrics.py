@@ -1,4 +1,5 @@
-"""EXR reading, tonemapping and the metrics stored in scene.json (numpy + OpenImageIO only).
+"""EXR reading, tonemapping, the metrics stored in scene.json and the box mean that splits an image into spatial
+frequency bands (numpy + OpenImageIO only).
 
 Shared by make_scene.py (inside Blender, whose Python on Debian is the system Python 3.11 and sees the
 system's numpy and OpenImageIO), render_dataset.py and contact_sheet.py (/usr/bin/python3).
@@ -48,6 +49,14 @@ def layer_rgb(img, layer=COMBINED):
 def relmse(x, r, eps=EPS):
     ok = np.isfinite(x).all(axis=2) & np.isfinite(r).all(axis=2)
     return float(np.mean(((x - r) ** 2 / (r * r + eps))[ok]))
+
+
+def box_mean(e, w):
+    """The W x W box mean of each channel of e (H x W x C), the border reflected."""
+    p = np.pad(e, ((w // 2, w - 1 - w // 2), (w // 2, w - 1 - w // 2), (0, 0)), mode="reflect")
+    c = np.pad(p.cumsum(0).cumsum(1), ((1, 0), (1, 0), (0, 0)))
+    h, wd = e.shape[:2]
+    return (c[w:w + h, w:w + wd] - c[:h, w:w + wd] - c[w:w + h, :wd] + c[:h, :wd]) / (w * w)
 
 
 def luminance(rgb):

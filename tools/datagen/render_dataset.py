@@ -14,7 +14,8 @@ for the two noisy renders and 1007 for the reference. Training scenes get --ref-
 only adds zero-mean noise to the loss), validation scenes --val-ref-spp (the reference's own error is a floor
 under every relMSE we report, so it is kept lower where we measure). With --pseudo-ref MODEL, training
 scenes (interiors, by default) get a pseudo-reference instead: a --pseudo-ref-spp render (sampling seed 1009,
-full AOVs) denoised by MODEL as a self-ensemble, recorded in scene.json's "reference"; an interior then costs a
+full AOVs) denoised by MODEL as a self-ensemble, its --pseudo-ref-low-band box means taken from the render
+itself, recorded in scene.json's "reference"; an interior then costs a
 third of what a 512-spp reference does, and tools/datagen/pseudo_reference_check.py measures how far such
 references are from the truth. One line per scene is printed and appended to
 OUT/render_log.txt; Blender's own output goes to OUT/logs/s<seed>.log. OUT/index.json lists every complete
@@ -122,6 +123,23 @@ def pseudo_of(args, seed):
     return bool(args.pseudo_ref) and split_of(seed) == "train" and (args.pseudo_ref_for == "all" or interior)
 
 
+def restore_low_band(pseudo, raw, width, eps=None):
+    """The pseudo-reference with its W x W box-mean band taken from the raw render it was denoised from.
+
+    The denoiser's output is far closer to the truth than its input in fine detail but carries its own blotches
+    at 16-48 px, which a network trained on it learns (MODELS.md, lever 5, session 13); the raw render's box
+    means there are nearly noise-free (128 spp over a 16 x 16 box is about 32000 spp) and unbiased. The
+    difference is taken relative to the pseudo-reference, (raw - pseudo) / sqrt(pseudo^2 + eps), before the box
+    mean, so a bright light's noise does not spill into dark neighbours; a constant relative offset comes back
+    exactly, zero-mean noise finer than the box not at all."""
+    if eps is None:
+        from exr_metrics import EPS as eps  # noqa: N811 - the metric's eps
+    from exr_metrics import box_mean
+    import numpy as np
+    scale = np.sqrt(pseudo * pseudo + eps)
+    return pseudo + box_mean((raw - pseudo) / scale, width) * scale
+
+
 def make_pseudo_reference(args, tmp, logpath):
     """Denoises DIR/pseudo_input.exr with --pseudo-ref (a self-ensemble) into DIR/reference.exr (the data set's
     layout: ViewLayer.Combined RGBA, half) and rewrites scene.json's metrics and reference record against it."""
@@ -140,9 +158,12 @@ def make_pseudo_reference(args, tmp, logpath):
     if rc != 0 or not os.path.isfile(denoised):
         return False, f"the pseudo-reference denoise failed (exit {rc}; see {logpath})"
     rgb = exr_metrics.read_exr(denoised)
-    idx = [rgb["channels"].index(c) for c in "RGB"]
+    color = rgb["pixels"][:, :, [rgb["channels"].index(c) for c in "RGB"]].astype(np.float64)
+    if args.pseudo_ref_low_band > 0:
+        raw = exr_metrics.layer_rgb(exr_metrics.read_exr(os.path.join(tmp, "pseudo_input.exr")))
+        color = restore_low_band(color, raw, args.pseudo_ref_low_band)
     pixels = np.ascontiguousarray(np.concatenate(
-        [rgb["pixels"][:, :, idx], np.ones(rgb["pixels"].shape[:2] + (1,), np.float32)], axis=2))
+        [color.astype(np.float32), np.ones(color.shape[:2] + (1,), np.float32)], axis=2))
     if not np.isfinite(pixels).all():
         return False, "the pseudo-reference is not finite"
     spec = oiio.ImageSpec(pixels.shape[1], pixels.shape[0], 4, "half")
@@ -166,7 +187,10 @@ def make_pseudo_reference(args, tmp, logpath):
     doc["reference"] = {
         "kind": "pseudo",
         "what": f"a {args.pseudo_ref_spp}-spp render (sampling seed {SEEDS['pseudo']}, full AOVs) denoised by "
-                f"{args.pseudo_ref} as a self-ensemble x{args.pseudo_ref_ensemble}, written as half RGBA",
+                f"{args.pseudo_ref} as a self-ensemble x{args.pseudo_ref_ensemble}"
+                + (f", its {args.pseudo_ref_low_band}-px box-mean band taken from the render itself"
+                   if args.pseudo_ref_low_band > 0 else "") + ", written as half RGBA",
+        "low_band_from_raw_px": args.pseudo_ref_low_band,
         "model": args.pseudo_ref,
         "model_sha256": sha256_of(model_path(args.pseudo_ref)),
         "command": " ".join(os.path.relpath(c, REPO) if c.startswith(REPO) else c.replace(tmp, "<scene>")
@@ -284,6 +308,9 @@ def main():
                         "than a 512-spp render in all 6 interiors, farther in 5 of 6 open-air scenes (where a "
                         "512-spp render is also cheaper)")
     p.add_argument("--pseudo-ref-ensemble", type=int, default=8, choices=[1, 2, 4, 8])
+    p.add_argument("--pseudo-ref-low-band", type=int, default=16, metavar="PX",
+                   help="the pseudo-reference's PX x PX box-mean band comes from the raw render instead (0: off); "
+                        "measured closer to the truth in total and 2-5x in the 48-px band (MODELS.md, lever 5)")
     p.add_argument("--cli", default=DEFAULT_CLI,
                    help="residue-cli, for --pseudo-ref")
     args = p.parse_args()

@@ -108,7 +108,8 @@ checks = {
     "the pseudo-reference is closer to the true reference than the noisy half":
         rows["pseudo_true"]["relmse"] < rows["eval"]["relmse"],
     "scene.json records it": scene.get("reference", {}).get("kind") == "pseudo"
-        and scene["reference"].get("model_sha256") == model_sha and scene["spp"]["reference"] == 8,
+        and scene["reference"].get("model_sha256") == model_sha and scene["spp"]["reference"] == 8
+        and scene["reference"].get("low_band_from_raw_px") == 16,
     "scene.json's relMSE is against it": abs(scene["metrics"]["relmse_noisy_a"] - rows["pseudo_a"]["relmse"])
         <= 5e-4 * rows["pseudo_a"]["relmse"],
 }
