@@ -224,6 +224,70 @@ def make_scene_command(blender, threads, seed, renders, outdir, res, extra=()):
             "--threads", str(threads)] + list(extra)
 
 
+def run_blender(args, seed, renders, outdir, names, log_mode="w"):
+    """Renders scene SEED with make_scene.py into OUTDIR, logging to OUT/logs/s<seed>.log; Blender's exit status,
+    or None when it ran past --timeout (killed)."""
+    cmd = make_scene_command(args.blender, args.threads, seed, renders, outdir, args.res, names)
+    if args.photos:
+        cmd += ["--photos", args.photos, "--photo-share", str(args.photo_share)]
+    if args.hdris:
+        cmd += ["--hdris", args.hdris]
+    logdir = os.path.join(args.out, "logs")
+    os.makedirs(logdir, exist_ok=True)
+    with open(os.path.join(logdir, f"s{seed}.log"), log_mode) as logf:
+        logf.write(" ".join(cmd) + "\n\n")
+        logf.flush()
+        proc = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            return proc.wait(timeout=args.timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+            return None
+        except KeyboardInterrupt:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+            raise
+
+
+def restore_scene_low_band(args, seed):
+    """--restore-low-band: gives OUT/s<seed>'s pseudo-reference, made before --pseudo-ref-low-band, its low band
+    from its raw render. That render was not kept, so it is rendered again (the same scene, sampling seed 1009,
+    full AOVs) and denoised again as before; the old reference.exr is kept as
+    OUT/pseudo-references-without-low-band/s<seed>.exr. Returns (ok, message); ok is None when there is nothing
+    to do (not a pseudo-reference, or one that has its low band)."""
+    final = os.path.join(args.out, f"s{seed}")
+    with open(os.path.join(final, "scene.json")) as f:
+        record = json.load(f).get("reference", {})
+    if record.get("kind") != "pseudo" or record.get("low_band_from_raw_px", 0) > 0:
+        return None, "nothing to do"
+    if record.get("model_sha256") != sha256_of(model_path(args.pseudo_ref)):
+        return False, f"its pseudo-reference came from another model than {args.pseudo_ref} (sha256 differs)"
+    tmp_root = os.path.join(args.out, f".tmp-s{seed}")
+    tmp, raw_dir = os.path.join(tmp_root, "scene"), os.path.join(tmp_root, "raw")
+    shutil.rmtree(tmp_root, ignore_errors=True)
+    os.makedirs(tmp)
+    for name in ("noisy_a.exr", "noisy_b.exr", "scene.json"):
+        shutil.copy2(os.path.join(final, name), tmp)
+    # make_scene's last render is the reference (Combined only): a 1-spp placeholder, unused.
+    rc = run_blender(args, seed, f"{args.pseudo_ref_spp}:{SEEDS['pseudo']},1:{SEEDS['reference']}", raw_dir,
+                     ["--names", "pseudo_input,placeholder"], log_mode="a")
+    if rc != 0 or not os.path.isfile(os.path.join(raw_dir, "pseudo_input.exr")):
+        return False, f"blender exit {rc} (see logs/s{seed}.log)"
+    os.replace(os.path.join(raw_dir, "pseudo_input.exr"), os.path.join(tmp, "pseudo_input.exr"))
+    ok, msg = make_pseudo_reference(args, tmp, os.path.join(args.out, "logs", f"s{seed}.log"))
+    if not ok:
+        return False, msg
+    keep = os.path.join(args.out, "pseudo-references-without-low-band")
+    os.makedirs(keep, exist_ok=True)
+    if not os.path.isfile(os.path.join(keep, f"s{seed}.exr")):  # the first one, should a rerun redo the scene
+        shutil.copy2(os.path.join(final, "reference.exr"), os.path.join(keep, f"s{seed}.exr"))
+    os.replace(os.path.join(tmp, "reference.exr"), os.path.join(final, "reference.exr"))
+    os.replace(os.path.join(tmp, "scene.json"), os.path.join(final, "scene.json"))  # last: marks it done
+    shutil.rmtree(tmp_root, ignore_errors=True)
+    return True, ""
+
+
 def render_scene(args, seed, spp):
     """Renders one scene into OUT/.tmp-s<seed> and renames it; returns (ok, message)."""
     final = os.path.join(args.out, f"s{seed}")
@@ -242,34 +306,16 @@ def render_scene(args, seed, spp):
     else:
         renders = f"{halves},{ref_spp_of(args, seed)}:{SEEDS['reference']}"
         names = []
-    cmd = make_scene_command(args.blender, args.threads, seed, renders, tmp, args.res, names)
-    if args.photos:
-        cmd += ["--photos", args.photos, "--photo-share", str(args.photo_share)]
-    if args.hdris:
-        cmd += ["--hdris", args.hdris]
-    logdir = os.path.join(args.out, "logs")
-    os.makedirs(logdir, exist_ok=True)
-    with open(os.path.join(logdir, f"s{seed}.log"), "w") as logf:
-        logf.write(" ".join(cmd) + "\n\n")
-        logf.flush()
-        proc = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, start_new_session=True)
-        try:
-            rc = proc.wait(timeout=args.timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-            return False, f"timed out after {args.timeout} s"
-        except KeyboardInterrupt:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-            raise
+    rc = run_blender(args, seed, renders, tmp, names)
+    if rc is None:
+        return False, f"timed out after {args.timeout} s"
     expected = ["noisy_a.exr", "noisy_b.exr", "reference.exr", "scene.json"]
     missing = [f for f in expected + (["pseudo_input.exr"] if pseudo_of(args, seed) else [])
                if not os.path.isfile(os.path.join(tmp, f))]
     if rc != 0 or missing:
         return False, f"blender exit {rc}, missing {missing} (see logs/s{seed}.log)"
     if pseudo_of(args, seed):
-        ok, msg = make_pseudo_reference(args, tmp, os.path.join(logdir, f"s{seed}.log"))
+        ok, msg = make_pseudo_reference(args, tmp, os.path.join(args.out, "logs", f"s{seed}.log"))
         if not ok:
             return False, msg
     for f in os.listdir(tmp):  # nothing but the four files in a scene folder
@@ -279,6 +325,25 @@ def render_scene(args, seed, spp):
     os.replace(tmp, final)
     shutil.rmtree(tmp_root, ignore_errors=True)
     return True, ""
+
+
+def restore_low_bands(args, seeds):
+    """--restore-low-band over the --seeds scenes present in OUT; 0 when none failed."""
+    present = [s for s in seeds if os.path.isfile(os.path.join(args.out, f"s{s}", "scene.json"))]
+    log(args.out, f"render_dataset: restoring the low band of the pseudo-references among {len(present)} scenes "
+                  f"({args.pseudo_ref_spp}-spp raw renders, {args.pseudo_ref_low_band}-px box) -> {args.out}")
+    failed = []
+    for i, seed in enumerate(present):
+        t = time.time()
+        ok, msg = restore_scene_low_band(args, seed)
+        if ok is None:
+            continue
+        if not ok:
+            failed.append(seed)
+        log(args.out, f"[{i + 1}/{len(present)}] s{seed} " + (f"low band restored in {time.time() - t:.1f} s"
+                                                             if ok else f"FAILED: {msg}"))
+    write_index(args.out, args)
+    return 1 if failed else 0
 
 
 def main():
@@ -311,9 +376,15 @@ def main():
     p.add_argument("--pseudo-ref-low-band", type=int, default=16, metavar="PX",
                    help="the pseudo-reference's PX x PX box-mean band comes from the raw render instead (0: off); "
                         "measured closer to the truth in total and 2-5x in the 48-px band (MODELS.md, lever 5)")
+    p.add_argument("--restore-low-band", action="store_true",
+                   help="render nothing new: give the --seeds scenes' pseudo-references made without "
+                        "--pseudo-ref-low-band their low band (each one's raw input rendered again)")
     p.add_argument("--cli", default=DEFAULT_CLI,
                    help="residue-cli, for --pseudo-ref")
     args = p.parse_args()
+    if args.restore_low_band and (not args.pseudo_ref or args.pseudo_ref_low_band <= 0):
+        sys.exit("render_dataset: --restore-low-band needs --pseudo-ref MODEL (the one that made them) and "
+                 "--pseudo-ref-low-band > 0")
     if args.pseudo_ref and not os.path.isfile(args.cli):
         sys.exit(f"render_dataset: --pseudo-ref needs residue-cli, not found at {args.cli} (build it, or --cli)")
     args.out = os.path.abspath(args.out)
@@ -322,6 +393,8 @@ def main():
     if not os.path.isfile(args.blender):
         sys.exit(f"render_dataset: no Blender at {args.blender} (apt-get install blender)")
     os.makedirs(args.out, exist_ok=True)
+    if args.restore_low_band:
+        return restore_low_bands(args, seeds)
 
     todo = [s for s in seeds if not os.path.isfile(os.path.join(args.out, f"s{s}", "scene.json"))]
     log(args.out, f"render_dataset: {len(seeds)} scenes requested, {len(seeds) - len(todo)} already done, "

@@ -6,7 +6,8 @@
 # then renders the same scene with a pseudo-reference (--pseudo-ref multiscale, 8 spp, x2) and checks that the noisy
 # halves are the same renders (within what two runs of one render differ by: Cycles is not bit-exact run to run, a
 # few samples differ), that the reference is in the data set's layout, finite, closer to the true reference than the
-# noisy input is, recorded with the model's SHA-256, and that scene.json's metrics are recomputed against it.
+# noisy input is, recorded with the model's SHA-256, and that scene.json's metrics are recomputed against it; last,
+# that --restore-low-band gives a pseudo-reference made without --pseudo-ref-low-band its low band, keeping the old.
 # Usage: smoke_test.sh CLI_PATH      (ctest: datagen_smoke). Exit 77 (skipped) without /usr/bin/blender.
 # Environment: RESIDUE_SMOKE_SEED (default 1002, an interior training scene; odd seeds are open-air scenes, and
 #              seed % 11 == 10 a validation scene, which keeps its true reference),
@@ -120,4 +121,25 @@ print(f"datagen_smoke: relMSE against the true 16-spp reference: noisy half {row
       f"{rows['same']['relmse']:.4g}")
 sys.exit(0 if all(checks.values()) else 1)
 EOF
+# A pseudo-reference made the old way (no low band from its raw render), then restored by --restore-low-band: the old
+# file kept aside, the new one recorded and different, a second run a no-op.
+old="$dir/old/s$seed"
+flags=(--seeds "$seed" --res 32 --spp 2 --threads 2 --pseudo-ref multiscale --pseudo-ref-spp 8 --pseudo-ref-ensemble 2
+       --pseudo-ref-for all --cli "$cli")
+"$py" "$here/render_dataset.py" --out "$dir/old" "${flags[@]}" --pseudo-ref-low-band 0 > /dev/null ||
+  fail "render_dataset.py --pseudo-ref-low-band 0 failed"
+cp "$old/reference.exr" "$dir/old_reference.exr"
+"$py" "$here/render_dataset.py" --out "$dir/old" "${flags[@]}" --restore-low-band > /dev/null ||
+  { cat "$dir/old/logs/s$seed.log" >&2 || true; fail "render_dataset.py --restore-low-band failed"; }
+cmp -s "$dir/old_reference.exr" "$dir/old/pseudo-references-without-low-band/s$seed.exr" ||
+  fail "--restore-low-band did not keep the old pseudo-reference"
+! cmp -s "$dir/old_reference.exr" "$old/reference.exr" || fail "--restore-low-band left reference.exr as it was"
+"$py" -c "import json, sys; r = json.load(open(sys.argv[1]))['reference']; sys.exit(r['low_band_from_raw_px'] != 16)" \
+  "$old/scene.json" || fail "scene.json does not record the restored low band"
+cp "$old/reference.exr" "$dir/restored.exr"
+"$py" "$here/render_dataset.py" --out "$dir/old" "${flags[@]}" --restore-low-band > /dev/null &&
+  cmp -s "$dir/restored.exr" "$old/reference.exr" || fail "a second --restore-low-band changed the scene"
+ls "$old" | tr '\n' ' ' | grep -qx "noisy_a.exr noisy_b.exr reference.exr scene.json " ||
+  fail "a restored scene holds $(ls "$old" | tr '\n' ' '), not the four files"
+echo "datagen_smoke: ok   --restore-low-band"
 echo "datagen_smoke: OK ($scene, $pseudo)"
