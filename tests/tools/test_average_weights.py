@@ -9,21 +9,14 @@ import json, os, subprocess, sys, tempfile
 import numpy as np
 
 repo, cli = sys.argv[1], sys.argv[2]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(repo, "tools"))
 from safetensors_meta import read_tensors, write_tensors  # noqa: E402
+from checks import check, finish  # noqa: E402
 
 tool = os.path.join(repo, "tools", "average_weights.py")
 model = os.path.join(repo, "resources", "models", "multiscale.safetensors")
 room = os.path.join(repo, "resources", "examples", "room")
-failures = []
-
-
-def check(ok, what):
-    if not ok:
-        failures.append(what)
-        print("FAIL:", what)
-
-
 def arrays(path):
     """A file's float32 tensors as arrays, and its metadata."""
     meta, tensors = read_tensors(path)
@@ -85,5 +78,4 @@ with tempfile.TemporaryDirectory() as tmp:
     check(r.returncode != 0 and "missing.safetensors" in r.stderr and not os.path.exists(bad),
           "a missing input is named")
 
-print("ok" if not failures else f"{len(failures)} failure(s)")
-sys.exit(1 if failures else 0)
+finish()

@@ -10,18 +10,11 @@ import json, os, shutil, subprocess, sys, tempfile
 import numpy as np
 
 repo, cli = sys.argv[1], sys.argv[2]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(repo, "tools"))
 import error_bands  # noqa: E402
+from checks import check, finish  # noqa: E402
 from goal_check import denoised_scores  # noqa: E402
-
-failures = []
-
-
-def check(ok, what):
-    if not ok:
-        failures.append(what)
-        print("FAIL:", what)
-
 
 rng = np.random.default_rng(4)
 e = rng.normal(size=(23, 31, 3))
@@ -73,5 +66,4 @@ with tempfile.TemporaryDirectory() as tmp:
                           "multiscale", "--split", "train", "--cli", cli], capture_output=True, text=True)
     check(bad.returncode != 0 and "no train scenes" in bad.stderr, f"an empty split is refused: {bad.stderr}")
 
-print("FAILED" if failures else "passed", len(failures))
-sys.exit(1 if failures else 0)
+finish()

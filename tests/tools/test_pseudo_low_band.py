@@ -11,18 +11,11 @@ import os, sys
 import numpy as np
 
 repo = sys.argv[1]
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(repo, "tools", "datagen"))
 import exr_metrics  # noqa: E402
+from checks import check, finish  # noqa: E402
 from render_dataset import restore_low_band  # noqa: E402
-
-failures = []
-
-
-def check(ok, what):
-    if not ok:
-        failures.append(what)
-        print("FAIL:", what)
-
 
 rng = np.random.default_rng(13)
 pseudo = np.exp(rng.normal(size=(48, 40, 3)))  # positive, wide range, like radiance
@@ -55,4 +48,4 @@ print(f"s100: relMSE {before:.5f} -> {after:.5f}, 48-px band {low48(biased):.6f}
 check(np.isfinite(restored).all(), "the restored image is finite")
 check(after < before, "closer to the reference in total")
 check(low48(restored) < 0.25 * low48(biased), "its 48-px band at least 4x closer")
-sys.exit(1 if failures else 0)
+finish()
