@@ -28,16 +28,6 @@ import exr_metrics
 import render_dataset
 
 
-def scene_flags(doc):
-    """make_scene.py's --photos/--photo-share/--hdris flags, as the scene was rendered (from its scene.json)."""
-    cmd = doc["render_settings"]["command"].split()
-    flags = []
-    for name in ("--photos", "--photo-share", "--hdris"):
-        if name in cmd:
-            flags += [name, cmd[cmd.index(name) + 1]]
-    return flags
-
-
 def metrics_rows(text):
     """residue-cli denoise's metric table: {row: (relMSE, SSIM)} for the 'noisy' and 'denoised' rows."""
     rows = {}
@@ -58,9 +48,9 @@ def check_scene(args, scene_dir, work):
         os.makedirs(out)
         # The last render of make_scene.py is a reference (Combined only): a 1-spp placeholder, unused.
         renders = f"{args.spp}:{render_dataset.SEEDS['pseudo']},1:{render_dataset.SEEDS['reference']}"
-        cmd = render_dataset.make_scene_command(args.blender, args.threads, seed, renders, out,
-                                                doc["resolution"][0],
-                                                ["--names", "pseudo_input,placeholder"] + scene_flags(doc))
+        cmd = render_dataset.make_scene_command(
+            args.blender, args.threads, seed, renders, out, doc["resolution"][0],
+            ["--names", "pseudo_input,placeholder"] + render_dataset.scene_flags(doc))
         with open(os.path.join(out, "blender.log"), "w") as logf:
             if subprocess.call(cmd, stdout=logf, stderr=subprocess.STDOUT) != 0:
                 sys.exit(f"pseudo_reference_check: Blender failed on s{seed}, see {out}/blender.log")

@@ -224,14 +224,26 @@ def make_scene_command(blender, threads, seed, renders, outdir, res, extra=()):
             "--threads", str(threads)] + list(extra)
 
 
-def run_blender(args, seed, renders, outdir, names, log_mode="w"):
+def scene_flags(doc):
+    """make_scene.py's --photos/--photo-share/--hdris flags, as the scene was rendered (from its scene.json)."""
+    cmd = doc["render_settings"]["command"].split()
+    flags = []
+    for name in ("--photos", "--photo-share", "--hdris"):
+        if name in cmd:
+            flags += [name, cmd[cmd.index(name) + 1]]
+    return flags
+
+
+def run_blender(args, seed, renders, outdir, names, log_mode="w", scene=None):
     """Renders scene SEED with make_scene.py into OUTDIR, logging to OUT/logs/s<seed>.log; Blender's exit status,
-    or None when it ran past --timeout (killed)."""
-    cmd = make_scene_command(args.blender, args.threads, seed, renders, outdir, args.res, names)
-    if args.photos:
-        cmd += ["--photos", args.photos, "--photo-share", str(args.photo_share)]
-    if args.hdris:
-        cmd += ["--hdris", args.hdris]
+    or None when it ran past --timeout (killed). The resolution and the photograph and HDRI flags are --res,
+    --photos and --hdris, or those recorded in SCENE (a scene.json) for a scene that exists."""
+    if scene is None:
+        res, flags = args.res, (["--photos", args.photos, "--photo-share", str(args.photo_share)] if args.photos
+                                else []) + (["--hdris", args.hdris] if args.hdris else [])
+    else:
+        res, flags = scene["resolution"][0], scene_flags(scene)
+    cmd = make_scene_command(args.blender, args.threads, seed, renders, outdir, res, names + flags)
     logdir = os.path.join(args.out, "logs")
     os.makedirs(logdir, exist_ok=True)
     with open(os.path.join(logdir, f"s{seed}.log"), log_mode) as logf:
@@ -258,11 +270,15 @@ def restore_scene_low_band(args, seed):
     to do (not a pseudo-reference, or one that has its low band)."""
     final = os.path.join(args.out, f"s{seed}")
     with open(os.path.join(final, "scene.json")) as f:
-        record = json.load(f).get("reference", {})
+        doc = json.load(f)
+    record = doc.get("reference", {})
     if record.get("kind") != "pseudo" or record.get("low_band_from_raw_px", 0) > 0:
         return None, "nothing to do"
     if record.get("model_sha256") != sha256_of(model_path(args.pseudo_ref)):
         return False, f"its pseudo-reference came from another model than {args.pseudo_ref} (sha256 differs)"
+    if doc.get("spp", {}).get("pseudo_input") != args.pseudo_ref_spp:
+        return False, (f"its pseudo-reference input had {doc.get('spp', {}).get('pseudo_input')} spp, not "
+                       f"--pseudo-ref-spp {args.pseudo_ref_spp}")
     tmp_root = os.path.join(args.out, f".tmp-s{seed}")
     tmp, raw_dir = os.path.join(tmp_root, "scene"), os.path.join(tmp_root, "raw")
     shutil.rmtree(tmp_root, ignore_errors=True)
@@ -271,7 +287,7 @@ def restore_scene_low_band(args, seed):
         shutil.copy2(os.path.join(final, name), tmp)
     # make_scene's last render is the reference (Combined only): a 1-spp placeholder, unused.
     rc = run_blender(args, seed, f"{args.pseudo_ref_spp}:{SEEDS['pseudo']},1:{SEEDS['reference']}", raw_dir,
-                     ["--names", "pseudo_input,placeholder"], log_mode="a")
+                     ["--names", "pseudo_input,placeholder"], log_mode="a", scene=doc)
     if rc != 0 or not os.path.isfile(os.path.join(raw_dir, "pseudo_input.exr")):
         return False, f"blender exit {rc} (see logs/s{seed}.log)"
     os.replace(os.path.join(raw_dir, "pseudo_input.exr"), os.path.join(tmp, "pseudo_input.exr"))
