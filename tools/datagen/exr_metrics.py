@@ -42,7 +42,8 @@ def read_exr(path):
 
 
 def layer_rgb(img, layer=COMBINED):
-    idx = [img["channels"].index(f"{layer}.{c}") for c in "RGB"]
+    """A layer's RGB as float64; layer None for plain R, G, B channels (residue-cli denoise's output)."""
+    idx = [img["channels"].index(c if layer is None else f"{layer}.{c}") for c in "RGB"]
     return img["pixels"][:, :, idx].astype(np.float64)
 
 

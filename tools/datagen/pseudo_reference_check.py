@@ -68,8 +68,7 @@ def check_scene(args, scene_dir, work):
     # The same pseudo-reference with its low band from the raw render (render_dataset.py --pseudo-ref-low-band),
     # and each version's error split at 16 and 48 px (error_bands.py's split: the box mean of the relative error).
     raw_color = exr_metrics.layer_rgb(exr_metrics.read_exr(os.path.join(out, "pseudo_input.exr")))
-    denoised = exr_metrics.read_exr(os.path.join(out, "pseudo_reference.exr"))  # residue-cli's R, G, B
-    pseudo_color = denoised["pixels"][:, :, [denoised["channels"].index(c) for c in "RGB"]].astype(np.float64)
+    pseudo_color = exr_metrics.layer_rgb(exr_metrics.read_exr(os.path.join(out, "pseudo_reference.exr")), None)
     truth = exr_metrics.layer_rgb(exr_metrics.read_exr(reference))
     versions = {"raw": raw_color, "pseudo": pseudo_color,
                 "restored": render_dataset.restore_low_band(pseudo_color, raw_color, args.low_band)}

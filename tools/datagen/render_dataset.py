@@ -157,8 +157,7 @@ def make_pseudo_reference(args, tmp, logpath):
         rc = subprocess.call(cmd, stdout=logf, stderr=subprocess.STDOUT)
     if rc != 0 or not os.path.isfile(denoised):
         return False, f"the pseudo-reference denoise failed (exit {rc}; see {logpath})"
-    rgb = exr_metrics.read_exr(denoised)
-    color = rgb["pixels"][:, :, [rgb["channels"].index(c) for c in "RGB"]].astype(np.float64)
+    color = exr_metrics.layer_rgb(exr_metrics.read_exr(denoised), None)
     if args.pseudo_ref_low_band > 0:
         raw = exr_metrics.layer_rgb(exr_metrics.read_exr(os.path.join(tmp, "pseudo_input.exr")))
         color = restore_low_band(color, raw, args.pseudo_ref_low_band)
