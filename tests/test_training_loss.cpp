@@ -79,6 +79,49 @@ TEST_F(TrainLossOnARealRender, RelativeMseIsCoresMetric) {
   EXPECT_TRUE(torch::isfinite(far.grad()).all().item<bool>()) << "the prediction is clamped before expm1";
 }
 
+// The low-band term against a naive float64 one (the relMSE of each box's per-channel linear means, boxes that do
+// not fit left out); a checkerboard finer than the box does not reach it, a constant relative bias does.
+TEST_F(TrainLossOnARealRender, LowBandRelativeMseIsTheBoxMeansRelMse) {
+  const Image& n = noisy();
+  const Image& r = reference();
+  const auto x = torch::log1p(colour(n, torch::kFloat64));
+  const auto y = torch::log1p(colour(r, torch::kFloat64));
+  for (const int w : {8, 16, 24}) {
+    double sum = 0;
+    int64_t count = 0;
+    for (int by = 0; by + w <= n.height(); by += w)
+      for (int bx = 0; bx + w <= n.width(); bx += w)
+        for (int c = 0; c < 3; ++c) {
+          double mp = 0, mt = 0;
+          for (int yy = by; yy < by + w; ++yy)
+            for (int xx = bx; xx < bx + w; ++xx) {
+              mp += n.data()[(static_cast<size_t>(yy) * n.width() + xx) * n.channels() + c];
+              mt += r.data()[(static_cast<size_t>(yy) * r.width() + xx) * r.channels() + c];
+            }
+          mp /= w * w;
+          mt /= w * w;
+          sum += (mp - mt) * (mp - mt) / (mt * mt + 0.01);
+          ++count;
+        }
+    const double expected = sum / static_cast<double>(count);
+    EXPECT_NEAR(train::low_band_relative_mse(x, y, w).item<double>(), expected, 1e-9 * expected) << "box " << w;
+  }
+  const double all = train::relative_mse(x, y).item<double>();
+  const double low = train::low_band_relative_mse(x, y, 16).item<double>();
+  EXPECT_LT(low, 0.1 * all) << "the noise averages out in a 16-px box";
+
+  const auto t = torch::expm1(y);
+  const auto checker = (torch::arange(t.size(2)).view({-1, 1}) + torch::arange(t.size(3)).view({1, -1})).remainder(2) * 2 - 1;
+  const auto biased = torch::log1p(1.1 * t);
+  const auto biased_and_noisy = torch::log1p(1.1 * t + 0.05 * checker.to(torch::kFloat64));
+  const double bias_alone = train::low_band_relative_mse(biased, y, 16).item<double>();
+  EXPECT_GT(bias_alone, 1e-4);
+  EXPECT_NEAR(train::low_band_relative_mse(biased_and_noisy, y, 16).item<double>(), bias_alone, 1e-12);
+  EXPECT_GT(train::relative_mse(biased_and_noisy, y).item<double>(), 2 * train::relative_mse(biased, y).item<double>())
+      << "the per-pixel term does see the checkerboard";
+  EXPECT_THROW(train::low_band_relative_mse(y, y, n.width() + 1), std::invalid_argument);
+}
+
 TEST(TrainLoss, SsimTermIsZeroAtTheTargetAndGrowsWithTheError) {
   torch::manual_seed(5);
   const auto target = torch::log1p(torch::rand({2, 3, 64, 64}) * 4.0);

@@ -13,7 +13,8 @@
 #   print(','.join(map(str,[s for s in t if s%2==0]+[s for s in t if s%2])))"); stop it while training
 #   residue-pseudo, residue-photo, residue-photo-plain: MODELS.md lever 5 and tools/study_photo.sh
 # The trainer's validation is the cards' 36 scenes (residue-v1's 30 and the starter set's last 6): it only
-# monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), SEED (16),
+# monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), LOWBAND_WEIGHT
+# (0; LOWBAND_WIDTH 16: the relMSE of box means, the error's low band), SEED (16),
 # THREADS (2), PRECISION (fp32, or bf16: slower on the Intel CPU measured, faster on Zen; MODELS.md "Training
 # speed"); ARCH (2,2,2,2/24,40,56,80: the shipped one, so --init-from) with WIDEN=1 for a wider ARCH that starts as
 # the shipped network (--widen-from), or GROW=1 for an ARCH one level deeper that starts as it (--grow-from); PATCH
@@ -40,7 +41,8 @@ train() {  # NAME STEPS: NAME.safetensors, its log and checkpoint
   [ -f "$1.safetensors" ] && return
   "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch "${ARCH:-2,2,2,2/24,40,56,80}" \
     --steps "$2" --val-every 1000 --checkpoint-every 250 --batch "${BATCH:-2}" --patch "${PATCH:-128}" \
-    --loss l1-log+ssim --relmse-weight "${RELMSE_WEIGHT:-2}" --autoexposure --exposure-key 1 --seed "${SEED:-16}" \
+    --loss l1-log+ssim --relmse-weight "${RELMSE_WEIGHT:-2}" --lowband-weight "${LOWBAND_WEIGHT:-0}" \
+    --lowband-width "${LOWBAND_WIDTH:-16}" --autoexposure --exposure-key 1 --seed "${SEED:-16}" \
     --freeze-bn-after 0 "${start[@]}" --lr "${LR:-1e-4}" --name multiscale \
     --threads "${THREADS:-2}" "${precision[@]}" --log "$1.csv" -o "$1.safetensors" > "$1.out" 2>&1 ||
     { echo "finetune_full.sh: training failed, see $work/$1.out" >&2; exit 1; }

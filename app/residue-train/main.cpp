@@ -59,6 +59,8 @@ struct Options {
   std::string loss = "l1-log";  // see training_loss.h
   double ssim_weight = 1.0;      // for l1-log+ssim
   double relmse_weight = 0.0;    // adds relmse_weight x relMSE (eps 0.01) to the loss
+  double lowband_weight = 0.0;   // adds lowband_weight x the relMSE of lowband_width-px box means
+  int lowband_width = 16;
   int precise_bn = 0;            // batches for recalibrating BN statistics before validation and export; 0: off
   double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
   std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
@@ -178,6 +180,9 @@ int run(const Options& o) {
     arch.dilations = *d;
   }
   check_patch_covers_reach(arch, o.patch);
+  if (o.lowband_weight > 0 && o.lowband_width > o.patch)
+    throw Error(ErrorKind::Usage, "--lowband-width (" + std::to_string(o.lowband_width) +
+                                  " px) must fit the patch (--patch " + std::to_string(o.patch) + ")");
   if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out + "' exists; pass --force");
 
   // Scenes: each data folder's own cut (index.json) or, without one, its last `val` scenes by name.
@@ -308,6 +313,8 @@ int run(const Options& o) {
     if (arch.demodulate) prediction = train::remodulate(prediction, x.slice(1, albedo_at, albedo_at + 3));
     torch::Tensor loss = train::training_loss(o.loss, prediction, y, o.ssim_weight);
     if (o.relmse_weight > 0) loss = loss + o.relmse_weight * train::relative_mse(prediction, y);
+    if (o.lowband_weight > 0)
+      loss = loss + o.lowband_weight * train::low_band_relative_mse(prediction, y, o.lowband_width);
     loss.backward();
     torch::nn::utils::clip_grad_norm_(net->parameters(), 1.0);
     opt.step();
@@ -350,7 +357,9 @@ int run(const Options& o) {
   }
   net->eval();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  const std::string loss_text = train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "");
+  const std::string loss_text =
+      train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "") +
+      (o.lowband_weight > 0 ? " + w * relMSE of " + std::to_string(o.lowband_width) + "-px box means" : "");
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
                              {"loss", loss_text}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
@@ -361,6 +370,10 @@ int run(const Options& o) {
   if (!init_from_name.empty()) training["init_from"] = init_from_name;
   if (o.loss == "l1-log+ssim") training["ssim_weight"] = o.ssim_weight;
   if (o.relmse_weight > 0) training["relmse_weight"] = o.relmse_weight;
+  if (o.lowband_weight > 0) {
+    training["lowband_weight"] = o.lowband_weight;
+    training["lowband_width"] = o.lowband_width;
+  }
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -421,6 +434,11 @@ int main(int argc, char** argv) {
   app.add_option("--relmse-weight", o.relmse_weight,
                  "Adds this weight x relMSE (the metric's, eps 0.01, on linear colour) to the loss")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--lowband-weight", o.lowband_weight,
+                 "Adds this weight x the relMSE of the --lowband-width box means (the error's low band: blotches)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--lowband-width", o.lowband_width, "Box edge of --lowband-weight's term, in pixels")
+      ->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--ssim-weight", o.ssim_weight, "Weight of the SSIM term of l1-log+ssim")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--precise-bn", o.precise_bn,

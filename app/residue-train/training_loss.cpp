@@ -123,4 +123,16 @@ torch::Tensor relative_mse(const torch::Tensor& prediction, const torch::Tensor&
   return ((p - t).square() / (t.square() + eps)).mean();
 }
 
+// A 2% bias over a 48-px patch of wall costs the per-pixel terms as much as 2% of noise, which they leave behind
+// everywhere; averaged over a box the noise cancels and the bias stays, so this term weighs blotches alone.
+torch::Tensor low_band_relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, int width,
+                                    double eps) {
+  if (width < 1 || prediction.size(2) < width || prediction.size(3) < width)
+    throw std::invalid_argument("low_band_relative_mse: the box (" + std::to_string(width) +
+                                " px) must fit the patch");
+  const auto p = torch::avg_pool2d(torch::expm1(prediction.clamp_max(20.0)), width);
+  const auto t = torch::avg_pool2d(torch::expm1(target), width);
+  return ((p - t).square() / (t.square() + eps)).mean();
+}
+
 }  // namespace residue::train

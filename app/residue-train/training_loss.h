@@ -24,6 +24,12 @@ torch::Tensor training_loss(const std::string& kind, const torch::Tensor& predic
 // (p - t)^2 / (t^2 + eps) over pixels and channels. --relmse-weight adds it to any loss.
 torch::Tensor relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, double eps = 0.01);
 
+// relMSE of the `width` x `width` box means (non-overlapping; a remainder at the right and bottom is left out): the
+// error's low band only, the wall blotches that the per-pixel terms weigh as little as fine noise (issue 16).
+// --lowband-weight adds it to any loss. H and W must be at least `width`.
+torch::Tensor low_band_relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, int width,
+                                    double eps = 0.01);
+
 // A demodulated network's output, log(1 + c / f), back to log(1 + c): f = a + 0.01 as core multiplies back
 // (core/features/features.h), the albedo a recovered from its input planes log(1 + a). Products below -0.99 (a
 // negative prediction times an emissive albedo) are clamped there, so the log stays finite.
