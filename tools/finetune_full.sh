@@ -20,37 +20,56 @@
 # the shipped network (--widen-from), or GROW=1 for an ARCH one level deeper that starts as it (--grow-from); PATCH
 # (128) and BATCH (2); V1_PSEUDO (.cache/datasets/residue-v1-pseudo: another folder of that set, e.g.
 # a fixed subset for an A/B). Resumable: the run continues from its checkpoint folder, finished files and tables
-# are kept.
+# are kept. A run spans sessions, so its settings are written to WORKDIR/settings.env when it starts and read from
+# there when it resumes: `tools/finetune_full.sh WORKDIR` alone resumes it, and a setting given that differs from
+# the recorded one is refused rather than silently changing the schedule, the loss or the shape half-way.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/finetune_full.sh WORKDIR}")
+settings=(STEPS LR RELMSE_WEIGHT LOWBAND_WEIGHT LOWBAND_WIDTH SEED PRECISION ARCH WIDEN GROW PATCH BATCH V1_PSEUDO)
+defaults=(5000 1e-4 2 0 16 16 fp32 2,2,2,2/24,40,56,80 0 0 128 2 residue-v1-pseudo)
+mkdir -p "$work"
+if [ -f "$work/settings.env" ]; then
+  while IFS='=' read -r k v; do
+    if [ -n "${!k+set}" ] && [ "${!k}" != "$v" ]; then
+      echo "finetune_full.sh: $work was started with $k=$v; not resuming it with $k=${!k}" >&2
+      exit 2
+    fi
+    printf -v "$k" '%s' "$v"
+  done < "$work/settings.env"
+fi
+for i in "${!settings[@]}"; do
+  k=${settings[$i]}
+  [ -n "${!k+set}" ] || printf -v "$k" '%s' "${defaults[$i]}"
+done
+[ -f "$work/settings.env" ] || for k in "${settings[@]}"; do echo "$k=${!k}"; done > "$work/settings.env"
 data=()
-for d in residue-v1 "${V1_PSEUDO:-residue-v1-pseudo}" residue-pseudo residue-photo residue-photo-plain; do
+for d in residue-v1 "$V1_PSEUDO" residue-pseudo residue-photo residue-photo-plain; do
   d=$(cd "$repo/.cache/datasets" && realpath -m "$d")
   [ -f "$d/index.json" ] && data+=("$d") || echo "finetune_full.sh: $d is missing; training without it" >&2
 done
 data+=("$(realpath "$repo/../shared/datasets/cycles-starter")")
-mkdir -p "$work" && cd "$work"
+cd "$work"
 cp -n "$repo/resources/models/multiscale.safetensors" start.safetensors
 start=(--init-from start.safetensors) base=start
-[ "${WIDEN:-0}" = 1 ] && start=(--widen-from start.safetensors) base=start_reshaped
-[ "${GROW:-0}" = 1 ] && start=(--grow-from start.safetensors) base=start_reshaped
+[ "$WIDEN" = 1 ] && start=(--widen-from start.safetensors) base=start_reshaped
+[ "$GROW" = 1 ] && start=(--grow-from start.safetensors) base=start_reshaped
 precision=()
-case "${PRECISION:-fp32}" in fp32) ;; bf16) precision=(--bf16) ;; *) echo "finetune_full.sh: PRECISION is fp32 or bf16" >&2; exit 2 ;; esac
+case "$PRECISION" in fp32) ;; bf16) precision=(--bf16) ;; *) echo "finetune_full.sh: PRECISION is fp32 or bf16" >&2; exit 2 ;; esac
 train() {  # NAME STEPS: NAME.safetensors, its log and checkpoint
   [ -f "$1.safetensors" ] && return
-  "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch "${ARCH:-2,2,2,2/24,40,56,80}" \
-    --steps "$2" --val-every 1000 --checkpoint-every 250 --batch "${BATCH:-2}" --patch "${PATCH:-128}" \
-    --loss l1-log+ssim --relmse-weight "${RELMSE_WEIGHT:-2}" --lowband-weight "${LOWBAND_WEIGHT:-0}" \
-    --lowband-width "${LOWBAND_WIDTH:-16}" --autoexposure --exposure-key 1 --seed "${SEED:-16}" \
-    --freeze-bn-after 0 "${start[@]}" --lr "${LR:-1e-4}" --name multiscale \
+  "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch "$ARCH" \
+    --steps "$2" --val-every 1000 --checkpoint-every 250 --batch "$BATCH" --patch "$PATCH" \
+    --loss l1-log+ssim --relmse-weight "$RELMSE_WEIGHT" --lowband-weight "$LOWBAND_WEIGHT" \
+    --lowband-width "$LOWBAND_WIDTH" --autoexposure --exposure-key 1 --seed "$SEED" \
+    --freeze-bn-after 0 "${start[@]}" --lr "$LR" --name multiscale \
     --threads "${THREADS:-2}" "${precision[@]}" --log "$1.csv" -o "$1.safetensors" > "$1.out" 2>&1 ||
     { echo "finetune_full.sh: training failed, see $work/$1.out" >&2; exit 1; }
 }
 # A widened or grown run averages with its own start (the shipped network in the new shape, computing what it
 # computes; new channels or level as initialised): 0 steps.
 [ "$base" = start ] || train start_reshaped 0
-train run "${STEPS:-5000}"
+train run "$STEPS"
 [ -f soup.safetensors ] || /usr/bin/python3 "$repo/tools/average_weights.py" soup.safetensors \
   $base.safetensors:0.6 run.safetensors:0.4
 for m in run soup; do
