@@ -36,6 +36,11 @@ double hable(double x) {
   return (x * (A * x + C * B) + D * E) / (x * (A * x + B) + D * F) - E / F;
 }
 
+// The relMSE formula on linear values, (p - t)^2 / (t^2 + eps) averaged: the per-pixel and the low-band terms.
+torch::Tensor relmse_of_linear(const torch::Tensor& p, const torch::Tensor& t, double eps) {
+  return ((p - t).square() / (t.square() + eps)).mean();
+}
+
 }  // namespace
 
 const std::vector<std::string>& loss_names() {
@@ -118,9 +123,7 @@ torch::Tensor training_loss(const std::string& kind, const torch::Tensor& predic
 // the same everywhere, while relMSE squares it, so that the few large errors of very noisy dark interiors (where
 // the mean relMSE is decided) pull harder than many small ones.
 torch::Tensor relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, double eps) {
-  const auto p = torch::expm1(prediction.clamp_max(20.0));
-  const auto t = torch::expm1(target);
-  return ((p - t).square() / (t.square() + eps)).mean();
+  return relmse_of_linear(torch::expm1(prediction.clamp_max(20.0)), torch::expm1(target), eps);
 }
 
 // A 2% bias over a 48-px patch of wall costs the per-pixel terms as much as 2% of noise, which they leave behind
@@ -130,9 +133,8 @@ torch::Tensor low_band_relative_mse(const torch::Tensor& prediction, const torch
   if (width < 1 || prediction.size(2) < width || prediction.size(3) < width)
     throw std::invalid_argument("low_band_relative_mse: the box (" + std::to_string(width) +
                                 " px) must fit the patch");
-  const auto p = torch::avg_pool2d(torch::expm1(prediction.clamp_max(20.0)), width);
-  const auto t = torch::avg_pool2d(torch::expm1(target), width);
-  return ((p - t).square() / (t.square() + eps)).mean();
+  return relmse_of_linear(torch::avg_pool2d(torch::expm1(prediction.clamp_max(20.0)), width),
+                          torch::avg_pool2d(torch::expm1(target), width), eps);
 }
 
 }  // namespace residue::train
