@@ -26,8 +26,8 @@
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/finetune_full.sh WORKDIR}")
-settings=(STEPS LR RELMSE_WEIGHT LOWBAND_WEIGHT LOWBAND_WIDTH SEED PRECISION ARCH WIDEN GROW PATCH BATCH V1_PSEUDO)
-defaults=(5000 1e-4 2 0 16 16 fp32 2,2,2,2/24,40,56,80 0 0 128 2 residue-v1-pseudo)
+settings=(STEPS=5000 LR=1e-4 RELMSE_WEIGHT=2 LOWBAND_WEIGHT=0 LOWBAND_WIDTH=16 SEED=16 PRECISION=fp32
+          ARCH=2,2,2,2/24,40,56,80 WIDEN=0 GROW=0 PATCH=128 BATCH=2 V1_PSEUDO=residue-v1-pseudo)  # NAME=default
 mkdir -p "$work"
 if [ -f "$work/settings.env" ]; then
   while IFS='=' read -r k v; do
@@ -38,11 +38,11 @@ if [ -f "$work/settings.env" ]; then
     printf -v "$k" '%s' "$v"
   done < "$work/settings.env"
 fi
-for i in "${!settings[@]}"; do
-  k=${settings[$i]}
-  [ -n "${!k+set}" ] || printf -v "$k" '%s' "${defaults[$i]}"
+for kv in "${settings[@]}"; do
+  k=${kv%%=*}
+  [ -n "${!k+set}" ] || printf -v "$k" '%s' "${kv#*=}"
 done
-[ -f "$work/settings.env" ] || for k in "${settings[@]}"; do echo "$k=${!k}"; done > "$work/settings.env"
+[ -f "$work/settings.env" ] || for kv in "${settings[@]}"; do k=${kv%%=*}; echo "$k=${!k}"; done > "$work/settings.env"
 data=()
 for d in residue-v1 "$V1_PSEUDO" residue-pseudo residue-photo residue-photo-plain; do
   d=$(cd "$repo/.cache/datasets" && realpath -m "$d")
