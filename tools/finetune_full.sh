@@ -43,12 +43,8 @@ for kv in "${settings[@]}"; do
   [ -n "${!k+set}" ] || printf -v "$k" '%s' "${kv#*=}"
 done
 [ -f "$work/settings.env" ] || for kv in "${settings[@]}"; do k=${kv%%=*}; echo "$k=${!k}"; done > "$work/settings.env"
-data=()
-for d in residue-v1 "$V1_PSEUDO" residue-pseudo residue-photo residue-photo-plain; do
-  d=$(cd "$repo/.cache/datasets" && realpath -m "$d")
-  [ -f "$d/index.json" ] && data+=("$d") || echo "finetune_full.sh: $d is missing; training without it" >&2
-done
-data+=("$(realpath "$repo/../shared/datasets/cycles-starter")")
+source "$repo/tools/training_data.sh"
+training_data "$V1_PSEUDO"
 cd "$work"
 cp -n "$repo/resources/models/multiscale.safetensors" start.safetensors
 start=(--init-from start.safetensors) base=start

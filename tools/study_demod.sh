@@ -12,12 +12,8 @@ set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/study_demod.sh WORKDIR}")
 steps=${STEPS:-12000} seed=${SEED:-17}
-datasets=$repo/.cache/datasets
-data=()
-for d in residue-v1 residue-v1-pseudo residue-pseudo residue-photo residue-photo-plain; do
-  [ -f "$datasets/$d/index.json" ] && data+=("$datasets/$d") || echo "study_demod.sh: $d is missing; training without it" >&2
-done
-data+=("$(realpath "$repo/../shared/datasets/cycles-starter")")
+source "$repo/tools/training_data.sh"
+training_data residue-v1-pseudo
 cli="$repo/build/release/app/residue-cli/residue-cli"
 mkdir -p "$work" && cd "$work"
 
@@ -42,6 +38,6 @@ for m in plain demod; do
   echo "== $m"; sed -n 2,5p goal_${m}_x1.txt
 done
 /usr/bin/python3 "$repo/tools/goal_compare.py" goal_plain_x1.json goal_demod_x1.json | tee compare_x1.txt
-[ -f eval_photo.json ] || "$cli" evaluate-set "$datasets/residue-photo" --split validation \
+[ -f eval_photo.json ] || "$cli" evaluate-set "$repo/.cache/datasets/residue-photo" --split validation \
   --models "$work/plain.safetensors,$work/demod.safetensors,multiscale,oidn" --md eval_photo.md --json eval_photo.json
 cat eval_photo.md

@@ -7,7 +7,7 @@ set -uo pipefail
 tree=$(mktemp -d)
 trap 'rm -rf "$tree"' EXIT
 mkdir -p "$tree/tools" "$tree/work"
-cp "$1/tools/finetune_full.sh" "$tree/tools/"
+cp "$1/tools/finetune_full.sh" "$1/tools/training_data.sh" "$tree/tools/"
 repo=$tree work=$tree/work
 printf '%s\n' STEPS=24000 LOWBAND_WEIGHT=0 GROW=1 > "$work/settings.env"
 cp "$work/settings.env" "$work/recorded"
