@@ -3,6 +3,7 @@
 # training_data V1_PSEUDO: fills the array `data` with residue-v1, V1_PSEUDO (a folder of .cache/datasets, e.g.
 # residue-v1-pseudo), residue-pseudo, residue-photo and residue-photo-plain (each skipped with a warning when it has
 # no index.json), then the shared starter set.
+# Render them with tools/render_training_data.sh.
 training_data() {
   local repo d
   repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
