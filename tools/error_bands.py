@@ -1,6 +1,7 @@
 #!/usr/bin/python3
 """Where one model's error differs from another's: each scene's relMSE split by spatial frequency and by pixel
-class, per scene kind (interior / exterior), for two or more models on a data set's scenes.
+class, per scene kind (interior / exterior), for two or more models on a data set's scenes; and each scene's SSIM loss
+(1 - SSIM) split by the same pixel classes.
 
   /usr/bin/python3 tools/error_bands.py DATASET --models best,oidn [--split validation] [--widths 4,16,48]
       [--json OUT.json] [--cli build/release/app/residue-cli/residue-cli] [--work DIR]
@@ -45,7 +46,16 @@ def pixel_classes(reference, noisy):
             "flat": ~edge & ~lighting}
 
 
-def scene_bands(x, r, classes, widths):
+def ssim_map(cli, image, reference, work):
+    """residue-cli's per-pixel SSIM map of IMAGE against REFERENCE (float EXR in WORK)."""
+    subprocess.run([cli, "eval", image, "-r", reference, "--maps-dir", work, "--map-format", "exr", "--force"],
+                   check=True, stdout=subprocess.DEVNULL)
+    name = next(f for f in os.listdir(work) if f.endswith("_ssim.exr"))
+    return read_exr(os.path.join(work, name))["pixels"][:, :, 0].astype(np.float64)
+
+
+def scene_bands(x, r, classes, widths, ssim=None):
+    """The relMSE's parts by frequency and by class; with SSIM (a per-pixel map), 1 - SSIM's parts by class."""
     e = (x - r) / np.sqrt(r * r + EPS)
     e2 = (e * e).mean(-1)
     out = {"relmse": float(e2.mean())}
@@ -55,6 +65,16 @@ def scene_bands(x, r, classes, widths):
         out[f"high {w}"] = float(((e - low) ** 2).mean())
     for name, mask in classes.items():
         out[name] = float(e2[mask].sum() / e2.size)
+    if ssim is not None:
+        # The pixels whose 11 x 11 window lies inside the image: the ones the scene's SSIM averages.
+        inner = np.zeros(ssim.shape, bool)
+        inner[5:-5, 5:-5] = True
+        if not inner.any():
+            inner[:] = True
+        loss = 1 - ssim
+        out["1-SSIM"] = float(loss[inner].mean())
+        for name, mask in classes.items():
+            out[f"1-SSIM {name}"] = float(loss[inner & mask].sum() / inner.sum())
     return out
 
 
@@ -91,7 +111,10 @@ def main():
                 subprocess.run([a.cli, "denoise", os.path.join(folder, "noisy_a.exr"), "-m", m, "-o", out, "--force"],
                                check=True, stdout=subprocess.DEVNULL)
             x = read_exr(out)["pixels"][:, :, :3].astype(np.float64)
-            row["models"][m] = scene_bands(x, reference, classes, widths)
+            maps = os.path.join(work, f"{s['folder']}_{os.path.basename(m)}_maps")
+            os.makedirs(maps, exist_ok=True)
+            ssim = ssim_map(a.cli, out, os.path.join(folder, "reference.exr"), maps)
+            row["models"][m] = scene_bands(x, reference, classes, widths, ssim)
         rows.append(row)
         print(f"error_bands: {s['folder']} " + " ".join(f"{m} {row['models'][m]['relmse']:.5f}" for m in models),
               file=sys.stderr)
@@ -101,7 +124,7 @@ def main():
     for kind in sorted({r["kind"] for r in rows}):
         group = [r for r in rows if r["kind"] == kind]
         summary[kind] = {m: {k: float(np.mean([r["models"][m][k] for r in group])) for k in keys} for m in models}
-        print(f"\n{kind}s ({len(group)} scenes): mean contribution to relMSE" +
+        print(f"\n{kind}s ({len(group)} scenes): mean contribution to relMSE (to 1 - SSIM in the rows so named)" +
               (f"; last column {models[0]} against {models[1]}" if len(models) > 1 else ""))
         print(f"| part | {' | '.join(models)} |" + (" ratio |" if len(models) > 1 else ""))
         print("|---|" + "---|" * (len(models) + (len(models) > 1)))

@@ -52,14 +52,23 @@ with tempfile.TemporaryDirectory() as tmp:
     text = subprocess.run([cli, "denoise", os.path.join(data, "s0", "noisy_a.exr"), "--reference",
                            os.path.join(data, "s0", "reference.exr"), "-m", "multiscale", "-o",
                            os.path.join(tmp, "d.exr")], check=True, capture_output=True, text=True).stdout
-    cli_relmse = denoised_scores(text)["relmse"]
-    check(abs(scene["multiscale"]["relmse"] / cli_relmse - 1) < 1e-3,
-          f"relMSE {scene['multiscale']['relmse']} against residue-cli's {cli_relmse}")
+    scores = denoised_scores(text)
+    check(abs(scene["multiscale"]["relmse"] / scores["relmse"] - 1) < 1e-3,
+          f"relMSE {scene['multiscale']['relmse']} against residue-cli's {scores['relmse']}")
+    # residue-cli's SSIM of the same denoise, to full precision.
+    ssim = json.loads(subprocess.run([cli, "eval", os.path.join(tmp, "d.exr"), "-r", os.path.join(data, "s0",
+                                      "reference.exr"), "--json"], check=True, capture_output=True,
+                                     text=True).stdout)["rows"][0]["ssim"]
+    check(abs(1 - scene["multiscale"]["1-SSIM"] - ssim) < 1e-7,
+          f"1 - SSIM loss {1 - scene['multiscale']['1-SSIM']} against residue-cli's SSIM {ssim}")
     for m in ("multiscale", "bilateral"):
         parts = scene[m]
         classes_sum = parts["albedo/normal edge"] + parts["lighting edge only"] + parts["flat"]
         check(abs(classes_sum - parts["relmse"]) < 1e-9 * max(1, parts["relmse"]) + 1e-12,
               f"{m}: edges, lighting edges and flat pixels partition the relMSE")
+        ssim_sum = parts["1-SSIM albedo/normal edge"] + parts["1-SSIM lighting edge only"] + parts["1-SSIM flat"]
+        check(abs(ssim_sum - parts["1-SSIM"]) < 1e-9, f"{m}: and 1 - SSIM: {ssim_sum} against {parts['1-SSIM']}")
+        check(0 < parts["1-SSIM"] < 1, f"{m}: 1 - SSIM in (0, 1): {parts['1-SSIM']}")
     check(scene["multiscale"]["relmse"] < scene["bilateral"]["relmse"], "multiscale beats the bilateral filter")
     check(result["summary"]["interior"]["multiscale"]["relmse"] == scene["multiscale"]["relmse"], "one scene's mean")
     bad = subprocess.run([sys.executable, os.path.join(repo, "tools", "error_bands.py"), data, "--models",
