@@ -202,6 +202,112 @@ TEST(AovConventions, Arnold) {
   EXPECT_EQ(s.normal_space, NormalSpace::World);
 }
 
+// pbrt-v4's gbuffer film, with the channels in the order it writes them: shading normals (Ns, not N) in camera space
+// with +z along the view direction, depth from P.Z (0 where no surface was hit), no variance (pbrt's is the
+// samples' variance, not the estimate's).
+std::vector<FixtureChannel> pbrt_gbuffer_channels() {
+  std::vector<FixtureChannel> ch = {coded("R", 10), coded("G", 11), coded("B", 12),
+                                    coded("Albedo.R", 30), coded("Albedo.G", 31), coded("Albedo.B", 32),
+                                    coded("P.X", 60), coded("P.Y", 61),
+                                    {"P.Z", false, [](int x, int y) { return x == 0 && y == 0 ? 0.0f : code(40, x, y); }},
+                                    coded("dzdx", 70), coded("dzdy", 71),
+                                    coded("N.X", 80), coded("N.Y", 81), coded("N.Z", 82),
+                                    coded("Ns.X", 20), coded("Ns.Y", 21), coded("Ns.Z", 22),
+                                    coded("u", 90), coded("v", 91)};
+  for (const char* c : {"R", "G", "B"}) ch.push_back(coded(std::string("Variance.") + c, 50));
+  for (const char* c : {"R", "G", "B"}) ch.push_back(coded(std::string("RelativeVariance.") + c, 55));
+  return ch;
+}
+
+TEST(AovConventions, PbrtGbufferFilm) {
+  TempDir tmp;
+  const auto f = tmp / "pbrt.exr";
+  write_fixture_exr(f, {part(5, 3, pbrt_gbuffer_channels())});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "pbrt-v4 (gbuffer film)");
+  expect_coded(s, AovRole::Color, 10);
+  expect_coded(s, AovRole::Albedo, 30);
+  EXPECT_EQ(s.normal_space, NormalSpace::Camera);
+  ASSERT_TRUE(s.normal && s.depth);
+  EXPECT_EQ(s.normal->source.layer, "Ns");
+  for (int y = 0; y < 3; ++y)
+    for (int x = 0; x < 5; ++x) {
+      EXPECT_FLOAT_EQ(s.normal->image.at(x, y, 0), code(20, x, y));
+      EXPECT_FLOAT_EQ(s.normal->image.at(x, y, 1), code(21, x, y));
+      EXPECT_FLOAT_EQ(s.normal->image.at(x, y, 2), -code(22, x, y));  // pbrt's camera looks down +z
+      EXPECT_FLOAT_EQ(s.depth->image.at(x, y), x == 0 && y == 0 ? 0.0f : code(40, x, y));
+    }
+  EXPECT_EQ(s.depth->source.channels, std::vector<std::string>{"P.Z"});
+  EXPECT_EQ(s.depth_kind, DepthKind::Planar);
+  EXPECT_FALSE(s.variance.has_value());
+
+  // Rendered with coordinatesystem "world": P is in world space too, so its z is no depth.
+  LoadOptions world;
+  world.normal_space = NormalSpace::World;
+  const AovStack w = load_aov_stack({f}, world);
+  EXPECT_EQ(w.normal_space, NormalSpace::World);
+  EXPECT_FALSE(w.depth.has_value());
+  EXPECT_TRUE(std::any_of(w.notes.begin(), w.notes.end(),
+                          [](const std::string& n) { return n.find("no depth") != std::string::npos; }));
+}
+
+// Every layer of pbrt's signature is needed: an Arnold render with a position AOV stays Arnold's.
+TEST(AovConventions, ArnoldWithPositionAndAlbedoIsNotPbrt) {
+  TempDir tmp;
+  const auto f = tmp / "arnold_p.exr";
+  write_fixture_exr(f, {part(5, 3, {coded("R", 10), coded("G", 11), coded("B", 12), coded("N.X", 20),
+                                    coded("N.Y", 21), coded("N.Z", 22), coded("P.X", 60), coded("P.Y", 61),
+                                    coded("P.Z", 62), coded("albedo.R", 30), coded("albedo.G", 31),
+                                    coded("albedo.B", 32), coded("Z", 40)})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "Arnold");
+  expect_coded(s, AovRole::Depth, 40);
+  EXPECT_EQ(s.normal_space, NormalSpace::World);
+}
+
+// The OpenEXR worldToCamera attribute is for row vectors (p_cam = p_world M); pbrt-v4 writes its own
+// column-vector matrix there. Both must give the same camera: ours is column-vector, looking down -z.
+TEST(AovConventions, WorldToCameraRowOrColumnVectors) {
+  // A camera at (1, 2, 3) turned 90 degrees about y, in the header's left-handed, +z-forward camera space:
+  // p_cam = R (p - t) with R mapping world x to camera z.
+  const double r[3][3] = {{0, 0, -1}, {0, 1, 0}, {1, 0, 0}};
+  const double t[3] = {1, 2, 3};
+  std::array<float, 16> column{}, row{};
+  for (int i = 0; i < 3; ++i) {
+    double tr = 0;
+    for (int j = 0; j < 3; ++j) {
+      column[static_cast<size_t>(i * 4 + j)] = static_cast<float>(r[i][j]);
+      tr += r[i][j] * t[j];
+    }
+    column[static_cast<size_t>(i * 4 + 3)] = static_cast<float>(-tr);
+  }
+  column[15] = 1;
+  for (int i = 0; i < 4; ++i)
+    for (int j = 0; j < 4; ++j) row[static_cast<size_t>(i * 4 + j)] = column[static_cast<size_t>(j * 4 + i)];
+
+  TempDir tmp;
+  for (const bool pbrt : {false, true}) {
+    const auto f = tmp / (pbrt ? "column.exr" : "row.exr");
+    FixturePart p = part(2, 2, {coded("R", 10), coded("G", 11), coded("B", 12)});
+    p.matrix_attributes = {{"worldToCamera", pbrt ? column : row}};
+    write_fixture_exr(f, {p});
+    const AovStack s = load_aov_stack({f});
+    ASSERT_TRUE(s.world_to_camera.has_value()) << f;
+    // The world point (2, 2, 3) is 1 ahead of the camera along its view axis: (0, 0, -1) in ours.
+    const double pw[4] = {2, 2, 3, 1};
+    double pc[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 4; ++j) pc[i] += (*s.world_to_camera)[static_cast<size_t>(i * 4 + j)] * pw[j];
+    EXPECT_NEAR(pc[0], 0, 1e-6) << f;
+    EXPECT_NEAR(pc[1], 0, 1e-6) << f;
+    EXPECT_NEAR(pc[2], -1, 1e-6) << f;
+    EXPECT_EQ(std::any_of(s.notes.begin(), s.notes.end(),
+                          [](const std::string& n) { return n.find("column vectors") != std::string::npos; }),
+              pbrt)
+        << f;
+  }
+}
+
 TEST(AovConventions, RenderMan) {
   TempDir tmp;
   const auto f = tmp / "prman.exr";

@@ -29,6 +29,7 @@ struct ReadPlan {
   NormalSpace normal_space = NormalSpace::Unknown;
   bool flip_normal_z = false;
   DepthKind depth_kind = DepthKind::Unknown;
+  bool depth_from_position = false;
   double depth_background = kDepthBackgroundThreshold;
 };
 
@@ -152,6 +153,7 @@ ReadPlan plan_from_recognition(const RecognisedAov& r, const std::string& file) 
   p.normal_space = r.normal_space;
   p.flip_normal_z = r.flip_normal_z;
   p.depth_kind = r.depth_kind;
+  p.depth_from_position = r.depth_from_position;
   return p;
 }
 
@@ -282,10 +284,17 @@ void read_plans(const OpenedFile& file, const std::vector<const ReadPlan*>& plan
 std::optional<std::array<double, 16>> camera_from_header(const OIIO::ImageSpec& spec, std::vector<std::string>& notes) {
   if (const OIIO::ParamValue* p = spec.find_attribute("worldtocamera", OIIO::TypeMatrix44)) {
     // OpenEXR: row vectors (p' = p M), left-handed camera looking down +z. Ours: column vectors, looking down -z.
+    // pbrt-v4 stores its own column-vector matrix there: the translation then sits in the last column, not the
+    // last row. (A camera at the world's origin leaves no trace of which; it is read as OpenEXR's.)
     const float* m = static_cast<const float*>(p->data());
+    const bool column_vectors = m[12] == 0 && m[13] == 0 && m[14] == 0 && (m[3] != 0 || m[7] != 0 || m[11] != 0);
+    if (column_vectors)
+      notes.push_back("the worldToCamera attribute is written for column vectors (as pbrt-v4 writes it), not "
+                      "OpenEXR's row vectors: read as such");
     std::array<double, 16> out{};
     for (int r = 0; r < 4; ++r)
-      for (int c = 0; c < 4; ++c) out[static_cast<size_t>(r * 4 + c)] = m[c * 4 + r] * (r == 2 ? -1.0 : 1.0);
+      for (int c = 0; c < 4; ++c)
+        out[static_cast<size_t>(r * 4 + c)] = (column_vectors ? m[r * 4 + c] : m[c * 4 + r]) * (r == 2 ? -1.0 : 1.0);
     return out;
   }
   const std::string note = spec.get_string_attribute("Note");
@@ -396,6 +405,13 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
   if (options.normal_space && plans.count(AovRole::Normal)) {
     plans[AovRole::Normal].normal_space = *options.normal_space;
     plans[AovRole::Normal].flip_normal_z = false;
+    // The position pass a depth was read from is in the normals' space: in world space its z is not a depth.
+    if (*options.normal_space == NormalSpace::World && plans.count(AovRole::Depth) &&
+        plans[AovRole::Depth].depth_from_position) {
+      stack.notes.push_back("no depth: it would be the z of the position pass '" + plans[AovRole::Depth].layer +
+                            "', which is in world space like the normals");
+      plans.erase(AovRole::Depth);
+    }
   }
 
   // 4. The grid: the colour source's data window. Other AOVs must share its display window.

@@ -143,11 +143,14 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
     if (conv.needs_root_rgb && !has_root_rgb(idx)) continue;
     for (const std::string& prefix : prefixes) {
       if (!wanted_prefix.empty() && prefix != wanted_prefix) continue;
-      bool signed_here = conv.signature.empty();
+      size_t signed_layers = 0;
       for (const auto& sig : conv.signature)
         if (idx.count({prefix, sig}) || (prefix.empty() && sig.size() == 1 && idx.count({"", ""}) &&
                                          idx.at({"", ""}).count(sig)))
-          signed_here = true;
+          ++signed_layers;
+      const bool signed_here = conv.signature.empty() || (conv.whole_signature
+                                                               ? signed_layers == conv.signature.size()
+                                                               : signed_layers > 0);
       if (!signed_here) continue;
 
       Recognition rec;
@@ -172,6 +175,7 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
           aov.normal_space = rule.normal_space;
           aov.flip_normal_z = rule.flip_normal_z;
           aov.depth_kind = rule.depth_kind;
+          aov.depth_from_position = rule.depth_from_position;
           rec.aovs.push_back(std::move(aov));
           if (!rule.note.empty()) rec.notes.push_back(rule.note);
           break;

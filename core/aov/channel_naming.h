@@ -26,6 +26,7 @@ struct RecognisedAov {
   NormalSpace normal_space = NormalSpace::Unknown;
   bool flip_normal_z = false;        // the file's camera space has +z along the view direction
   DepthKind depth_kind = DepthKind::Unknown;
+  bool depth_from_position = false;  // the z of a camera-space position pass (PassRule)
 };
 
 struct Recognition {

@@ -128,6 +128,21 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Variance, {"variance"}},
            {AovRole::Reference, {"reference"}},
        }},
+      // pbrt-v4's gbuffer film. Before Arnold, whose signature ("N") it also carries. Its Variance is the samples'
+      // variance (the estimate's times the spp), so it is left out rather than read as the estimate's.
+      {"pbrt-v4 (gbuffer film)",
+       {"albedo", "p", "ns"},
+       true,
+       {
+           {AovRole::Color, {""}},
+           {AovRole::Albedo, {"albedo"}},
+           {AovRole::Normal, {"ns"}, NormalSpace::Camera, true, {},
+            "pbrt-v4 gbuffer: positions and normals are in camera space unless the film's \"coordinatesystem\" was "
+            "\"world\" (then give --normal-space world)"},
+           {AovRole::Depth, {"p"}, {}, false, DepthKind::Planar, {}, true},
+           {AovRole::Reference, {"reference"}},
+       },
+       true},
       {"Arnold",
        {"n", "denoise_albedo", "diffuse_albedo"},
        true,

@@ -7,6 +7,8 @@
 //                   `... Denoising Depth.Z` (also `Noisy Image`, `Normal`, `Depth`, `DiffCol`, `Denoising Variance`)
 //   RenderMan       `Ci`, `albedo`, `normal`, `zfiltered` / `z`, `mse`
 //   V-Ray           root `R,G,B` (channel names may start with "."), `diffuse.{red,green,blue}`, `bump_normals`
+//   pbrt-v4         its gbuffer film: root `R,G,B`, `Albedo`, `P`, `N`, `Ns` (camera space by default), `Variance`
+//                   (the samples' variance, not the estimate's: not used)
 //   Arnold          root `R,G,B(,A)`, `N`, `Z`, `denoise_albedo` / `albedo`
 //   plain           root `R,G,B` with layers `albedo`, `normal`, `depth` (`variance`, `reference`)
 // File sets (one file per AOV):
@@ -34,6 +36,9 @@ struct PassRule {
   bool flip_normal_z = false;       // the renderer's camera space has +z along the view direction
   DepthKind depth_kind = DepthKind::Unknown;
   std::string note;                 // said when this rule is used
+  // Depth read as the z of a camera-space position pass (pbrt-v4's P): right only while that pass, which shares
+  // the normals' space, is in camera space.
+  bool depth_from_position = false;
 };
 
 // A renderer that writes its AOVs as named layers of one file.
@@ -42,6 +47,7 @@ struct LayeredConvention {
   std::vector<std::string> signature;  // layer names (lower case) whose presence identifies the renderer
   bool needs_root_rgb = false;         // the signature also needs root R,G,B
   std::vector<PassRule> rules;         // several rules for one role = fallbacks, in order
+  bool whole_signature = false;        // every signature layer must be present, not just one
 };
 
 // The layered conventions, in the order they are tried.

@@ -2,6 +2,7 @@
 // elsewhere): any channel names, half or float per channel, data windows, several parts.
 #pragma once
 
+#include <array>
 #include <functional>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@ struct FixturePart {
   int x = 0, y = 0, width = 0, height = 0;  // data window
   int full_width = 0, full_height = 0;      // display window (0 = data window size)
   std::vector<std::pair<std::string, std::string>> string_attributes;
+  std::vector<std::pair<std::string, std::array<float, 16>>> matrix_attributes;  // 4x4 (M44f), row-major
 };
 
 // Writes one file with one or more parts; throws std::runtime_error on failure.
