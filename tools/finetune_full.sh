@@ -5,13 +5,8 @@
 # sessions 7 and 9: MODELS.md levers 1b and 5), then scored by tools/goal_check.py x1 and x8 beside the start.
 #   tools/finetune_full.sh WORKDIR
 # Writes start/run/soup.safetensors, goal_{start,run,soup}_x{1,8}.{txt,json} and bands.{md,json} (error_bands.py).
-# Data (render first; each command is resumable):
-#   R="/usr/bin/python3 tools/datagen/render_dataset.py"
-#   $R --out .cache/datasets/residue-v1 --seeds <the 30 seeds in 1000-1329 with seed % 11 == 10>   # validation
-#   $R --out .cache/datasets/residue-v1-pseudo --seeds <the other 300> --pseudo-ref multiscale       # ~5-9 h
-#   (session 12 orders the seeds interiors first: $(/usr/bin/python3 -c "t=[s for s in range(1000,1330) if s%11!=10];
-#   print(','.join(map(str,[s for s in t if s%2==0]+[s for s in t if s%2])))"); stop it while training
-#   residue-pseudo, residue-photo, residue-photo-plain: MODELS.md lever 5 and tools/study_photo.sh
+# Data: tools/render_training_data.sh renders every folder it trains on (tools/training_data.sh), each with the
+# command that made it (resumable; 4-7 h on 2 cores).
 # The trainer's validation is the cards' 36 scenes (residue-v1's 30 and the starter set's last 6): it only
 # monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), LOWBAND_WEIGHT
 # (0; LOWBAND_WIDTH 16: the relMSE of box means, the error's low band), SEED (16),
