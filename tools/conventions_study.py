@@ -1,23 +1,32 @@
 #!/usr/bin/python3
 """Issue 16, lever 3 (inputs from any renderer), measured without training: the same Cycles renders denoised as
-Cycles wrote them and re-saved in Tungsten's conventions (one file per buffer; world-space normals and no camera,
+Cycles wrote them, re-saved in Tungsten's conventions (one file per buffer; world-space normals and no camera,
 so they cannot be made view-space; albedo with emission, as Cycles' denoising albedo already is; ray-length
-depth), for each model. A model that reads renderers' conventions well loses little between the two.
+depth) and in pbrt-v4's (its gbuffer film's one file: camera-space shading normals with +z along the view, depth
+as the z of camera-space positions, 0 where nothing was hit; the position's x and y, dz/dx, dz/dy, u, v and the
+variances are written as zeros: the loader does not read them), for each model. A model that reads renderers'
+conventions well loses little between them.
 
   /usr/bin/python3 tools/conventions_study.py [--data ../shared/datasets/cycles-starter] [--scenes s158,...]
       [--models bilateral,small,base,paper,oidn] [--cli build/release/app/residue-cli/residue-cli] --out DIR
 
-Writes DIR/<scene>/tungsten/{color,albedo,normal,depth,reference}.exr and prints a Markdown table (mean relMSE
-and SSIM per model and convention, and the relative change); --json FILE keeps the per-scene numbers.
+Writes DIR/<scene>/tungsten/{color,albedo,normal,depth,reference}.exr and DIR/<scene>/pbrt.exr and prints a
+Markdown table (mean relMSE and SSIM per model and convention, and the relative change from Cycles'); --json FILE
+keeps the per-scene numbers.
 """
 import argparse, json, os, re, subprocess, sys
+
+import numpy as np
+import OpenImageIO as oiio
+
+L = "ViewLayer."
+CONVENTIONS = ("cycles", "tungsten", "pbrt")
 
 def oiiotool(*args):
     subprocess.run(["oiiotool", *args], check=True, capture_output=True)
 
 def to_tungsten(noisy, reference, out):
     os.makedirs(out, exist_ok=True)
-    L = "ViewLayer."
     pick = {
         "color": [("R", L + "Combined.R"), ("G", L + "Combined.G"), ("B", L + "Combined.B")],
         "albedo": [("R", L + "Denoising Albedo.R"), ("G", L + "Denoising Albedo.G"), ("B", L + "Denoising Albedo.B")],
@@ -29,6 +38,28 @@ def to_tungsten(noisy, reference, out):
         oiiotool(noisy, "--ch", spec, "-d", "half", "--compression", "piz", "-o", os.path.join(out, name + ".exr"))
     oiiotool(reference, "--ch", f"R={L}Combined.R,G={L}Combined.G,B={L}Combined.B", "-d", "half",
              "--compression", "piz", "-o", os.path.join(out, "reference.exr"))
+
+def to_pbrt(noisy, out):
+    """The noisy render as pbrt-v4's gbuffer film writes one: its channels, in its order, in half."""
+    src = oiio.ImageBuf(noisy)
+    pixels, names = src.get_pixels(oiio.FLOAT), list(src.spec().channelnames)
+    get = lambda name: pixels[:, :, names.index(L + name)]
+    depth = get("Depth.Z")  # planar; Cycles writes 1e10 where nothing was hit, pbrt a zero position
+    zero = np.zeros_like(depth)
+    channels = {"R": get("Combined.R"), "G": get("Combined.G"), "B": get("Combined.B")}
+    channels.update({f"Albedo.{c}": get(f"Denoising Albedo.{c}") for c in "RGB"})
+    channels.update({"P.X": zero, "P.Y": zero, "P.Z": np.where(depth >= 1e9, 0, depth), "dzdx": zero, "dzdy": zero})
+    for layer in ("N", "Ns"):  # Cycles' denoising normal: camera space, +z along the view, as pbrt's camera space
+        channels.update({f"{layer}.{c}": get(f"Denoising Normal.{c}") for c in "XYZ"})
+    channels.update({"u": zero, "v": zero})
+    channels.update({f"{v}.{c}": zero for v in ("Variance", "RelativeVariance") for c in "RGB"})
+    spec = oiio.ImageSpec(depth.shape[1], depth.shape[0], len(channels), oiio.HALF)
+    spec.channelnames = list(channels)
+    spec.attribute("compression", "zip")
+    image = oiio.ImageBuf(spec)
+    image.set_pixels(oiio.ROI(), np.stack(list(channels.values()), -1).astype(np.float32))
+    if not image.write(out):
+        raise RuntimeError(f"cannot write {out}: {image.geterror()}")
 
 def scores(cli, inputs, model, out, reference=None):
     args = [cli, "denoise", *inputs, "-m", model, "-o", out, "--force"]
@@ -52,22 +83,27 @@ def main():
     for scene in a.scenes.split(","):
         src = os.path.join(a.data, scene)
         tdir = os.path.join(a.out, scene, "tungsten")
-        to_tungsten(os.path.join(src, "noisy_a.exr"), os.path.join(src, "reference.exr"), tdir)
+        reference = os.path.join(src, "reference.exr")
+        to_tungsten(os.path.join(src, "noisy_a.exr"), reference, tdir)
+        pbrt = os.path.join(a.out, scene, "pbrt.exr")
+        to_pbrt(os.path.join(src, "noisy_a.exr"), pbrt)
         for model in a.models.split(","):
-            c = scores(a.cli, [os.path.join(src, "noisy_a.exr")], model, os.path.join(a.out, scene, f"cycles_{model}.exr"),
-                       os.path.join(src, "reference.exr"))
-            t = scores(a.cli, [tdir], model, os.path.join(a.out, scene, f"tungsten_{model}.exr"))
-            results.setdefault(model, []).append({"scene": scene, "cycles": c, "tungsten": t})
-            print(f"{scene} {model}: cycles {c[0]:.5f} / {c[1]:.4f}, tungsten {t[0]:.5f} / {t[1]:.4f}", file=sys.stderr)
-    print("| model | relMSE, Cycles conventions | relMSE, Tungsten conventions | change | SSIM, Cycles | SSIM, Tungsten |")
-    print("|---|---|---|---|---|---|")
+            row = {"scene": scene,
+                   "cycles": scores(a.cli, [os.path.join(src, "noisy_a.exr")], model,
+                                    os.path.join(a.out, scene, f"cycles_{model}.exr"), reference),
+                   "tungsten": scores(a.cli, [tdir], model, os.path.join(a.out, scene, f"tungsten_{model}.exr")),
+                   "pbrt": scores(a.cli, [pbrt], model, os.path.join(a.out, scene, f"pbrt_{model}.exr"), reference)}
+            results.setdefault(model, []).append(row)
+            print(f"{scene} {model}: " + ", ".join(f"{k} {row[k][0]:.5f} / {row[k][1]:.4f}" for k in CONVENTIONS),
+                  file=sys.stderr)
+    print("| model | relMSE, Cycles conventions | Tungsten's | change | pbrt-v4's | change | SSIM, Cycles | Tungsten | pbrt-v4 |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for model, rows in results.items():
-        n = len(rows)
-        cr = sum(r["cycles"][0] for r in rows) / n
-        tr = sum(r["tungsten"][0] for r in rows) / n
-        cs = sum(r["cycles"][1] for r in rows) / n
-        ts = sum(r["tungsten"][1] for r in rows) / n
-        print(f"| `{model}` | {cr:.5f} | {tr:.5f} | {100 * (tr / cr - 1):+.1f} % | {cs:.4f} | {ts:.4f} |")
+        rel = {k: sum(r[k][0] for r in rows) / len(rows) for k in CONVENTIONS}
+        ssim = {k: sum(r[k][1] for r in rows) / len(rows) for k in CONVENTIONS}
+        print(f"| `{model}` | {rel['cycles']:.5f} | " +
+              " | ".join(f"{rel[k]:.5f} | {100 * (rel[k] / rel['cycles'] - 1):+.1f} %" for k in CONVENTIONS[1:]) +
+              " | " + " | ".join(f"{ssim[k]:.4f}" for k in CONVENTIONS) + " |")
     if a.json:
         with open(a.json, "w") as f:
             json.dump(results, f, indent=1)
