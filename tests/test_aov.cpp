@@ -360,6 +360,20 @@ TEST(AovConventions, PlainLayersWithReference) {
   EXPECT_EQ(load_aov_stack({f}, o).normal_space, NormalSpace::World);
 }
 
+// Mitsuba 3's aov integrator names its layers as told; its documentation's names: "nn" (sh_normal), "dd.y" (depth).
+TEST(AovConventions, PlainWithMitsubaAovNames) {
+  TempDir tmp;
+  const auto f = tmp / "mitsuba.exr";
+  write_fixture_exr(f, {part(2, 2, {coded("R", 10), coded("G", 11), coded("B", 12), constant_channel("A", 1),
+                                    coded("albedo.R", 30), coded("albedo.G", 31), coded("albedo.B", 32),
+                                    coded("nn.X", 20), coded("nn.Y", 21), coded("nn.Z", 22), coded("dd.y", 40)})});
+  const AovStack s = load_aov_stack({f});
+  EXPECT_EQ(s.convention, "plain (R,G,B with named layers)");
+  for (auto [role, tag] : std::vector<std::pair<AovRole, float>>{
+           {AovRole::Color, 10}, {AovRole::Albedo, 30}, {AovRole::Normal, 20}, {AovRole::Depth, 40}})
+    expect_coded(s, role, tag);
+}
+
 TEST(AovConventions, MultipartWithUnqualifiedChannelNames) {
   TempDir tmp;
   const auto f = tmp / "multipart.exr";

@@ -160,8 +160,9 @@ const std::vector<LayeredConvention>& layered_conventions() {
        {
            {AovRole::Color, {"", "rgba", "rgb", "beauty", "color", "colour"}},
            {AovRole::Albedo, {"albedo"}},
-           {AovRole::Normal, {"normal", "normals", "n"}, NormalSpace::Unknown},
-           {AovRole::Depth, {"depth", "z"}, {}, false, DepthKind::Unknown},
+           // "sh_normal", "nn", "dd": the names Mitsuba 3's aov integrator is usually given (the user picks them).
+           {AovRole::Normal, {"normal", "normals", "n", "sh_normal", "nn"}, NormalSpace::Unknown},
+           {AovRole::Depth, {"depth", "z", "dd"}, {}, false, DepthKind::Unknown},
            {AovRole::Variance, {"variance", "colorvariance"}},
            {AovRole::Reference, {"reference", "ref"}},
        }},
