@@ -19,6 +19,9 @@ import argparse, json, os, re, subprocess, sys
 import numpy as np
 import OpenImageIO as oiio
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "datagen"))
+from exr_metrics import read_exr  # noqa: E402
+
 L = "ViewLayer."
 CONVENTIONS = ("cycles", "tungsten", "pbrt")
 
@@ -41,9 +44,8 @@ def to_tungsten(noisy, reference, out):
 
 def to_pbrt(noisy, out):
     """The noisy render as pbrt-v4's gbuffer film writes one: its channels, in its order, in half."""
-    src = oiio.ImageBuf(noisy)
-    pixels, names = src.get_pixels(oiio.FLOAT), list(src.spec().channelnames)
-    get = lambda name: pixels[:, :, names.index(L + name)]
+    src = read_exr(noisy)
+    get = lambda name: src["pixels"][:, :, src["channels"].index(L + name)]
     depth = get("Depth.Z")  # planar; Cycles writes 1e10 where nothing was hit, pbrt a zero position
     zero = np.zeros_like(depth)
     channels = {"R": get("Combined.R"), "G": get("Combined.G"), "B": get("Combined.B")}

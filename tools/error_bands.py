@@ -47,10 +47,14 @@ def pixel_classes(reference, noisy):
 
 
 def ssim_map(cli, image, reference, work):
-    """residue-cli's per-pixel SSIM map of IMAGE against REFERENCE (float EXR in WORK)."""
-    subprocess.run([cli, "eval", image, "-r", reference, "--maps-dir", work, "--map-format", "exr", "--force"],
-                   check=True, stdout=subprocess.DEVNULL)
-    name = next(f for f in os.listdir(work) if f.endswith("_ssim.exr"))
+    """residue-cli's per-pixel SSIM map of IMAGE against REFERENCE (float EXR in WORK; one already there is reused,
+    like the denoised image it was made from)."""
+    found = [f for f in os.listdir(work) if f.endswith("_ssim.exr")]
+    if not found:
+        subprocess.run([cli, "eval", image, "-r", reference, "--maps-dir", work, "--map-format", "exr", "--force"],
+                       check=True, stdout=subprocess.DEVNULL)
+        found = [f for f in os.listdir(work) if f.endswith("_ssim.exr")]
+    name = found[0]
     return read_exr(os.path.join(work, name))["pixels"][:, :, 0].astype(np.float64)
 
 
