@@ -423,6 +423,16 @@ TEST(TrainCli, RefusesAPatchWithinTheNetworksReach) {
                                  &text),
             0);
   EXPECT_NE(text.find("--exposure-key needs --autoexposure"), std::string::npos) << text;
+
+  // The edge term finds edges in the albedo and normal planes: refused for a feature set without them.
+  EXPECT_NE(testing::run_program(RESIDUE_TRAIN_PATH,
+                                 {"--data", tmp.path().string(), "--features", "color", "--edge-ssim-weight", "1",
+                                  "-o", (tmp / "m.safetensors").string()},
+                                 &text),
+            0);
+  EXPECT_NE(text.find("--edge-ssim-weight needs a feature set with the albedo and the normal, not \"color\""),
+            std::string::npos)
+      << text;
 }
 
 TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {

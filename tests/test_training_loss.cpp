@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "core/aov/dataset.h"
+#include "core/features/features.h"
 #include "core/metrics/metrics.h"
 #include "core/metrics/tonemap.h"
 #include "support/test_support.h"
@@ -120,6 +121,59 @@ TEST_F(TrainLossOnARealRender, LowBandRelativeMseIsTheBoxMeansRelMse) {
   EXPECT_GT(train::relative_mse(biased_and_noisy, y).item<double>(), 2 * train::relative_mse(biased, y).item<double>())
       << "the per-pixel term does see the checkerboard";
   EXPECT_THROW(train::low_band_relative_mse(y, y, n.width() + 1), std::invalid_argument);
+}
+
+// The edge term against a naive one: the mask from the scene's real feature planes in plain loops (a step of
+// log(1 + albedo) above 0.1 or of the normal's x, y above 0.25 to the right or below marks both pixels), core's
+// float64 SSIM map, and the masked sum of 1 - SSIM over the pixels whose window is inside, divided by their count.
+TEST_F(TrainLossOnARealRender, EdgeSsimTermIsTheEdgePixelsShareOfOneMinusSsim) {
+  Image features;
+  const Rect all{0, 0, scene_.width(), scene_.height()};
+  make_features(scene_, FeatureSet::Full, compute_feature_stats(scene_), all, features);
+  const int albedo = feature_plane(FeatureSet::Full, "albedo.r"), normal = feature_plane(FeatureSet::Full, "normal.x");
+  const int64_t w = features.width(), h = features.height();
+  std::vector<uint8_t> edge(static_cast<size_t>(w * h), 0);
+  const auto step = [&](int64_t x0, int64_t y0, int64_t x1, int64_t y1) {
+    bool big = false;
+    for (int c = 0; c < 3; ++c)
+      big |= std::abs(features.at(x1, y1, albedo + c) - features.at(x0, y0, albedo + c)) > train::kAlbedoEdge;
+    for (int c = 0; c < 2; ++c)
+      big |= std::abs(features.at(x1, y1, normal + c) - features.at(x0, y0, normal + c)) > train::kNormalEdge;
+    if (big) edge[static_cast<size_t>(y0 * w + x0)] = edge[static_cast<size_t>(y1 * w + x1)] = 1;
+  };
+  for (int64_t y = 0; y < h; ++y)
+    for (int64_t x = 0; x < w; ++x) {
+      if (x + 1 < w) step(x, y, x + 1, y);
+      if (y + 1 < h) step(x, y, x, y + 1);
+    }
+  const Image map = metrics::error_map(noisy(), reference(), metrics::MapKind::Ssim);
+  double sum = 0;
+  int64_t inner = 0, edges_inside = 0;
+  for (int64_t y = 5; y < h - 5; ++y)
+    for (int64_t x = 5; x < w - 5; ++x, ++inner)
+      if (edge[static_cast<size_t>(y * w + x)]) {
+        sum += 1.0 - map.at(x, y, 0);
+        ++edges_inside;
+      }
+  ASSERT_GT(edges_inside, inner / 50) << "the scene has edges";
+  ASSERT_LT(edges_inside, inner / 2) << "and flat parts";
+  const double expected = sum / static_cast<double>(inner);
+  ASSERT_GT(expected, 0.01);
+
+  const auto planes = to_tensor(features, torch::kFloat64);
+  const auto mask = train::aov_edge_mask(planes.slice(1, albedo, albedo + 3), planes.slice(1, normal, normal + 2));
+  ASSERT_EQ(mask.sizes(), (std::vector<int64_t>{1, 1, h, w}));
+  const auto marked = mask.contiguous();
+  int64_t differ = 0;
+  for (size_t i = 0; i < edge.size(); ++i) differ += (marked.data_ptr<double>()[i] != 0) != (edge[i] != 0);
+  EXPECT_EQ(differ, 0);
+  const auto x = torch::log1p(colour(noisy(), torch::kFloat64));
+  const auto t = torch::log1p(colour(reference(), torch::kFloat64));
+  EXPECT_NEAR(train::edge_ssim_loss(x, t, mask).item<double>(), expected, 1e-9);
+  EXPECT_NEAR(train::edge_ssim_loss(x, t, torch::ones_like(mask)).item<double>(), 1.0 - scores_.ssim, 1e-9)
+      << "every pixel an edge: the image's 1 - SSIM";
+  EXPECT_EQ(train::edge_ssim_loss(x, t, torch::zeros_like(mask)).item<double>(), 0.0);
+  EXPECT_NEAR(train::edge_ssim_loss(t, t, mask).item<double>(), 0.0, 1e-12);
 }
 
 TEST(TrainLoss, SsimTermIsZeroAtTheTargetAndGrowsWithTheError) {

@@ -9,7 +9,8 @@
 # command that made it (resumable; 4-7 h on 2 cores).
 # The trainer's validation is the cards' 36 scenes (residue-v1's 30 and the starter set's last 6): it only
 # monitors; the verdict is goal_check's. Environment: STEPS (5000), LR (1e-4), RELMSE_WEIGHT (2), LOWBAND_WEIGHT
-# (0; LOWBAND_WIDTH 16: the relMSE of box means, the error's low band), SEED (16),
+# (0; LOWBAND_WIDTH 16: the relMSE of box means, the error's low band), EDGE_SSIM_WEIGHT (0: 1 - SSIM on the
+# albedo/normal edge pixels counted again, residue-train --edge-ssim-weight), SEED (16),
 # THREADS (2), PRECISION (fp32, or bf16: slower on the Intel CPU measured, faster on Zen; MODELS.md "Training
 # speed"); ARCH (2,2,2,2/24,40,56,80: the shipped one, so --init-from) with WIDEN=1 for a wider ARCH that starts as
 # the shipped network (--widen-from), or GROW=1 for an ARCH one level deeper that starts as it (--grow-from); PATCH
@@ -21,7 +22,7 @@
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/finetune_full.sh WORKDIR}")
-settings=(STEPS=5000 LR=1e-4 RELMSE_WEIGHT=2 LOWBAND_WEIGHT=0 LOWBAND_WIDTH=16 SEED=16 PRECISION=fp32
+settings=(STEPS=5000 LR=1e-4 RELMSE_WEIGHT=2 LOWBAND_WEIGHT=0 LOWBAND_WIDTH=16 EDGE_SSIM_WEIGHT=0 SEED=16 PRECISION=fp32
           ARCH=2,2,2,2/24,40,56,80 WIDEN=0 GROW=0 PATCH=128 BATCH=2 V1_PSEUDO=residue-v1-pseudo)  # NAME=default
 mkdir -p "$work"
 if [ -f "$work/settings.env" ]; then
@@ -52,8 +53,8 @@ train() {  # NAME STEPS: NAME.safetensors, its log and checkpoint
   "$repo/build/release/app/residue-train/residue-train" --data "${data[@]}" --arch "$ARCH" \
     --steps "$2" --val-every 1000 --checkpoint-every 250 --batch "$BATCH" --patch "$PATCH" \
     --loss l1-log+ssim --relmse-weight "$RELMSE_WEIGHT" --lowband-weight "$LOWBAND_WEIGHT" \
-    --lowband-width "$LOWBAND_WIDTH" --autoexposure --exposure-key 1 --seed "$SEED" \
-    --freeze-bn-after 0 "${start[@]}" --lr "$LR" --name multiscale \
+    --lowband-width "$LOWBAND_WIDTH" --edge-ssim-weight "$EDGE_SSIM_WEIGHT" --autoexposure --exposure-key 1 \
+    --seed "$SEED" --freeze-bn-after 0 "${start[@]}" --lr "$LR" --name multiscale \
     --threads "${THREADS:-2}" "${precision[@]}" --log "$1.csv" -o "$1.safetensors" > "$1.out" 2>&1 ||
     { echo "finetune_full.sh: training failed, see $work/$1.out" >&2; exit 1; }
 }

@@ -61,6 +61,7 @@ struct Options {
   double relmse_weight = 0.0;    // adds relmse_weight x relMSE (eps 0.01) to the loss
   double lowband_weight = 0.0;   // adds lowband_weight x the relMSE of lowband_width-px box means
   int lowband_width = 16;
+  double edge_ssim_weight = 0.0;  // adds edge_ssim_weight x the albedo/normal edge pixels' share of 1 - SSIM
   int precise_bn = 0;            // batches for recalibrating BN statistics before validation and export; 0: off
   double freeze_bn_after = 1.0;  // fraction of the steps after which BN statistics are frozen; 1: never
   std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
@@ -179,6 +180,10 @@ int run(const Options& o) {
     if (!d) throw Error(ErrorKind::Usage, "--dilations: expected integers from 1 to 64, e.g. 1,2,4,8");
     arch.dilations = *d;
   }
+  const int normal_at = train::normal_plane(arch.features);
+  if (o.edge_ssim_weight > 0 && (albedo_at < 0 || normal_at < 0))
+    throw Error(ErrorKind::Usage, "--edge-ssim-weight needs a feature set with the albedo and the normal, not \"" +
+                                  o.features + "\"");
   check_patch_covers_reach(arch, o.patch);
   if (o.lowband_weight > 0 && o.lowband_width > o.patch)
     throw Error(ErrorKind::Usage, "--lowband-width (" + std::to_string(o.lowband_width) +
@@ -315,6 +320,11 @@ int run(const Options& o) {
     if (o.relmse_weight > 0) loss = loss + o.relmse_weight * train::relative_mse(prediction, y);
     if (o.lowband_weight > 0)
       loss = loss + o.lowband_weight * train::low_band_relative_mse(prediction, y, o.lowband_width);
+    if (o.edge_ssim_weight > 0) {
+      const auto edges =
+          train::aov_edge_mask(x.slice(1, albedo_at, albedo_at + 3), x.slice(1, normal_at, normal_at + 2));
+      loss = loss + o.edge_ssim_weight * train::edge_ssim_loss(prediction, y, edges);
+    }
     loss.backward();
     torch::nn::utils::clip_grad_norm_(net->parameters(), 1.0);
     opt.step();
@@ -359,7 +369,8 @@ int run(const Options& o) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   const std::string loss_text =
       train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "") +
-      (o.lowband_weight > 0 ? " + w * relMSE of " + std::to_string(o.lowband_width) + "-px box means" : "");
+      (o.lowband_weight > 0 ? " + w * relMSE of " + std::to_string(o.lowband_width) + "-px box means" : "") +
+      (o.edge_ssim_weight > 0 ? " + w * (1 - SSIM) on albedo/normal edge pixels" : "");
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
                              {"loss", loss_text}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
@@ -374,6 +385,7 @@ int run(const Options& o) {
     training["lowband_weight"] = o.lowband_weight;
     training["lowband_width"] = o.lowband_width;
   }
+  if (o.edge_ssim_weight > 0) training["edge_ssim_weight"] = o.edge_ssim_weight;
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -439,6 +451,10 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--lowband-width", o.lowband_width, "Box edge of --lowband-weight's term, in pixels")
       ->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--edge-ssim-weight", o.edge_ssim_weight,
+                 "Adds this weight x the albedo/normal edge pixels' share of 1 - SSIM (full resolution, the metric's "
+                 "tonemap): their SSIM loss counted again, on its own")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--ssim-weight", o.ssim_weight, "Weight of the SSIM term of l1-log+ssim")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--precise-bn", o.precise_bn,

@@ -41,6 +41,19 @@ torch::Tensor relmse_of_linear(const torch::Tensor& p, const torch::Tensor& t, d
   return ((p - t).square() / (t.square() + eps)).mean();
 }
 
+// Where a plane differs from its right or lower neighbour by more than `threshold`, both pixels are marked.
+torch::Tensor steps_above(const torch::Tensor& planes, double threshold) {
+  const int64_t h = planes.size(2), w = planes.size(3);
+  const auto across = (planes.slice(3, 1, w) - planes.slice(3, 0, w - 1)).abs().amax(1, true) > threshold;
+  const auto down = (planes.slice(2, 1, h) - planes.slice(2, 0, h - 1)).abs().amax(1, true) > threshold;
+  auto mask = torch::zeros({planes.size(0), 1, h, w}, planes.options().dtype(torch::kBool));
+  mask.slice(3, 1, w).logical_or_(across);
+  mask.slice(3, 0, w - 1).logical_or_(across);
+  mask.slice(2, 1, h).logical_or_(down);
+  mask.slice(2, 0, h - 1).logical_or_(down);
+  return mask;
+}
+
 }  // namespace
 
 const std::vector<std::string>& loss_names() {
@@ -69,7 +82,7 @@ torch::Tensor tonemap_filmic_srgb(const torch::Tensor& linear) {
   return torch::where(t < 0.0031308, 12.92 * t, power);
 }
 
-torch::Tensor ssim(const torch::Tensor& x, const torch::Tensor& y) {
+torch::Tensor ssim_map(const torch::Tensor& x, const torch::Tensor& y) {
   if (x.size(2) < 2 * kRadius + 1 || x.size(3) < 2 * kRadius + 1)
     throw std::invalid_argument("ssim: images must be at least 11 x 11");
   const auto w = gaussian_window(x.size(1), x.options());
@@ -77,9 +90,10 @@ torch::Tensor ssim(const torch::Tensor& x, const torch::Tensor& y) {
   const auto vx = blur(x * x, w) - mx * mx;
   const auto vy = blur(y * y, w) - my * my;
   const auto cxy = blur(x * y, w) - mx * my;
-  const auto map = ((2 * mx * my + kC1) * (2 * cxy + kC2)) / ((mx * mx + my * my + kC1) * (vx + vy + kC2));
-  return map.mean();
+  return ((2 * mx * my + kC1) * (2 * cxy + kC2)) / ((mx * mx + my * my + kC1) * (vx + vy + kC2));
 }
+
+torch::Tensor ssim(const torch::Tensor& x, const torch::Tensor& y) { return ssim_map(x, y).mean(); }
 
 torch::Tensor multiscale_ssim(const torch::Tensor& x, const torch::Tensor& y, int scales) {
   torch::Tensor sum = ssim(x, y);
@@ -135,6 +149,23 @@ torch::Tensor low_band_relative_mse(const torch::Tensor& prediction, const torch
                                 " px) must fit the patch");
   return relmse_of_linear(torch::avg_pool2d(torch::expm1(prediction.clamp_max(20.0)), width),
                           torch::avg_pool2d(torch::expm1(target), width), eps);
+}
+
+torch::Tensor aov_edge_mask(const torch::Tensor& albedo_planes, const torch::Tensor& normal_planes) {
+  torch::NoGradGuard no_grad;
+  const auto edges = steps_above(albedo_planes, kAlbedoEdge).logical_or(steps_above(normal_planes, kNormalEdge));
+  return edges.to(albedo_planes.scalar_type());
+}
+
+// The per-pixel SSIM term averages over every pixel, and most pixels of a patch are flat: an edge smeared by a
+// pixel costs it little. This term counts the full-resolution SSIM loss again on the edge pixels alone, with its
+// own weight.
+torch::Tensor edge_ssim_loss(const torch::Tensor& prediction, const torch::Tensor& target, const torch::Tensor& edges) {
+  const auto p = tonemap_filmic_srgb(torch::expm1(prediction.clamp_max(20.0)));
+  const auto t = tonemap_filmic_srgb(torch::expm1(target));
+  const auto loss = 1.0 - ssim_map(p, t).mean(1, true);
+  const int64_t h = edges.size(2), w = edges.size(3);
+  return (loss * edges.slice(2, kRadius, h - kRadius).slice(3, kRadius, w - kRadius)).mean();
 }
 
 }  // namespace residue::train

@@ -30,6 +30,21 @@ torch::Tensor relative_mse(const torch::Tensor& prediction, const torch::Tensor&
 torch::Tensor low_band_relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, int width,
                                     double eps = 0.01);
 
+// Pixels on an edge of the albedo or the normal (issue 16: a third of x1's SSIM deficit indoors is there), from
+// the network's input planes: 1 where log(1 + albedo) in any channel differs from a 4-neighbour's by more than
+// kAlbedoEdge, or the view-space normal's x or y by more than kNormalEdge; else 0. albedo_planes N x 3 x H x W,
+// normal_planes N x 2 x H x W; the result N x 1 x H x W, without gradient. A step marks the pixels on both sides.
+constexpr double kAlbedoEdge = 0.1;
+constexpr double kNormalEdge = 0.25;
+torch::Tensor aov_edge_mask(const torch::Tensor& albedo_planes, const torch::Tensor& normal_planes);
+
+// The edge pixels' share of 1 - SSIM (full resolution, the metric's tonemap and window): the sum of
+// edges x (1 - SSIM map averaged over RGB) over the pixels whose window is inside the patch, divided by their
+// count, so that it is exactly that class's contribution to the patch's 1 - SSIM (tools/error_bands.py's
+// "1-SSIM albedo/normal edge"). --edge-ssim-weight adds it to any loss. H and W must be at least 11.
+torch::Tensor edge_ssim_loss(const torch::Tensor& prediction, const torch::Tensor& target,
+                             const torch::Tensor& edges);
+
 // A demodulated network's output, log(1 + c / f), back to log(1 + c): f = a + 0.01 as core multiplies back
 // (core/features/features.h), the albedo a recovered from its input planes log(1 + a). Products below -0.99 (a
 // negative prediction times an emissive albedo) are clamped there, so the log stays finite.
@@ -38,6 +53,9 @@ torch::Tensor remodulate(const torch::Tensor& prediction, const torch::Tensor& a
 // Linear colour -> the metric's display values: Hable's filmic curve normalised at 11.2, clamped, then the
 // sRGB OETF (core/metrics/tonemap.h), differentiable (the OETF's power is taken above its linear segment only).
 torch::Tensor tonemap_filmic_srgb(const torch::Tensor& linear);
+
+// SSIM per pixel and channel, N x C x (H - 10) x (W - 10): the pixels whose whole window is inside.
+torch::Tensor ssim_map(const torch::Tensor& x, const torch::Tensor& y);
 
 // Mean SSIM of two N x C x H x W images in [0, 1]: core's metric (11x11 Gaussian, sigma 1.5, K1 0.01, K2 0.03,
 // population (co)variances, per channel, averaged over the pixels whose whole window is inside: a "valid"
