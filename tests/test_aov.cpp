@@ -239,7 +239,23 @@ TEST(AovConventions, PbrtGbufferFilm) {
     }
   EXPECT_EQ(s.depth->source.channels, std::vector<std::string>{"P.Z"});
   EXPECT_EQ(s.depth_kind, DepthKind::Planar);
+  // Its Variance is the samples': without the samplesPerPixel header it cannot become the estimate's.
   EXPECT_FALSE(s.variance.has_value());
+  EXPECT_TRUE(std::any_of(s.notes.begin(), s.notes.end(), [](const std::string& n) {
+    return n.find("no variance") != std::string::npos && n.find("samplesPerPixel") != std::string::npos;
+  }));
+
+  // With the header pbrt-v4 writes, the estimate's variance: the samples' over their count.
+  const auto with_spp = tmp / "pbrt_spp.exr";
+  FixturePart p = part(5, 3, pbrt_gbuffer_channels());
+  p.int_attributes = {{"samplesPerPixel", 16}};
+  write_fixture_exr(with_spp, {p});
+  const AovStack v = load_aov_stack({with_spp});
+  ASSERT_TRUE(v.variance.has_value());
+  EXPECT_EQ(v.variance->source.layer, "Variance");
+  for (int y = 0; y < 3; ++y)
+    for (int x = 0; x < 5; ++x)
+      for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(v.variance->image.at(x, y, c), code(50, x, y) / 16.0f);
 
   // Rendered with coordinatesystem "world": P is in world space too, so its z is no depth.
   LoadOptions world;

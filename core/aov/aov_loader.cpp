@@ -30,6 +30,8 @@ struct ReadPlan {
   bool flip_normal_z = false;
   DepthKind depth_kind = DepthKind::Unknown;
   bool depth_from_position = false;
+  bool samples_variance = false;  // divide by the header's samplesPerPixel (PassRule)
+  double scale = 1.0;             // the values are read times this
   double depth_background = kDepthBackgroundThreshold;
 };
 
@@ -154,6 +156,7 @@ ReadPlan plan_from_recognition(const RecognisedAov& r, const std::string& file) 
   p.flip_normal_z = r.flip_normal_z;
   p.depth_kind = r.depth_kind;
   p.depth_from_position = r.depth_from_position;
+  p.samples_variance = r.samples_variance;
   return p;
 }
 
@@ -399,6 +402,22 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
   }
   if (options.reference) plans[AovRole::Reference] = whole_file_plan(AovRole::Reference, open_cached(*options.reference));
 
+  // A variance of the samples becomes the estimate's: the samples' variance over their count.
+  if (auto it = plans.find(AovRole::Variance); it != plans.end() && it->second.samples_variance) {
+    const ReadPlan& v = it->second;
+    const OIIO::ImageSpec& spec = open_cached(v.file).specs.at(static_cast<size_t>(v.channels.front().subimage));
+    const int spp = spec.get_int_attribute("samplesPerPixel", 0);
+    if (spp > 0) {
+      it->second.scale = 1.0 / spp;
+      stack.notes.push_back("variance: the samples' variance in '" + v.layer + "' divided by the samplesPerPixel "
+                            "header (" + std::to_string(spp) + ") to give the pixel estimate's");
+    } else {
+      stack.notes.push_back("no variance: '" + v.layer + "' is the samples' variance and the header has no "
+                            "samplesPerPixel to turn it into the pixel estimate's");
+      plans.erase(it);
+    }
+  }
+
   if (!plans.count(AovRole::Color))
     throw Error(ErrorKind::Input, "'" + primary.path + "': no colour (beauty) channels recognised; expected " +
                                       expected_text(AovRole::Color) + "; found channels " + channel_list(primary));
@@ -475,6 +494,9 @@ AovStack AovReader::read(const Rect& rect, const std::vector<AovRole>& roles) co
   // 6. Normalise conventions and count what is unusual.
   for (auto& [role, aov] : loaded) {
     const ReadPlan& plan = plans.at(role);
+    if (plan.scale != 1.0)
+      for (int64_t y = 0; y < aov.image.height(); ++y)
+        for (float& v : aov.image.row(y)) v = static_cast<float>(v * plan.scale);
     stack.depth_background_pixels += normalise_aov(role, plan.flip_normal_z, plan.depth_background, aov);
     if (aov.uncovered_pixels > 0)
       stack.notes.push_back(std::string("the ") + to_string(role) + " AOV does not cover " +

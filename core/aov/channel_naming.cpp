@@ -176,6 +176,7 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
           aov.flip_normal_z = rule.flip_normal_z;
           aov.depth_kind = rule.depth_kind;
           aov.depth_from_position = rule.depth_from_position;
+          aov.samples_variance = rule.samples_variance;
           rec.aovs.push_back(std::move(aov));
           if (!rule.note.empty()) rec.notes.push_back(rule.note);
           break;

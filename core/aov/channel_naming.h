@@ -27,6 +27,7 @@ struct RecognisedAov {
   bool flip_normal_z = false;        // the file's camera space has +z along the view direction
   DepthKind depth_kind = DepthKind::Unknown;
   bool depth_from_position = false;  // the z of a camera-space position pass (PassRule)
+  bool samples_variance = false;     // the samples' variance, not the estimate's (PassRule)
 };
 
 struct Recognition {

@@ -129,7 +129,7 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Reference, {"reference"}},
        }},
       // pbrt-v4's gbuffer film. Before Arnold, whose signature ("N") it also carries. Its Variance is the samples'
-      // variance (the estimate's times the spp), so it is left out rather than read as the estimate's.
+      // variance (the estimate's times the spp): divided by the samplesPerPixel pbrt writes in the header.
       {"pbrt-v4 (gbuffer film)",
        {"albedo", "p", "ns"},
        true,
@@ -140,6 +140,7 @@ const std::vector<LayeredConvention>& layered_conventions() {
             "pbrt-v4 gbuffer: positions and normals are in camera space unless the film's \"coordinatesystem\" was "
             "\"world\" (then give --normal-space world)"},
            {AovRole::Depth, {"p"}, {}, false, DepthKind::Planar, {}, true},
+           {AovRole::Variance, {"variance"}, {}, false, {}, {}, false, true},
            {AovRole::Reference, {"reference"}},
        },
        true},

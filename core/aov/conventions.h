@@ -39,6 +39,9 @@ struct PassRule {
   // Depth read as the z of a camera-space position pass (pbrt-v4's P): right only while that pass, which shares
   // the normals' space, is in camera space.
   bool depth_from_position = false;
+  // The pass is the variance of the samples (pbrt-v4's Variance), not of the pixel's estimate: read divided by the
+  // header's samplesPerPixel, and left out when the header does not say it.
+  bool samples_variance = false;
 };
 
 // A renderer that writes its AOVs as named layers of one file.

@@ -33,6 +33,7 @@ void write_fixture_exr(const std::string& path, const std::vector<FixturePart>& 
     if (!p.name.empty()) spec.attribute("name", p.name);
     for (const auto& [k, v] : p.string_attributes) spec.attribute(k, v);
     for (const auto& [k, m] : p.matrix_attributes) spec.attribute(k, OIIO::TypeMatrix44, m.data());
+    for (const auto& [k, v] : p.int_attributes) spec.attribute(k, v);
     specs.push_back(spec);
   }
   auto out = OIIO::ImageOutput::create("openexr");

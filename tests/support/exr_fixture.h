@@ -23,6 +23,7 @@ struct FixturePart {
   int full_width = 0, full_height = 0;      // display window (0 = data window size)
   std::vector<std::pair<std::string, std::string>> string_attributes;
   std::vector<std::pair<std::string, std::array<float, 16>>> matrix_attributes;  // 4x4 (M44f), row-major
+  std::vector<std::pair<std::string, int>> int_attributes;
 };
 
 // Writes one file with one or more parts; throws std::runtime_error on failure.
