@@ -15,15 +15,20 @@
 # speed"); ARCH (2,2,2,2/24,40,56,80: the shipped one, so --init-from) with WIDEN=1 for a wider ARCH that starts as
 # the shipped network (--widen-from), or GROW=1 for an ARCH one level deeper that starts as it (--grow-from); PATCH
 # (128) and BATCH (2); V1_PSEUDO (.cache/datasets/residue-v1-pseudo: another folder of that set, e.g.
-# a fixed subset for an A/B). Resumable: the run continues from its checkpoint folder, finished files and tables
+# a fixed subset for an A/B) and EXTRA_SETS (residue-pseudo residue-photo residue-photo-plain, the other training
+# folders; empty for none). Resumable: the run continues from its checkpoint folder, finished files and tables
 # are kept. A run spans sessions, so its settings are written to WORKDIR/settings.env when it starts and read from
 # there when it resumes: `tools/finetune_full.sh WORKDIR` alone resumes it, and a setting given that differs from
-# the recorded one is refused rather than silently changing the schedule, the loss or the shape half-way.
+# the recorded one is refused rather than silently changing the schedule, the loss or the shape half-way. So is
+# data that changed: the folders and their scene counts are written to WORKDIR/data.txt when training starts, and
+# a resumed run whose folders hold other counts (a set rendered further, or lost with a machine) stops there.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/finetune_full.sh WORKDIR}")
+source "$repo/tools/training_data.sh"
 settings=(STEPS=5000 LR=1e-4 RELMSE_WEIGHT=2 LOWBAND_WEIGHT=0 LOWBAND_WIDTH=16 EDGE_SSIM_WEIGHT=0 SEED=16 PRECISION=fp32
-          ARCH=2,2,2,2/24,40,56,80 WIDEN=0 GROW=0 PATCH=128 BATCH=2 V1_PSEUDO=residue-v1-pseudo)  # NAME=default
+          ARCH=2,2,2,2/24,40,56,80 WIDEN=0 GROW=0 PATCH=128 BATCH=2 V1_PSEUDO=residue-v1-pseudo
+          "EXTRA_SETS=$training_data_default_sets")  # NAME=default
 mkdir -p "$work"
 if [ -f "$work/settings.env" ]; then
   while IFS='=' read -r k v; do
@@ -39,9 +44,20 @@ for kv in "${settings[@]}"; do
   [ -n "${!k+set}" ] || printf -v "$k" '%s' "${kv#*=}"
 done
 [ -f "$work/settings.env" ] || for kv in "${settings[@]}"; do k=${kv%%=*}; echo "$k=${!k}"; done > "$work/settings.env"
-source "$repo/tools/training_data.sh"
-training_data "$V1_PSEUDO"
+# shellcheck disable=SC2086  # EXTRA_SETS is a list of words
+training_data "$V1_PSEUDO" $EXTRA_SETS
 cd "$work"
+if [ ! -f run.safetensors ]; then  # still training: the data must be what the run started with
+  training_data_summary > data.now
+  [ -f data.txt ] || cp data.now data.txt
+  if ! cmp -s data.txt data.now; then
+    { echo "finetune_full.sh: the training data changed since $work started; as it started (data.txt):"
+      sed 's/^/  /' data.txt; echo "now:"; sed 's/^/  /' data.now
+      echo "restore those folders, or start a new WORKDIR"; } >&2
+    exit 2
+  fi
+  rm data.now
+fi
 cp -n "$repo/resources/models/multiscale.safetensors" start.safetensors
 start=(--init-from start.safetensors) base=start
 [ "$WIDEN" = 1 ] && start=(--widen-from start.safetensors) base=start_reshaped

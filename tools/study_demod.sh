@@ -13,7 +13,7 @@ repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/study_demod.sh WORKDIR}")
 steps=${STEPS:-12000} seed=${SEED:-17}
 source "$repo/tools/training_data.sh"
-training_data residue-v1-pseudo
+training_data residue-v1-pseudo $training_data_default_sets
 cli="$repo/build/release/app/residue-cli/residue-cli"
 mkdir -p "$work" && cd "$work"
 
