@@ -345,6 +345,54 @@ TEST(TrainAugmentation, TurnsNormalsWithTheImage) {
   EXPECT_GE(x.index({torch::indexing::Slice(), torch::indexing::Slice(0, 3)}).min().item<float>(), 0.0f);
 }
 
+// Distillation on a real scene: each half's target is (1 - w) log(1 + reference) + w log(1 + the teacher's output on
+// that half). The teacher's output here comes from residue-cli, run on each half's own file as a user would
+// (`-m multiscale --ensemble 2`, float EXR), not from the trainer's code path; the reference from the file too.
+TEST(TrainDistillation, TargetsMoveTowardsTheTeachersOutputOnEachHalfByItsWeight) {
+  const auto dir = testing::shared_dataset("cycles-starter/s101");
+  RESIDUE_REQUIRE_SHARED(dir);
+  testing::TempDir tmp;
+  std::vector<Image> taught;
+  for (const char* half : {"noisy_a", "noisy_b"}) {
+    const auto out = tmp / (std::string(half) + "_multiscale.exr");
+    std::string text;
+    ASSERT_EQ(testing::run_cli({"denoise", (dir / (std::string(half) + ".exr")).string(), "-m", "multiscale",
+                                "--ensemble", "2", "--float", "-o", out.string()},
+                               &text),
+              0)
+        << text;
+    taught.push_back(testing::read_exr_float(out));
+  }
+  const Image reference = testing::read_exr_float(dir / "reference.exr");
+  const nn::Model teacher = nn::load_model(nn::find_model_for("multiscale", FeatureSet::Full));
+  const nn::Architecture arch{1, 8, FeatureSet::Full};  // no autoexposure: the targets' exposure is 1
+  for (const float w : {0.25f, 1.0f}) {
+    const train::TrainingSet set({dir}, arch, 64, nullptr, {&teacher, w, 2});
+    const auto& targets = set.scenes().at(0).targets;
+    ASSERT_EQ(targets.size(), 2u);
+    double worst = 0, moved = 0;
+    for (size_t h = 0; h < 2; ++h)
+      for (int64_t y = 0; y < reference.height(); ++y)
+        for (int64_t x = 0; x < reference.width(); ++x)
+          for (int c = 0; c < 3; ++c) {
+            const double r = std::log1p(std::max(0.0, static_cast<double>(reference.at(x, y, c))));
+            const double t = std::log1p(std::max(0.0, static_cast<double>(taught[h].at(x, y, c))));
+            worst = std::max(worst, std::abs(targets[h].at(x, y, c) - ((1 - w) * r + w * t)));
+            moved = std::max(moved, std::abs(targets[h].at(x, y, c) - r));
+          }
+    EXPECT_LT(worst, 1e-5) << "weight " << w;
+    EXPECT_GT(moved, 0.01) << "weight " << w << ": the targets must differ from the reference's";
+  }
+  // Without a teacher the targets are the reference's, whatever the weight.
+  const train::TrainingSet plain({dir}, arch, 64, nullptr, {nullptr, 1.0f, 2});
+  EXPECT_FLOAT_EQ(plain.scenes().at(0).targets[1].at(7, 9, 1),
+                  static_cast<float>(std::log1p(std::max(0.0f, reference.at(7, 9, 1)))));
+  EXPECT_NE(testing::error_message([&] { train::TrainingSet({dir}, arch, 64, nullptr, {&teacher, 0.0f, 2}); },
+                                   ErrorKind::Usage)
+                .find("weight must be in (0, 1]"),
+            std::string::npos);
+}
+
 // The trainer end to end on three real scenes: a dilated model trains 10 steps, a second run with --steps 20
 // resumes from the checkpoint (not from scratch), the log goes on, the training time adds up, and core loads
 // the exported file.
@@ -433,6 +481,14 @@ TEST(TrainCli, RefusesAPatchWithinTheNetworksReach) {
   EXPECT_NE(text.find("--edge-ssim-weight needs a feature set with the albedo and the normal, not \"color\""),
             std::string::npos)
       << text;
+
+  // A teacher at weight 0 would change nothing: refused, naming the option.
+  EXPECT_NE(testing::run_program(RESIDUE_TRAIN_PATH,
+                                 {"--data", tmp.path().string(), "--arch", "1/8", "--teacher", "multiscale",
+                                  "--teacher-weight", "0", "-o", (tmp / "m.safetensors").string()},
+                                 &text),
+            0);
+  EXPECT_NE(text.find("--teacher-weight must be above 0 with --teacher"), std::string::npos) << text;
 }
 
 TEST(TrainCli, ResumesFromItsCheckpointAndExportsAModelCoreLoads) {

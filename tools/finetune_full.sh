@@ -16,19 +16,21 @@
 # the shipped network (--widen-from), or GROW=1 for an ARCH one level deeper that starts as it (--grow-from); PATCH
 # (128) and BATCH (2); V1_PSEUDO (.cache/datasets/residue-v1-pseudo: another folder of that set, e.g.
 # a fixed subset for an A/B) and EXTRA_SETS (residue-pseudo residue-photo residue-photo-plain, the other training
-# folders; empty for none). Resumable: the run continues from its checkpoint folder, finished files and tables
-# are kept. A run spans sessions, so its settings are written to WORKDIR/settings.env when it starts and read from
-# there when it resumes: `tools/finetune_full.sh WORKDIR` alone resumes it, and a setting given that differs from
-# the recorded one is refused rather than silently changing the schedule, the loss or the shape half-way. So is
-# data that changed: the folders and their scene counts are written to WORKDIR/data.txt when training starts, and
-# a resumed run whose folders hold other counts (a set rendered further, or lost with a machine) stops there.
+# folders; empty for none); TEACHER (empty; a model name or file, e.g. start.safetensors: distilled targets,
+# residue-train --teacher) with TEACHER_WEIGHT (0.5) and TEACHER_ENSEMBLE (8). Resumable: the run continues from
+# its checkpoint folder, finished files and tables are kept. A run spans sessions, so its settings are written to
+# WORKDIR/settings.env when it starts and read from there when it resumes: `tools/finetune_full.sh WORKDIR` alone
+# resumes it, and a setting given that differs from the recorded one is refused rather than silently changing the
+# schedule, the loss or the shape half-way. So is data that changed: the folders and their scene counts are
+# written to WORKDIR/data.txt when training starts, and a resumed run whose folders hold other counts (a set
+# rendered further, or lost with a machine) stops there.
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 work=$(realpath -m "${1:?usage: tools/finetune_full.sh WORKDIR}")
 source "$repo/tools/training_data.sh"
 settings=(STEPS=5000 LR=1e-4 RELMSE_WEIGHT=2 LOWBAND_WEIGHT=0 LOWBAND_WIDTH=16 EDGE_SSIM_WEIGHT=0 SEED=16 PRECISION=fp32
           ARCH=2,2,2,2/24,40,56,80 WIDEN=0 GROW=0 PATCH=128 BATCH=2 V1_PSEUDO=residue-v1-pseudo
-          "EXTRA_SETS=$training_data_default_sets")  # NAME=default
+          "EXTRA_SETS=$training_data_default_sets" TEACHER= TEACHER_WEIGHT=0.5 TEACHER_ENSEMBLE=8)  # NAME=default
 mkdir -p "$work"
 if [ -f "$work/settings.env" ]; then
   while IFS='=' read -r k v; do
@@ -62,7 +64,9 @@ cp -n "$repo/resources/models/multiscale.safetensors" start.safetensors
 start=(--init-from start.safetensors) base=start
 [ "$WIDEN" = 1 ] && start=(--widen-from start.safetensors) base=start_reshaped
 [ "$GROW" = 1 ] && start=(--grow-from start.safetensors) base=start_reshaped
-precision=()
+precision=() teacher=()
+[ -z "$TEACHER" ] ||
+  teacher=(--teacher "$TEACHER" --teacher-weight "$TEACHER_WEIGHT" --teacher-ensemble "$TEACHER_ENSEMBLE")
 case "$PRECISION" in fp32) ;; bf16) precision=(--bf16) ;; *) echo "finetune_full.sh: PRECISION is fp32 or bf16" >&2; exit 2 ;; esac
 train() {  # NAME STEPS: NAME.safetensors, its log and checkpoint
   [ -f "$1.safetensors" ] && return
@@ -71,7 +75,7 @@ train() {  # NAME STEPS: NAME.safetensors, its log and checkpoint
     --loss l1-log+ssim --relmse-weight "$RELMSE_WEIGHT" --lowband-weight "$LOWBAND_WEIGHT" \
     --lowband-width "$LOWBAND_WIDTH" --edge-ssim-weight "$EDGE_SSIM_WEIGHT" --autoexposure --exposure-key 1 \
     --seed "$SEED" --freeze-bn-after 0 "${start[@]}" --lr "$LR" --name multiscale \
-    --threads "${THREADS:-2}" "${precision[@]}" --log "$1.csv" -o "$1.safetensors" > "$1.out" 2>&1 ||
+    --threads "${THREADS:-2}" "${precision[@]}" "${teacher[@]}" --log "$1.csv" -o "$1.safetensors" > "$1.out" 2>&1 ||
     { echo "finetune_full.sh: training failed, see $work/$1.out" >&2; exit 1; }
 }
 # A widened or grown run averages with its own start (the shipped network in the new shape, computing what it

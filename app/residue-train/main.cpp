@@ -42,6 +42,9 @@ struct Options {
   bool autoexposure = false;  // variant: colour scaled by the image's autoexposure in, divided back out
   float exposure_key = nn::Architecture::kOidnExposureKey;  // what the autoexposure maps the log-average luminance to
   std::string prior;        // post-correction: refine this model's output ("oidn")
+  std::string teacher;      // distillation: a model (name or file) whose output the targets move towards
+  float teacher_weight = 0.5f;
+  int teacher_ensemble = 8;
   int steps = 3000;
   int batch = 8;
   int patch = 64;
@@ -185,6 +188,9 @@ int run(const Options& o) {
     throw Error(ErrorKind::Usage, "--edge-ssim-weight needs a feature set with the albedo and the normal, not \"" +
                                   o.features + "\"");
   check_patch_covers_reach(arch, o.patch);
+  if (!o.teacher.empty() && !(o.teacher_weight > 0))
+    throw Error(ErrorKind::Usage, "--teacher-weight must be above 0 with --teacher (at 0 the targets are the "
+                                  "reference's alone: leave --teacher out)");
   if (o.lowband_weight > 0 && o.lowband_width > o.patch)
     throw Error(ErrorKind::Usage, "--lowband-width (" + std::to_string(o.lowband_width) +
                                   " px) must fit the patch (--patch " + std::to_string(o.patch) + ")");
@@ -205,7 +211,10 @@ int run(const Options& o) {
   const auto t_load = std::chrono::steady_clock::now();
   std::optional<nn::Model> prior;
   if (!arch.prior.empty()) prior = nn::load_model(nn::find_model_for(arch.prior, FeatureSet::Full));
-  const train::TrainingSet set(train_scenes, arch, o.patch, prior ? &*prior : nullptr);
+  std::optional<nn::Model> teacher;
+  if (!o.teacher.empty()) teacher = nn::load_model(nn::find_model_for(o.teacher, FeatureSet::Full));
+  const train::TrainingSet set(train_scenes, arch, o.patch, prior ? &*prior : nullptr,
+                               {teacher ? &*teacher : nullptr, o.teacher_weight, o.teacher_ensemble});
   std::printf("loaded in %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count());
 
   // Input batches for batch-norm statistics, drawn as training draws them.
@@ -370,7 +379,8 @@ int run(const Options& o) {
   const std::string loss_text =
       train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "") +
       (o.lowband_weight > 0 ? " + w * relMSE of " + std::to_string(o.lowband_width) + "-px box means" : "") +
-      (o.edge_ssim_weight > 0 ? " + w * (1 - SSIM) on albedo/normal edge pixels" : "");
+      (o.edge_ssim_weight > 0 ? " + w * (1 - SSIM) on albedo/normal edge pixels" : "") +
+      (teacher ? ", against targets distilled from a teacher" : "");
   nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
                              {"loss", loss_text}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
@@ -386,6 +396,9 @@ int run(const Options& o) {
     training["lowband_width"] = o.lowband_width;
   }
   if (o.edge_ssim_weight > 0) training["edge_ssim_weight"] = o.edge_ssim_weight;
+  if (teacher)
+    training["teacher"] = {{"model", o.teacher}, {"weight", o.teacher_weight}, {"ensemble", o.teacher_ensemble},
+                           {"target", "(1 - weight) log(1 + reference) + weight log(1 + teacher's output)"}};
   nlohmann::json validation = {{"scenes", val_scenes.size()}, {"relmse", last_val.relmse}, {"ssim", last_val.ssim},
                                {"noisy_relmse", last_val.noisy_relmse}, {"noisy_ssim", last_val.noisy_ssim},
                                {"mean_ratio", last_val.mean_ratio}, {"per_scene", last_val.per_scene}};
@@ -424,6 +437,14 @@ int main(int argc, char** argv) {
                  "Post-correction: refine this model's output (its log colour as 3 more inputs; with --input-skip "
                  "the network learns the correction to it)")
       ->check(CLI::IsMember({"oidn"}));
+  app.add_option("--teacher", o.teacher,
+                 "Distillation: move each target towards this model's output on the same noisy half (a name -m "
+                 "takes or a model file; run once per half by core, post-steps on, x --teacher-ensemble)");
+  app.add_option("--teacher-weight", o.teacher_weight,
+                 "The teacher's share of each target, in log(1 + c): (1 - w) reference + w teacher")
+      ->capture_default_str()->check(CLI::Range(0.0, 1.0))->needs("--teacher");
+  app.add_option("--teacher-ensemble", o.teacher_ensemble, "The teacher's self-ensemble: 1, 2, 4 or 8 flips")
+      ->capture_default_str()->check(CLI::IsMember({1, 2, 4, 8}))->needs("--teacher");
   app.add_option("--features", o.features, "Feature set")->capture_default_str()->check(CLI::IsMember({"full", "color+albedo+normal", "color", "full+variance"}));
   app.add_option("--steps", o.steps, "Training steps")->capture_default_str();
   app.add_option("--batch", o.batch, "Patches per step")->capture_default_str();

@@ -1,6 +1,7 @@
 #include "training_set.h"
 
 #include <algorithm>
+#include <optional>
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/dataset.h"
@@ -38,10 +39,12 @@ Image noise_map(const AovStack& a, const AovStack* b, const Image& reference) {
 }  // namespace
 
 TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architecture& arch, int patch,
-                         const nn::Model* prior)
+                         const nn::Model* prior, const Teacher& teacher)
     : features_(arch.features), channels_(arch.in_channels()), patch_(patch) {
   if (!arch.prior.empty() && !prior)
     throw Error(ErrorKind::Usage, "a post-correction network (" + arch.to_string() + ") needs its prior model");
+  if (teacher.model && !(teacher.weight > 0 && teacher.weight <= 1))
+    throw Error(ErrorKind::Usage, "the teacher's weight must be in (0, 1], not " + std::to_string(teacher.weight));
   const FeatureSet features = arch.features;
   // The stats of each half, with the model's encoding; a post-correction model's prior computed here.
   auto stats = [&](AovStack& s) {
@@ -62,12 +65,24 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     // Each half with its target: log(1 + reference), times the half's own exposure for an autoexposed model (the
     // halves' noise gives them slightly different exposures; inference scales by the noisy input's, too).
     auto add_input = [&](AovStack& half) {
+      std::optional<Image> taught;  // before stats(), which may give the half a prior's output
+      if (teacher.model) {
+        DenoiseOptions d;
+        d.ensemble = teacher.ensemble;
+        d.skip_empty_tiles = false;
+        taught = denoise(half, *teacher.model, d);
+      }
       const FeatureStats fs = stats(half);
       Image f, target(a.width(), a.height(), 3);
       make_features(half, features, fs, all, f);
+      const float w = taught ? teacher.weight : 0.0f;
       for (int64_t y = 0; y < a.height(); ++y)
         for (int64_t x = 0; x < a.width(); ++x)
-          for (int c = 0; c < 3; ++c) target.at(x, y, c) = compress_color(exposed(a.reference->image.at(x, y, c), fs.exposure));
+          for (int c = 0; c < 3; ++c) {
+            float t = compress_color(exposed(a.reference->image.at(x, y, c), fs.exposure));
+            if (taught) t = (1 - w) * t + w * compress_color(exposed(taught->at(x, y, c), fs.exposure));
+            target.at(x, y, c) = t;
+          }
       s.inputs.push_back(std::move(f));
       s.targets.push_back(std::move(target));
     };

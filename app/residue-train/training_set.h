@@ -27,18 +27,29 @@ struct TrainingScene {
   std::vector<double> weights;
 };
 
+// Distillation: each half's target is moved towards what a teacher model makes of that half, (1 - weight) x
+// log(1 + reference) + weight x log(1 + the teacher's output), both at the half's exposure. The teacher runs once
+// per half by core's denoiser as `-m` runs it (post-steps on), under `ensemble` flips: a self-ensemble of the model
+// being fine-tuned is a smoother function of the same input than the single network, which the student may learn.
+struct Teacher {
+  const nn::Model* model = nullptr;
+  float weight = 0.5f;
+  int ensemble = 8;
+};
+
 class TrainingSet {
  public:
   // The input planes of `arch` (its feature set, demodulated or not, with its prior's output: `prior`, run once
-  // per noisy half by core's denoiser, as inference runs it).
+  // per noisy half by core's denoiser, as inference runs it); targets from the reference, or distilled (`teacher`).
   TrainingSet(const std::vector<std::filesystem::path>& scenes, const nn::Architecture& arch, int patch,
-              const nn::Model* prior = nullptr);
+              const nn::Model* prior = nullptr, const Teacher& teacher = {});
 
   // A batch: inputs B x C x P x P, targets B x 3 x P x P. Patches from random scenes, corners drawn by
   // the noise weights, one of the 8 flips/rotations applied (normals turned with the image).
   void sample(std::mt19937& rng, int batch, torch::Tensor& inputs, torch::Tensor& targets) const;
 
   size_t size() const { return scenes_.size(); }
+  const std::vector<TrainingScene>& scenes() const { return scenes_; }
   int channels() const { return channels_; }
 
  private:
