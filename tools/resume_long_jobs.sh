@@ -17,6 +17,9 @@ set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 cd "$repo"
 mkdir -p .cache
+for tool in build/release/app/residue-cli/residue-cli build/release/app/residue-train/residue-train; do
+  [ -x "$tool" ] || { echo "resume_long_jobs: $repo/$tool is not built (tools/setup.sh builds it)" >&2; exit 1; }
+done
 if [ "${1:-}" != --foreground ]; then
   setsid nohup "$repo/tools/resume_long_jobs.sh" --foreground >> .cache/long_jobs.log 2>&1 < /dev/null &
   echo "resume_long_jobs: the queue runs in the background (log $repo/.cache/long_jobs.log)"
