@@ -5,9 +5,8 @@
 # beside the renderer runs 5-6x slower (docs/MODELS.md, "Training speed"). The queue (MODELS.md, session 18):
 #   1. the data: residue-v1's 30 validation scenes and residue-v1-pseudo's 189 training scenes
 #      (tools/render_training_data.sh)
-#   2. lever 1e's A/B: the shipped multiscale fine-tuned 5000 steps on those and the starter set (247 training
-#      scenes), without and with its own x8 output as the teacher (.cache/train/lever1e-{control,teacher})
-#   3. lever 2c's long run: the shipped network grown by a fifth level, 24000 steps (.cache/train/lever2c-long5)
+#   2. lever 2c's long run: the shipped network grown by a fifth level, 24000 steps, on those and the starter set
+#      (247 training scenes; .cache/train/lever2c-long5)
 # Each fine-tune is tools/finetune_full.sh with the settings below, recorded in its folder: it scores itself with
 # tools/goal_check.py when done.
 #   tools/resume_long_jobs.sh      starts the queue in the background; log .cache/long_jobs.log
@@ -34,10 +33,6 @@ step() { echo "== $(date -u +%FT%TZ) $*"; }
 ft=(env PRECISION=bf16 EXTRA_SETS= tools/finetune_full.sh)
 step "data"
 tools/render_training_data.sh validation residue-v1-pseudo
-step "lever 1e: control"
-"${ft[@]}" .cache/train/lever1e-control
-step "lever 1e: teacher"
-TEACHER=start.safetensors "${ft[@]}" .cache/train/lever1e-teacher
 step "lever 2c: the long run"
 GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=24000 "${ft[@]}" .cache/train/lever2c-long5
 step "done"
