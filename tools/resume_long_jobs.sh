@@ -5,8 +5,9 @@
 # beside the renderer runs 5-6x slower (docs/MODELS.md, "Training speed"). The queue (MODELS.md, session 18):
 #   1. the data: residue-v1's 30 validation scenes and residue-v1-pseudo's 189 training scenes
 #      (tools/render_training_data.sh)
-#   2. lever 2c's long run: the shipped network grown by a fifth level, 24000 steps, on those and the starter set
-#      (247 training scenes; .cache/train/lever2c-long5)
+#   2. lever 2c's long run: the shipped network grown by a fifth level, 14000 steps (about 80 minutes,
+#      so that it ends and is scored within one session), on those and the starter set (247 training scenes;
+#      .cache/train/lever2c-14k)
 # Each fine-tune is tools/finetune_full.sh with the settings below, recorded in its folder: it scores itself with
 # tools/goal_check.py when done.
 #   tools/resume_long_jobs.sh      starts the queue in the background; log .cache/long_jobs.log
@@ -34,5 +35,5 @@ ft=(env PRECISION=bf16 EXTRA_SETS= tools/finetune_full.sh)
 step "data"
 tools/render_training_data.sh validation residue-v1-pseudo
 step "lever 2c: the long run"
-GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=24000 "${ft[@]}" .cache/train/lever2c-long5
+GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=14000 "${ft[@]}" .cache/train/lever2c-14k
 step "done"
