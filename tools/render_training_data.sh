@@ -23,7 +23,8 @@
 #   interiors, --restore-low-band in seed order), i.e. the default --pseudo-ref-low-band 16 here, the other 103 not.
 # - residue-pseudo (session 9) was rendered between 878c1ff and 9a82ee7, when the shipped multiscale was
 #   d7253a6's (session 7's), before the low band existed: that file is taken from git as its teacher.
-# - Re-renders are close, not bit-exact (MODELS.md, session 9); pseudo-references also depend on residue-cli.
+# - Re-renders are close, not bit-exact (docs/models/GOAL_JOURNAL.md, session 9); pseudo-references also depend
+#   on residue-cli.
 # Not rendered: the other 111 open-air seeds of residue-v1 (odd 1087-1329; `seeds 1087 1329 2` into
 # residue-v1-pseudo, not done by session 15) and the residue-v1-pseudo-86 snapshot of sessions 12 and 14.
 set -euo pipefail

@@ -127,7 +127,7 @@ def restore_low_band(pseudo, raw, width, eps=None):
     """The pseudo-reference with its W x W box-mean band taken from the raw render it was denoised from.
 
     The denoiser's output is far closer to the truth than its input in fine detail but carries its own blotches
-    at 16-48 px, which a network trained on it learns (MODELS.md, lever 5, session 13); the raw render's box
+    at 16-48 px, which a network trained on it learns (docs/models/GOAL_JOURNAL.md, session 13); the raw render's box
     means there are nearly noise-free (128 spp over a 16 x 16 box is about 32000 spp) and unbiased. The
     difference is taken relative to the pseudo-reference, (raw - pseudo) / sqrt(pseudo^2 + eps), before the box
     mean, so a bright light's noise does not spill into dark neighbours; a constant relative offset comes back
