@@ -5,9 +5,11 @@
 # beside the renderer runs 5-6x slower (docs/MODELS.md, "Training speed"). The queue (GOAL_JOURNAL.md, session 18):
 #   1. the data: residue-v1's 30 validation scenes and residue-v1-pseudo's 189 training scenes
 #      (tools/render_training_data.sh)
-#   2. lever 2c's long run: the shipped network grown by a fifth level, 14000 steps (about 80 minutes,
+#   2. lever 2c's long run: the shipped network grown by a fifth level, 14000 steps (about 2 hours,
 #      so that it ends and is scored within one session), on those and the starter set (247 training scenes;
-#      .cache/train/lever2c-14k)
+#      .cache/train/lever2c-14k; done in session 19: a tie, not adopted)
+#   3. the next lever's data: residue-v1-pseudo's 150 interiors with rendered 512-spp references
+#      (.cache/datasets/residue-v1-true, about 6 hours)
 # Each fine-tune is tools/finetune_full.sh with the settings below, recorded in its folder: it scores itself with
 # tools/goal_check.py when done.
 #   tools/resume_long_jobs.sh      starts the queue in the background; log .cache/long_jobs.log
@@ -36,4 +38,6 @@ step "data"
 tools/render_training_data.sh validation residue-v1-pseudo
 step "lever 2c: the long run"
 GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=14000 "${ft[@]}" .cache/train/lever2c-14k
+step "the next lever's data: interiors with rendered references"
+tools/render_training_data.sh residue-v1-true
 step "done"
