@@ -2,7 +2,7 @@
 # Issue 16's queue of long jobs, run one after another in the background and resumed across sessions. Every step
 # is resumable and passes quickly once done, so running this at the start of a session (on the same machine: the
 # data and checkpoints live in .cache) picks up where the last session was cut off. One job at a time: training
-# beside the renderer runs 5-6x slower (docs/MODELS.md, "Training speed"). The queue (GOAL_JOURNAL.md, session 18):
+# beside the renderer runs 5-6x slower (docs/MODELS.md, "Training speed"). The queue (GOAL_JOURNAL.md, sessions 18-19):
 #   1. the data: residue-v1's 30 validation scenes and residue-v1-pseudo's 189 training scenes
 #      (tools/render_training_data.sh)
 #   2. lever 2c's long run: the shipped network grown by a fifth level, 14000 steps (about 2 hours,
