@@ -70,6 +70,7 @@ struct Options {
   std::string init_from;         // a model file to start from (a fresh run only); empty: He initialisation
   std::string grow_from;         // a multi-scale model file one level shallower to start from (a fresh run only)
   std::string widen_from;        // a model file of the same architecture, narrower, to start from (a fresh run only)
+  std::string export_set;        // write the loaded training and validation scenes to this file and stop
 };
 
 struct Validation {
@@ -146,6 +147,28 @@ void check_patch_covers_reach(const nn::Architecture& arch, int patch) {
                 patch, reach, (2 * reach + a - 1) / a * a);
 }
 
+// --export-training-set: the scenes exactly as this trainer sees them (feature planes, targets, patch weights),
+// for tools/torch_train.py, which trains the same network with PyTorch where a GPU is lent (MODELS.md, lever 7).
+// The validation scenes go in whole, as inference sees them; the architecture and options in the metadata.
+int export_training_set(const Options& o, const nn::Architecture& arch, const train::TrainingSet& set,
+                        const std::vector<fs::path>& val_scenes, const nn::Model* prior) {
+  if (fs::exists(o.export_set) && !o.force)
+    throw Error(ErrorKind::Output, "'" + o.export_set + "' exists; pass --force");
+  nn::SafetensorsFile out;
+  train::add_to_export(set, "train", out);
+  if (!val_scenes.empty()) train::add_to_export(train::TrainingSet(val_scenes, arch, o.patch, prior), "val", out);
+  out.metadata["arch"] = o.arch;
+  out.metadata["features"] = o.features;
+  out.metadata["feature_planes"] = nlohmann::json(feature_planes(arch.features)).dump();
+  out.metadata["autoexposure"] = arch.autoexposure ? "1" : "0";
+  out.metadata["normal_plane"] = std::to_string(train::normal_plane(arch.features));
+  out.metadata["patch"] = std::to_string(o.patch);
+  out.metadata["data"] = nlohmann::json(o.data).dump();
+  nn::write_safetensors(o.export_set, out, o.force);
+  std::printf("wrote %s: %zu training, %zu validation scenes\n", o.export_set.c_str(), set.size(), val_scenes.size());
+  return 0;
+}
+
 int run(const Options& o) {
   torch::set_num_threads(o.threads);
   torch::manual_seed(o.seed);
@@ -194,6 +217,7 @@ int run(const Options& o) {
   if (o.lowband_weight > 0 && o.lowband_width > o.patch)
     throw Error(ErrorKind::Usage, "--lowband-width (" + std::to_string(o.lowband_width) +
                                   " px) must fit the patch (--patch " + std::to_string(o.patch) + ")");
+  if (o.out.empty() && o.export_set.empty()) throw Error(ErrorKind::Usage, "--out is required");
   if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out + "' exists; pass --force");
 
   // Scenes: each data folder's own cut (index.json) or, without one, its last `val` scenes by name.
@@ -216,6 +240,7 @@ int run(const Options& o) {
   const train::TrainingSet set(train_scenes, arch, o.patch, prior ? &*prior : nullptr,
                                {teacher ? &*teacher : nullptr, o.teacher_weight, o.teacher_ensemble});
   std::printf("loaded in %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count());
+  if (!o.export_set.empty()) return export_training_set(o, arch, set, val_scenes, prior ? &*prior : nullptr);
 
   // Input batches for batch-norm statistics, drawn as training draws them.
   auto input_batches = [&set, &o](std::mt19937& rng) {
@@ -454,7 +479,7 @@ int main(int argc, char** argv) {
   app.add_option("--checkpoint", o.checkpoint, "Checkpoint folder (default: OUT with .ckpt)");
   app.add_option("--checkpoint-every", o.checkpoint_every, "Also checkpoint every K steps (a killed run loses less)")
       ->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("-o,--out", o.out, "Model file to write")->required();
+  app.add_option("-o,--out", o.out, "Model file to write (required unless --export-training-set)");
   app.add_option("--name", o.name, "Model name in the metadata");
   app.add_option("--log", o.log, "CSV log of loss and validation (and LOG.scenes.jsonl: each validation per scene)");
   app.add_option("--threads", o.threads, "Threads")->capture_default_str();
@@ -500,6 +525,9 @@ int main(int argc, char** argv) {
                  "least as wide here, computing exactly what the file computes until training teaches the new "
                  "channels")
       ->check(CLI::ExistingFile)->excludes("--init-from")->excludes("--grow-from");
+  app.add_option("--export-training-set", o.export_set,
+                 "Write the training and validation scenes as loaded (feature planes, targets, patch weights) to "
+                 "this safetensors file and stop, for tools/torch_train.py (a GPU trainer)");
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser: faster on the Zen CPUs measured, slower on an Intel one (MODELS.md, \"Training speed\")");
   CLI11_PARSE(app, argc, argv);
   try {

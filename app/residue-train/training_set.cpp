@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <optional>
 
+#include <nlohmann/json.hpp>
+
 #include "core/aov/aov_loader.h"
 #include "core/aov/dataset.h"
 #include "core/denoise/denoiser.h"
@@ -97,7 +99,8 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     }
 
     // Patch weights: mean relative noise inside the patch, plus a floor so flat regions still appear.
-    const Image noise = noise_map(a, b ? &*b : nullptr, a.reference->image);
+    s.noise = noise_map(a, b ? &*b : nullptr, a.reference->image);
+    const Image& noise = s.noise;
     Image integral(a.width() + 1, a.height() + 1, 1);  // summed-area table
     for (int64_t y = 0; y < a.height(); ++y)
       for (int64_t x = 0; x < a.width(); ++x)
@@ -151,6 +154,37 @@ void TrainingSet::sample(std::mt19937& rng, int batch, torch::Tensor& inputs, to
         }
       }
   }
+}
+
+void add_to_export(const TrainingSet& set, const std::string& prefix, nn::SafetensorsFile& out) {
+  auto image_tensor = [](const Image& im) {
+    nn::Tensor t;
+    t.shape = {im.height(), im.width(), im.channels()};
+    t.values.assign(im.data(), im.data() + im.size());
+    return t;
+  };
+  nlohmann::json names = nlohmann::json::array();
+  for (size_t i = 0; i < set.scenes().size(); ++i) {
+    const TrainingScene& s = set.scenes()[i];
+    const std::string key = prefix + "/" + std::to_string(i) + "/";
+    names.push_back(s.name);
+    for (size_t h = 0; h < s.inputs.size(); ++h) {
+      out.tensors[key + "input" + std::to_string(h)] = image_tensor(s.inputs[h]);
+      out.tensors[key + "target" + std::to_string(h)] = image_tensor(s.targets[h]);
+    }
+    nn::Tensor corners, weights;
+    corners.shape = {static_cast<int64_t>(s.corners.size()), 2};
+    for (const auto& [x, y] : s.corners) {
+      corners.values.push_back(static_cast<float>(x));
+      corners.values.push_back(static_cast<float>(y));
+    }
+    weights.shape = {static_cast<int64_t>(s.weights.size())};
+    weights.values.assign(s.weights.begin(), s.weights.end());
+    out.tensors[key + "noise"] = image_tensor(s.noise);
+    out.tensors[key + "corners"] = std::move(corners);
+    out.tensors[key + "weights"] = std::move(weights);
+  }
+  out.metadata[prefix + ".scenes"] = names.dump();
 }
 
 }  // namespace residue::train
