@@ -312,7 +312,7 @@ def training_loss(torch, kind, pred, target, ssim_weight):
 
 def relmse(torch, pred_log, target_log):
     """Core's relMSE (eps 0.01) on linear colour, per image, from log(1 + c) planes."""
-    out = torch.expm1(pred_log.float().clamp(min=0))  # core's expand_color: negatives are 0
+    out = torch.expm1(pred_log.float().clamp(0, 20))  # core's expand_color: negatives are 0
     ref = torch.expm1(target_log.float())
     return ((out - ref) ** 2 / (ref ** 2 + 0.01)).mean(dim=(1, 2, 3))
 
@@ -351,6 +351,7 @@ LOSSES = {"l1-log": "L1 on log(1+c)",
 def train(args):
     import torch
     device = torch.device(args.device)
+    torch.backends.cudnn.benchmark = True  # fixed shapes: let cuDNN pick its fastest convolutions once
     torch.manual_seed(args.seed)
     gen = torch.Generator(device=device)
     gen.manual_seed(args.seed)
