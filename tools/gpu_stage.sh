@@ -1,0 +1,42 @@
+#!/bin/bash
+# Stages a training run for a lent GPU machine (docs/MODELS.md, lever 7): the device tool sends the working tree
+# (tracked files and untracked ones git does not ignore, at most 64 MiB with the carried paths) and keeps a machine
+# only 30 s after a call, and a fresh one is bare. So the data go as residue-train's own export, packed at fp16 into
+# two halves that each fit a call, and the large tracked folders (weights, figures: 91 of the tree's 94 MB) leave the
+# index for the calls and come back after.
+#   tools/gpu_stage.sh pack DIR RESIDUE_TRAIN_ARGS...  export (residue-train --export-training-set) and pack into
+#                                                      DIR/a (half 0, with the validation scenes) and DIR/b (half 1)
+#   tools/gpu_stage.sh slim       the large folders out of the index (and into .git/info/exclude): nothing is deleted
+#   tools/gpu_stage.sh restore    the index and .git/info/exclude as they were
+# Then: a first call carries DIR/a and copies it to /root/stage; a second call, within the 30 s, carries DIR/b, copies
+# it there too and runs `python3 tools/torch_train.py train --data /root/stage/*.npz ... --seconds S --out $OUT/M`
+# (a model file over 16 MiB comes back split: `split -b 15000000`, joined here with cat). Commit nothing between
+# slim and restore.
+set -euo pipefail
+repo=$(cd "$(dirname "$0")/.." && pwd)
+cd "$repo"
+large=(resources/models docs/models docs/images resources/examples)
+marker="# gpu_stage.sh slim"
+case "${1:-}" in
+  pack)
+    [ $# -ge 3 ] || { echo "usage: gpu_stage.sh pack DIR RESIDUE_TRAIN_ARGS..." >&2; exit 2; }
+    dir=$2
+    shift 2
+    mkdir -p "$dir/a" "$dir/b"
+    build/release/app/residue-train/residue-train "$@" --export-training-set "$dir/export.safetensors" --force
+    /usr/bin/python3 tools/torch_train.py pack "$dir/export.safetensors" "$dir/a/half0.npz" --half 0
+    /usr/bin/python3 tools/torch_train.py pack "$dir/export.safetensors" "$dir/b/half1.npz" --half 1 --no-val
+    rm "$dir/export.safetensors"
+    du -sh "$dir/a" "$dir/b" ;;
+  slim)
+    ! grep -qx "$marker" .git/info/exclude 2>/dev/null || { echo "gpu_stage.sh: already slim" >&2; exit 1; }
+    git diff --cached --quiet || { echo "gpu_stage.sh: the index has staged changes; commit them first" >&2; exit 1; }
+    git rm -r --cached -q "${large[@]}"
+    { echo "$marker"; printf '/%s/\n' "${large[@]}"; } >> .git/info/exclude
+    echo "gpu_stage.sh: the tree a call sends: $(git ls-files -z | du -cb --files0-from=- | tail -1 | cut -f1) bytes" ;;
+  restore)
+    git reset -q
+    [ -f .git/info/exclude ] && sed -i "/^$marker\$/,+${#large[@]}d" .git/info/exclude
+    git status --short | head ;;
+  *) echo "usage: gpu_stage.sh pack DIR RESIDUE_TRAIN_ARGS... | slim | restore" >&2; exit 2 ;;
+esac
