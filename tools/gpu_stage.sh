@@ -2,7 +2,7 @@
 # Stages a training run for a lent GPU machine (docs/MODELS.md, lever 7): the device tool sends the working tree
 # (tracked files and untracked ones git does not ignore, at most 64 MiB with the carried paths) and keeps a machine
 # only 30 s after a call, and a fresh one is bare. So the data go as residue-train's own export, packed at fp16 into
-# two halves that each fit a call, and the large tracked folders (weights, figures: 91 of the tree's 94 MB) leave the
+# two halves that each fit a call, and the large tracked folders (weights, figures: 111 of the tree's 113 MB) leave the
 # index for the calls and come back after.
 #   tools/gpu_stage.sh pack DIR RESIDUE_TRAIN_ARGS...  export (residue-train --export-training-set) and pack into
 #                                                      DIR/a (half 0, with the validation scenes) and DIR/b (half 1)
