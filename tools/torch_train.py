@@ -12,8 +12,9 @@ schedule, patches drawn by the same noise weights under the same 8 flips (normal
   torch_train.py train --data OUT.npz --arch 16/128 --steps N --out M.safetensors [--init-from F] [--device cuda]
   torch_train.py forward --data OUT.npz --model M.safetensors --scene 0 --out out.npy   (parity with core)
 
-Supported: flat and multi-scale networks, `full` features, no autoexposure, demodulation, prior or input skip, the
-l1-log (the paper's) and l1-log+ssim losses. Anything else is refused by name.
+Supported: flat and multi-scale networks, `full` features, with or without autoexposure (as the export was made:
+its colour planes and targets are already scaled), the l1-log (the paper's) and l1-log+ssim losses and the relMSE
+term. Not: demodulation, a prior, input skip, dilations, the low-band and edge terms; refused by name.
 """
 import argparse
 import json
@@ -49,17 +50,19 @@ def write_safetensors(path, tensors, meta):
 # ---------------------------------------------------------------- pack: an export as a compact NumPy archive
 def pack(args):
     tensors, meta = read_safetensors(args.export)
-    if meta.get("features") != "full" or meta.get("autoexposure") != "0":
-        sys.exit(f"torch_train: {args.export}: features {meta.get('features')}, autoexposure "
-                 f"{meta.get('autoexposure')}; only 'full' without autoexposure is supported")
+    if meta.get("features") != "full":
+        sys.exit(f"torch_train: {args.export}: features {meta.get('features')}; only 'full' is supported")
+    k, n = (int(v) for v in args.part.split("/"))
     out = {"meta": np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)}
     for split in ("train", "val"):
         names = json.loads(meta.get(split + ".scenes", "[]"))
         if split == "val" and args.no_val:
             continue
         halves = [0] if split == "val" else [0, 1] if args.half is None else [args.half]
-        inputs, targets, noise = [], [], []
+        inputs, targets, noise, exposure = [], [], [], []
         for i in range(len(names)):
+            if split == "train" and i % n != k:
+                continue
             for h in halves:
                 key = f"{split}/{i}/input{h}"
                 if key not in tensors:
@@ -67,14 +70,13 @@ def pack(args):
                 inputs.append(tensors[key].astype(np.float16))
                 targets.append(tensors[f"{split}/{i}/target{h}"].astype(np.float16))
                 noise.append(tensors[f"{split}/{i}/noise"][:, :, 0].astype(np.float16))
+                exposure.append(tensors[f"{split}/{i}/exposure{h}"][0])
         if not inputs:
             continue
         out[split + "_inputs"] = np.stack(inputs)      # S x H x W x C
         out[split + "_targets"] = np.stack(targets)    # S x H x W x 3
         out[split + "_noise"] = np.stack(noise)        # S x H x W: what patches are drawn by
-        if args.max_scenes and split == "train":
-            for k in ("inputs", "targets", "noise"):
-                out[f"train_{k}"] = out[f"train_{k}"][: args.max_scenes]
+        out[split + "_exposure"] = np.array(exposure, np.float32)  # S: the colour and targets are scaled by it
     np.savez_compressed(args.out, **out)
     print(f"torch_train: wrote {args.out}: {out['train_inputs'].shape[0]} training images, "
           f"{out.get('val_inputs', np.zeros((0,))).shape[0]} validation, {os.path.getsize(args.out) / 2**20:.1f} MiB")
@@ -167,7 +169,7 @@ def build(torch, arch_text, in_channels):
 
 def architecture_of(meta):
     """BLOCKS/WIDTH text of a model file, refusing the variants this port lacks."""
-    for key, ok in (("residue.features", "full"), ("residue.autoexposure", "0"), ("residue.demodulate", "0"),
+    for key, ok in (("residue.features", "full"), ("residue.demodulate", "0"),
                     ("residue.input_skip", "0"), ("residue.prior", "")):
         if meta.get(key, ok) != ok:
             sys.exit(f"torch_train: the model's {key} is {meta[key]!r}; this port supports {ok!r} only")
@@ -203,11 +205,13 @@ class Data:
         parts = [np.load(p) for p in paths]
         metas = [json.loads(bytes(z["meta"]).decode()) for z in parts]
         for p, m in zip(paths[1:], metas[1:]):
-            for key in ("feature_planes", "patch", "autoexposure"):
+            for key in ("feature_planes", "patch", "autoexposure", "exposure_key"):
                 if m.get(key) != metas[0].get(key):
                     sys.exit(f"torch_train: {p}: {key} is {m.get(key)}, {paths[0]}'s {metas[0].get(key)}")
         self.planes = json.loads(metas[0]["feature_planes"])
         self.normal_plane = int(metas[0]["normal_plane"])
+        self.autoexposure = metas[0].get("autoexposure", "0") == "1"
+        self.exposure_key = metas[0].get("exposure_key")
         self.sources = sorted({d for m in metas for d in json.loads(m["data"])})
 
         def cat(key, dtype=None):
@@ -219,7 +223,8 @@ class Data:
         self.val = None
         if "val_inputs" in parts[0]:
             self.val = (torch.from_numpy(parts[0]["val_inputs"]).to(device),
-                        torch.from_numpy(parts[0]["val_targets"]).to(device))
+                        torch.from_numpy(parts[0]["val_targets"]).to(device),
+                        torch.from_numpy(parts[0]["val_exposure"]).to(device))
 
     def set_patch(self, patch):
         """training_set.cpp's patch weights for this patch size: corners every 8 px, each weighted by the mean
@@ -310,10 +315,10 @@ def training_loss(torch, kind, pred, target, ssim_weight):
     return loss
 
 
-def relmse(torch, pred_log, target_log):
-    """Core's relMSE (eps 0.01) on linear colour, per image, from log(1 + c) planes."""
-    out = torch.expm1(pred_log.float().clamp(0, 20))  # core's expand_color: negatives are 0
-    ref = torch.expm1(target_log.float())
+def relmse(torch, pred_log, target_log, exposure=1.0):
+    """Core's relMSE (eps 0.01) on linear colour, per image, from log(1 + c x exposure) planes."""
+    out = torch.expm1(pred_log.float().clamp(0, 20)) / exposure  # core's expand_color: negatives are 0
+    ref = torch.expm1(target_log.float()) / exposure
     return ((out - ref) ** 2 / (ref ** 2 + 0.01)).mean(dim=(1, 2, 3))
 
 
@@ -325,7 +330,7 @@ def validate(torch, net, data, autocast):
     with torch.no_grad(), autocast():
         for i in range(data.val[0].shape[0]):
             x = data.val[0][i : i + 1].float().permute(0, 3, 1, 2).contiguous(memory_format=torch.channels_last)
-            scores.append(relmse(torch, net(x), data.val[1][i : i + 1].permute(0, 3, 1, 2)).item())
+            scores.append(relmse(torch, net(x), data.val[1][i : i + 1].permute(0, 3, 1, 2), data.val[2][i]).item())
     net.train()
     return float(np.mean(scores))
 
@@ -362,6 +367,11 @@ def train(args):
     data = Data(torch, args.data, device)
     if args.patch:
         data.set_patch(args.patch)
+    if args.init_from and (meta_in.get("residue.autoexposure", "0") == "1") != data.autoexposure or \
+            (data.autoexposure and meta_in and meta_in.get("residue.exposure_key") != data.exposure_key):
+        sys.exit(f"torch_train: {args.init_from} has autoexposure {meta_in.get('residue.autoexposure', '0')} "
+                 f"(key {meta_in.get('residue.exposure_key')}), the data {int(data.autoexposure)} (key "
+                 f"{data.exposure_key}): export the data with the model's --autoexposure and --exposure-key")
     net = build(torch, arch, len(data.planes))
     if args.init_from:
         load_weights(torch, net, args.init_from)
@@ -407,6 +417,9 @@ def train(args):
         with autocast():
             pred = net(x).float()
         loss = training_loss(torch, args.loss, pred, y, args.ssim_weight)
+        if args.relmse_weight > 0:  # training_loss.cpp's relative_mse, on the exposed values as there
+            p, t = torch.expm1(pred.clamp_max(20.0)), torch.expm1(y)
+            loss = loss + args.relmse_weight * ((p - t) ** 2 / (t ** 2 + 0.01)).mean()
         opt.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
@@ -441,6 +454,9 @@ def train(args):
                 "trainer": f"tools/torch_train.py (PyTorch {torch.__version__}) on {gpu}"}
     if args.loss == "l1-log+ssim":
         training["ssim_weight"] = args.ssim_weight
+    if args.relmse_weight > 0:
+        training["relmse_weight"] = args.relmse_weight
+        training["loss"] += " + w * relMSE (eps 0.01)"
     if args.init_from:
         training["init_from"] = meta_in.get("name", args.init_from)
     meta = {k: v for k, v in meta_in.items() if k.startswith("residue.") and k != "residue.blend_tau"}
@@ -452,6 +468,8 @@ def train(args):
                          "residue.width": w.split(",")[0]})
         else:
             meta.update({"residue.blocks": b, "residue.width": w})
+        if data.autoexposure:
+            meta.update({"residue.autoexposure": "1", "residue.exposure_key": data.exposure_key})
     meta.update({"name": args.name or os.path.basename(args.out).split(".")[0], "training": json.dumps(training),
                  "validation": json.dumps({"scenes": int(data.val[0].shape[0]) if data.val else 0,
                                            "relmse": val, "by": "tools/torch_train.py, no post-steps"})})
@@ -462,18 +480,23 @@ def train(args):
 
 
 def forward(args):
+    """The network on one scene's first noisy half, as core runs it without post-steps: exp(y) - 1 (negatives 0),
+    divided by the exposure the planes were scaled by."""
     import torch
     _, meta = read_safetensors(args.model)
     if args.data.endswith(".safetensors"):  # the export itself: float32, exactly what core computes from
-        planes = read_safetensors(args.data)[0][f"{args.split}/{args.scene}/input0"]
+        tensors = read_safetensors(args.data)[0]
+        planes = tensors[f"{args.split}/{args.scene}/input0"]
+        exposure = float(tensors[f"{args.split}/{args.scene}/exposure0"][0])
     else:
-        planes = np.load(args.data)[args.split + "_inputs"][args.scene]
+        z = np.load(args.data)
+        planes, exposure = z[args.split + "_inputs"][args.scene], float(z[args.split + "_exposure"][args.scene])
     net = build(torch, architecture_of(meta), planes.shape[-1])
     load_weights(torch, net, args.model)
     net.eval()
     x = torch.from_numpy(planes.astype(np.float32)).permute(2, 0, 1)[None]
     with torch.no_grad():
-        y = torch.expm1(net(x).clamp(min=0))[0].permute(1, 2, 0).numpy()  # core's expand_color
+        y = torch.expm1(net(x).clamp(min=0))[0].permute(1, 2, 0).numpy() / exposure
     np.save(args.out, y)
 
 
@@ -486,7 +509,8 @@ def main():
     a.add_argument("--half", type=int, choices=(0, 1), help="keep only this noisy half of each training scene "
                    "(a data set cut in two for two device calls; default: both)")
     a.add_argument("--no-val", action="store_true", help="leave the validation scenes out")
-    a.add_argument("--max-scenes", type=int, default=0)
+    a.add_argument("--part", default="0/1", help="K/N: keep training scenes K, K + N, K + 2N, ... (a data set cut "
+                   "into N parts for N device calls; default: all)")
     a = sub.add_parser("train")
     a.add_argument("--data", required=True, nargs="+", help="packed files (torch_train.py pack)")
     a.add_argument("--arch", default="16/128")
@@ -498,6 +522,7 @@ def main():
     a.add_argument("--lr", type=float, default=1e-3)
     a.add_argument("--loss", default="l1-log", choices=sorted(LOSSES))
     a.add_argument("--ssim-weight", type=float, default=1.0)
+    a.add_argument("--relmse-weight", type=float, default=0.0, help="adds this weight x relMSE (eps 0.01)")
     a.add_argument("--val-every", type=int, default=500)
     a.add_argument("--precise-bn", type=int, default=100)
     a.add_argument("--freeze-bn-after", type=float, default=0.9)

@@ -161,6 +161,7 @@ int export_training_set(const Options& o, const nn::Architecture& arch, const tr
   out.metadata["features"] = o.features;
   out.metadata["feature_planes"] = nlohmann::json(feature_planes(arch.features)).dump();
   out.metadata["autoexposure"] = arch.autoexposure ? "1" : "0";
+  if (arch.autoexposure) out.metadata["exposure_key"] = nn::exposure_key_string(arch.exposure_key);
   out.metadata["normal_plane"] = std::to_string(train::normal_plane(arch.features));
   out.metadata["patch"] = std::to_string(o.patch);
   out.metadata["data"] = nlohmann::json(o.data).dump();

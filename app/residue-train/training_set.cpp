@@ -85,6 +85,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
             if (taught) t = (1 - w) * t + w * compress_color(exposed(taught->at(x, y, c), fs.exposure));
             target.at(x, y, c) = t;
           }
+      s.exposures.push_back(fs.exposure);
       s.inputs.push_back(std::move(f));
       s.targets.push_back(std::move(target));
     };
@@ -171,6 +172,7 @@ void add_to_export(const TrainingSet& set, const std::string& prefix, nn::Safete
     for (size_t h = 0; h < s.inputs.size(); ++h) {
       out.tensors[key + "input" + std::to_string(h)] = image_tensor(s.inputs[h]);
       out.tensors[key + "target" + std::to_string(h)] = image_tensor(s.targets[h]);
+      out.tensors[key + "exposure" + std::to_string(h)] = nn::Tensor{"F32", {1}, {s.exposures[h]}};
     }
     nn::Tensor corners, weights;
     corners.shape = {static_cast<int64_t>(s.corners.size()), 2};

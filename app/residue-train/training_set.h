@@ -23,6 +23,7 @@ struct TrainingScene {
   std::string name;
   std::vector<Image> inputs;   // feature planes of each noisy half, H x W x C
   std::vector<Image> targets;  // each half's target: log(1 + reference x the half's exposure), H x W x 3
+  std::vector<float> exposures;  // each half's exposure (1 without autoexposure)
   Image noise;  // per pixel: the colour's relative noise from the two halves, which the patch weights average
   // Patch sampling: top-left corners on a grid and their probabilities.
   std::vector<std::pair<int64_t, int64_t>> corners;
@@ -63,7 +64,7 @@ class TrainingSet {
 
 // The loaded scenes as tensors, for a trainer outside this program (tools/torch_train.py, on a GPU): per scene i,
 // "<prefix>/<i>/input<h>" (H x W x C feature planes of noisy half h) and "<prefix>/<i>/target<h>" (H x W x 3, the
-// half's target), and, for patch sampling, "<prefix>/<i>/corners" (N x 2: x, y) and "<prefix>/<i>/weights" (N) of
+// half's target) with "<prefix>/<i>/exposure<h>" (1), and, for patch sampling, "<prefix>/<i>/corners" (N x 2: x, y) and "<prefix>/<i>/weights" (N) of
 // this set's patch size, and "<prefix>/<i>/noise" (H x W x 1), the map they average, for any other size. The
 // scene names go in the metadata as "<prefix>.scenes" (a JSON list). Exactly what this trainer trains on.
 void add_to_export(const TrainingSet& set, const std::string& prefix, nn::SafetensorsFile& out);

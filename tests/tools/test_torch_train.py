@@ -96,6 +96,27 @@ with tempfile.TemporaryDirectory() as tmp:
                  (np.abs(tensors["train/0/input1"]) + 1e-3))
     check(err < 1e-3, f"the packed planes are the export's at fp16 (relative {err})")
 
+    # --part K/N keeps every N-th training scene from K (the data cut for N device calls).
+    part = os.path.join(tmp, "part.npz")
+    r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "pack", export, part,
+                        "--part", "1/2", "--half", "1", "--no-val"], capture_output=True, text=True)
+    zp = np.load(part) if r.returncode == 0 else {}
+    check(r.returncode == 0 and zp["train_inputs"].shape[0] == 1 and "val_inputs" not in zp and
+          np.array_equal(zp["train_inputs"][0], z["train_inputs"][3]), f"part 1/2, half 1: scene 1's half 1 alone")
+
+    # With autoexposure (the shipped multiscale's: key 1), each half's colour planes and target are scaled by its
+    # exposure, which the export records.
+    export_ae = os.path.join(tmp, "export_ae.safetensors")
+    r = subprocess.run([trainer, "--data", data, "--val", "1", "--arch", "2,2,2,2/24,40,56,80", "--patch", "128",
+                        "--autoexposure", "--exposure-key", "1", "--threads", "2", "--export-training-set", export_ae],
+                       capture_output=True, text=True)
+    check(r.returncode == 0, f"the export with autoexposure runs: {r.stderr}")
+    tae, mae = torch_train.read_safetensors(export_ae)
+    e = float(tae["train/0/exposure0"][0])
+    err = np.max(np.abs(tae["train/0/target0"] - np.log1p(np.maximum(reference, 0) * e)))
+    check(mae.get("autoexposure") == "1" and mae.get("exposure_key") == "1" and e != 1.0 and err < 1e-4,
+          f"the target is log(1 + reference x exposure {e}) (largest difference {err}); metadata {mae.get('exposure_key')}")
+
     # The port's network equals core's, where PyTorch is installed.
     try:
         import torch  # noqa: F401
@@ -160,12 +181,26 @@ with tempfile.TemporaryDirectory() as tmp:
         meta = torch_train.read_safetensors(trained)[1] if os.path.exists(trained) else {}
         check(json.loads(meta.get("training", "{}")).get("steps") == 30, "the file records its 30 steps")
 
+        # A model trained without autoexposure is refused on data made with it, naming both.
+        ae_packed = os.path.join(tmp, "ae.npz")
+        subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "pack", export_ae, ae_packed],
+                       capture_output=True)
+        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "train", "--data",
+                            ae_packed, "--init-from", os.path.join(repo, "resources", "models", "tiny.safetensors"),
+                            "--steps", "1", "--device", "cpu", "--out", os.path.join(tmp, "never.safetensors")],
+                           capture_output=True, text=True)
+        check(r.returncode != 0 and "autoexposure" in r.stderr and not os.path.exists(os.path.join(tmp, "never.safetensors")),
+              f"a model without autoexposure on data with it is refused: {r.returncode} {r.stderr}")
+
         val = os.path.join(starter, scenes[2])
-        for model in (os.path.join(repo, "resources", "models", "tiny.safetensors"),
-                      os.path.join(repo, "docs", "models", "weights", "study_ms_wide_p128_20k.safetensors"), trained):
+        for model, planes_file in ((os.path.join(repo, "resources", "models", "tiny.safetensors"), export),
+                                   (os.path.join(repo, "docs", "models", "weights", "study_ms_wide_p128_20k.safetensors"),
+                                    export),
+                                   (trained, export),
+                                   (os.path.join(repo, "resources", "models", "multiscale.safetensors"), export_ae)):
             ours = os.path.join(tmp, "port.npy")
             r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "forward", "--data",
-                                export, "--model", model, "--out", ours], capture_output=True, text=True)
+                                planes_file, "--model", model, "--out", ours], capture_output=True, text=True)
             check(r.returncode == 0, f"forward runs with {model}: {r.stderr}")
             core = os.path.join(tmp, "core.exr")
             r = subprocess.run([cli, "denoise", os.path.join(val, "noisy_a.exr"), "-m", model, "-o", core, "--float",
