@@ -35,12 +35,13 @@ case "${1:-}" in
         val=(--no-val)
         [ "$call" = 1 ] && val=()
         /usr/bin/python3 tools/torch_train.py pack "$dir/export.safetensors" "$dir/call$call/part${k}_half$h.npz" \
-          --part "$k/$parts" --half "$h" "${val[@]}"
+          --part "$k/$parts" --half "$h" "${val[@]}" --force
       done
     done
     rm "$dir/export.safetensors"
     du -sm "$dir"/call* | while read -r mib folder; do
-      [ "$mib" -le 58 ] || echo "gpu_stage.sh: $folder is $mib MiB: with the tree it may pass a call's 64 (PARTS=$((parts + 1)))"
+      [ "$mib" -le 58 ] ||
+        echo "gpu_stage.sh: $folder is $mib MiB: with the tree it may pass a call's 64 (try PARTS=$((parts + 1)))"
     done ;;
   slim)
     ! grep -qx "$marker" .git/info/exclude 2>/dev/null || { echo "gpu_stage.sh: already slim" >&2; exit 1; }

@@ -8,8 +8,8 @@ this file holds only what a trainer adds: the network (module and tensor names a
 dict exports as a model file core loads), L1 on log(1 + c), Adam with grad clipping at 1 and residue-train's cosine
 schedule, patches drawn by the same noise weights under the same 8 flips (normals turned), precise BN.
 
-  torch_train.py pack EXPORT.safetensors OUT.npz [--half 0|1] [--no-val]   fp16, compressed: what a call carries
-  torch_train.py train --data OUT.npz --arch 16/128 --steps N --out M.safetensors [--init-from F] [--device cuda]
+  torch_train.py pack EXPORT.safetensors OUT.npz [--half 0|1] [--part K/N] [--no-val]   fp16, compressed: a call's
+  torch_train.py train --data OUT.npz... --arch 16/128 (--steps N | --seconds S) --out M.safetensors [--init-from F]
   torch_train.py forward --data OUT.npz --model M.safetensors --scene 0 --out out.npy   (parity with core)
 
 Supported: flat and multi-scale networks, `full` features, with or without autoexposure (as the export was made:
@@ -49,6 +49,8 @@ def write_safetensors(path, tensors, meta):
 
 # ---------------------------------------------------------------- pack: an export as a compact NumPy archive
 def pack(args):
+    if os.path.exists(args.out) and not args.force:
+        sys.exit(f"torch_train: {args.out} exists; pass --force to replace it")
     tensors, meta = read_safetensors(args.export)
     if meta.get("features") != "full":
         sys.exit(f"torch_train: {args.export}: features {meta.get('features')}; only 'full' is supported")
@@ -202,6 +204,9 @@ class Data:
 
     def __init__(self, torch, paths, device):
         self.torch, self.device = torch, device
+        for p in paths:
+            if not os.path.isfile(p):
+                sys.exit(f"torch_train: {p}: no such file (expected a file torch_train.py pack wrote)")
         parts = [np.load(p) for p in paths]
         metas = [json.loads(bytes(z["meta"]).decode()) for z in parts]
         for p, m in zip(paths[1:], metas[1:]):
@@ -354,6 +359,8 @@ LOSSES = {"l1-log": "L1 on log(1+c)",
 
 
 def train(args):
+    if os.path.exists(args.out) and not args.force:
+        sys.exit(f"torch_train: {args.out} exists; pass --force to replace it")
     import torch
     device = torch.device(args.device)
     torch.backends.cudnn.benchmark = True  # fixed shapes: let cuDNN pick its fastest convolutions once
@@ -509,6 +516,7 @@ def main():
     a.add_argument("--half", type=int, choices=(0, 1), help="keep only this noisy half of each training scene "
                    "(a data set cut in two for two device calls; default: both)")
     a.add_argument("--no-val", action="store_true", help="leave the validation scenes out")
+    a.add_argument("-f", "--force", action="store_true", help="replace OUT if it exists")
     a.add_argument("--part", default="0/1", help="K/N: keep training scenes K, K + N, K + 2N, ... (a data set cut "
                    "into N parts for N device calls; default: all)")
     a = sub.add_parser("train")
@@ -532,6 +540,7 @@ def main():
     a.add_argument("--name")
     a.add_argument("--log")
     a.add_argument("--out", required=True)
+    a.add_argument("-f", "--force", action="store_true", help="replace --out if it exists")
     a = sub.add_parser("forward")
     a.add_argument("--data", required=True)
     a.add_argument("--model", required=True)

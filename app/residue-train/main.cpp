@@ -152,8 +152,6 @@ void check_patch_covers_reach(const nn::Architecture& arch, int patch) {
 // The validation scenes go in whole, as inference sees them; the architecture and options in the metadata.
 int export_training_set(const Options& o, const nn::Architecture& arch, const train::TrainingSet& set,
                         const std::vector<fs::path>& val_scenes, const nn::Model* prior) {
-  if (fs::exists(o.export_set) && !o.force)
-    throw Error(ErrorKind::Output, "'" + o.export_set + "' exists; pass --force");
   nn::SafetensorsFile out;
   train::add_to_export(set, "train", out);
   if (!val_scenes.empty()) train::add_to_export(train::TrainingSet(val_scenes, arch, o.patch, prior), "val", out);
@@ -219,6 +217,8 @@ int run(const Options& o) {
     throw Error(ErrorKind::Usage, "--lowband-width (" + std::to_string(o.lowband_width) +
                                   " px) must fit the patch (--patch " + std::to_string(o.patch) + ")");
   if (o.out.empty() && o.export_set.empty()) throw Error(ErrorKind::Usage, "--out is required");
+  if (!o.export_set.empty() && fs::exists(o.export_set) && !o.force)
+    throw Error(ErrorKind::Output, "'" + o.export_set + "' exists; pass --force");
   if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out + "' exists; pass --force");
 
   // Scenes: each data folder's own cut (index.json) or, without one, its last `val` scenes by name.

@@ -63,10 +63,11 @@ class TrainingSet {
 };
 
 // The loaded scenes as tensors, for a trainer outside this program (tools/torch_train.py, on a GPU): per scene i,
-// "<prefix>/<i>/input<h>" (H x W x C feature planes of noisy half h) and "<prefix>/<i>/target<h>" (H x W x 3, the
-// half's target) with "<prefix>/<i>/exposure<h>" (1), and, for patch sampling, "<prefix>/<i>/corners" (N x 2: x, y) and "<prefix>/<i>/weights" (N) of
-// this set's patch size, and "<prefix>/<i>/noise" (H x W x 1), the map they average, for any other size. The
-// scene names go in the metadata as "<prefix>.scenes" (a JSON list). Exactly what this trainer trains on.
+// "<prefix>/<i>/input<h>" (H x W x C feature planes of noisy half h), "<prefix>/<i>/target<h>" (H x W x 3, the
+// half's target) and "<prefix>/<i>/exposure<h>" (1); for patch sampling, "<prefix>/<i>/corners" (N x 2: x, y) and
+// "<prefix>/<i>/weights" (N) of this set's patch size, and "<prefix>/<i>/noise" (H x W x 1), the map they average,
+// for any other size. The scene names go in the metadata as "<prefix>.scenes" (a JSON list). Exactly what this
+// trainer trains on.
 void add_to_export(const TrainingSet& set, const std::string& prefix, nn::SafetensorsFile& out);
 
 // Index of the view-space normal's x plane in a feature set (y follows); -1 when it has none.

@@ -115,7 +115,7 @@ with tempfile.TemporaryDirectory() as tmp:
     e = float(tae["train/0/exposure0"][0])
     err = np.max(np.abs(tae["train/0/target0"] - np.log1p(np.maximum(reference, 0) * e)))
     check(mae.get("autoexposure") == "1" and mae.get("exposure_key") == "1" and e != 1.0 and err < 1e-4,
-          f"the target is log(1 + reference x exposure {e}) (largest difference {err}); metadata {mae.get('exposure_key')}")
+          f"the target is log(1 + reference x exposure {e}) (largest difference {err}); key {mae.get('exposure_key')}")
 
     # The port's network equals core's, where PyTorch is installed.
     try:
@@ -180,6 +180,11 @@ with tempfile.TemporaryDirectory() as tmp:
         check(r.returncode == 0 and "val relMSE" in r.stdout, f"a 30-step run on the CPU: {r.stdout} {r.stderr}")
         meta = torch_train.read_safetensors(trained)[1] if os.path.exists(trained) else {}
         check(json.loads(meta.get("training", "{}")).get("steps") == 30, "the file records its 30 steps")
+        before = os.path.getmtime(trained)
+        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "train", "--data", packed,
+                            "--steps", "1", "--device", "cpu", "--out", trained], capture_output=True, text=True)
+        check(r.returncode != 0 and "exists" in r.stderr and os.path.getmtime(trained) == before,
+              f"an existing model file is not replaced: {r.returncode} {r.stderr}")
 
         # A model trained without autoexposure is refused on data made with it, naming both.
         ae_packed = os.path.join(tmp, "ae.npz")
@@ -189,13 +194,14 @@ with tempfile.TemporaryDirectory() as tmp:
                             ae_packed, "--init-from", os.path.join(repo, "resources", "models", "tiny.safetensors"),
                             "--steps", "1", "--device", "cpu", "--out", os.path.join(tmp, "never.safetensors")],
                            capture_output=True, text=True)
-        check(r.returncode != 0 and "autoexposure" in r.stderr and not os.path.exists(os.path.join(tmp, "never.safetensors")),
+        never = os.path.join(tmp, "never.safetensors")
+        check(r.returncode != 0 and "autoexposure" in r.stderr and not os.path.exists(never),
               f"a model without autoexposure on data with it is refused: {r.returncode} {r.stderr}")
 
         val = os.path.join(starter, scenes[2])
         for model, planes_file in ((os.path.join(repo, "resources", "models", "tiny.safetensors"), export),
-                                   (os.path.join(repo, "docs", "models", "weights", "study_ms_wide_p128_20k.safetensors"),
-                                    export),
+                                   (os.path.join(repo, "docs", "models", "weights",
+                                                 "study_ms_wide_p128_20k.safetensors"), export),
                                    (trained, export),
                                    (os.path.join(repo, "resources", "models", "multiscale.safetensors"), export_ae)):
             ours = os.path.join(tmp, "port.npy")
