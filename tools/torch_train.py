@@ -69,6 +69,10 @@ def pack(args):
                 key = f"{split}/{i}/input{h}"
                 if key not in tensors:
                     continue
+                if inputs and tensors[key].shape != inputs[0].shape:
+                    sys.exit(f"torch_train: {args.export}: scene {names[i]} is {tensors[key].shape[1]} x "
+                             f"{tensors[key].shape[0]}, the first {inputs[0].shape[1]} x {inputs[0].shape[0]}: "
+                             "a packed file holds scenes of one size (pack other sizes apart)")
                 inputs.append(tensors[key].astype(np.float16))
                 targets.append(tensors[f"{split}/{i}/target{h}"].astype(np.float16))
                 noise.append(tensors[f"{split}/{i}/noise"][:, :, 0].astype(np.float16))
@@ -219,6 +223,10 @@ class Data:
         self.exposure_key = metas[0].get("exposure_key")
         self.sources = sorted({d for m in metas for d in json.loads(m["data"])})
 
+        sizes = {p: z["train_inputs"].shape[1:] for p, z in zip(paths, parts)}
+        if len(set(sizes.values())) > 1:
+            sys.exit(f"torch_train: the packed files hold scenes of different sizes: {sizes}")
+
         def cat(key, dtype=None):
             a = np.concatenate([z[key] for z in parts])
             return torch.from_numpy(a if dtype is None else a.astype(dtype)).to(device)
@@ -237,6 +245,8 @@ class Data:
         torch = self.torch
         self.patch = patch
         S, H, W = self.noise.shape
+        if H < patch or W < patch:
+            sys.exit(f"torch_train: --patch {patch} is larger than the scenes ({W} x {H})")
         sat = torch.zeros((S, H + 1, W + 1), dtype=torch.float64, device=self.device)
         sat[:, 1:, 1:] = self.noise.double().cumsum(1).cumsum(2)
         ys, xs = torch.arange(0, H - patch + 1, 8, device=self.device), torch.arange(0, W - patch + 1, 8,
