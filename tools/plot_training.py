@@ -1,5 +1,6 @@
 #!/usr/bin/python3
-"""Plots a residue-train CSV log: training loss and validation relMSE / SSIM against steps.
+"""Plots a residue-train CSV log: training loss and validation relMSE / SSIM against steps. tools/torch_train.py's
+log has the same columns less the noisy relMSE and SSIM; those lines are drawn where present.
 
     /usr/bin/python3 tools/plot_training.py LOG.csv OUT.png [--title TITLE]
 
@@ -35,17 +36,20 @@ def main():
     if val:
         vs = [int(r["step"]) for r in val]
         ax2.plot(vs, [float(r["val_relmse"]) for r in val], "o-", label="denoised relMSE")
-        ax2.axhline(float(val[-1]["val_noisy_relmse"]), color="grey", ls="--", label="noisy relMSE")
+        if val[-1].get("val_noisy_relmse"):
+            ax2.axhline(float(val[-1]["val_noisy_relmse"]), color="grey", ls="--", label="noisy relMSE")
         ax2.set_yscale("log")
         ax2.set_xlabel("step")
         ax2.set_ylabel("validation relMSE")
         ax2.grid(alpha=0.3)
-        ax3 = ax2.twinx()
-        ax3.plot(vs, [float(r["val_ssim"]) for r in val], "s-", color="tab:green", label="SSIM")
-        ax3.set_ylabel("validation SSIM")
-        lines = ax2.get_legend_handles_labels()
-        lines3 = ax3.get_legend_handles_labels()
-        ax2.legend(lines[0] + lines3[0], lines[1] + lines3[1], fontsize=8, loc="center right")
+        handles, labels = ax2.get_legend_handles_labels()
+        if val[-1].get("val_ssim"):
+            ax3 = ax2.twinx()
+            ax3.plot(vs, [float(r["val_ssim"]) for r in val], "s-", color="tab:green", label="SSIM")
+            ax3.set_ylabel("validation SSIM")
+            handles3, labels3 = ax3.get_legend_handles_labels()
+            handles, labels = handles + handles3, labels + labels3
+        ax2.legend(handles, labels, fontsize=8, loc="center right")
     fig.suptitle(a.title)
     fig.tight_layout()
     fig.savefig(a.out, dpi=100)

@@ -186,8 +186,8 @@ def architecture_of(meta):
     return meta["residue.blocks"] + "/" + meta["residue.width"]
 
 
-def load_weights(torch, net, path):
-    tensors, meta = read_safetensors(path)
+def load_weights(torch, net, tensors, path):
+    """Copies a model file's tensors (read_safetensors of path) into net, refusing any that do not fit."""
     state = net.state_dict()
     for name, value in tensors.items():
         if name not in state:
@@ -199,7 +199,6 @@ def load_weights(torch, net, path):
     if missing:
         sys.exit(f"torch_train: {path}: no tensor {missing[0]} (and {len(missing) - 1} more)")
     net.load_state_dict(state)
-    return meta
 
 
 # ---------------------------------------------------------------- data on the device, sampled as training_set.cpp
@@ -377,9 +376,9 @@ def train(args):
     torch.manual_seed(args.seed)
     gen = torch.Generator(device=device)
     gen.manual_seed(args.seed)
-    meta_in, arch = {}, args.arch
+    tensors_in, meta_in, arch = {}, {}, args.arch
     if args.init_from:
-        _, meta_in = read_safetensors(args.init_from)
+        tensors_in, meta_in = read_safetensors(args.init_from)
         arch = architecture_of(meta_in)
     data = Data(torch, args.data, device)
     if args.patch:
@@ -391,7 +390,7 @@ def train(args):
                  f"{data.exposure_key}): export the data with the model's --autoexposure and --exposure-key")
     net = build(torch, arch, len(data.planes))
     if args.init_from:
-        load_weights(torch, net, args.init_from)
+        load_weights(torch, net, tensors_in, args.init_from)
     net = net.to(device).to(memory_format=torch.channels_last)
     opt = torch.optim.Adam(net.parameters(), lr=args.lr, betas=(0.9, 0.999))
     norms = [m for m in net.modules() if isinstance(m, torch.nn.BatchNorm2d)]
@@ -500,7 +499,7 @@ def forward(args):
     """The network on one scene's first noisy half, as core runs it without post-steps: exp(y) - 1 (negatives 0),
     divided by the exposure the planes were scaled by."""
     import torch
-    _, meta = read_safetensors(args.model)
+    weights, meta = read_safetensors(args.model)
     if args.data.endswith(".safetensors"):  # the export itself: float32, exactly what core computes from
         tensors = read_safetensors(args.data)[0]
         planes = tensors[f"{args.split}/{args.scene}/input0"]
@@ -509,7 +508,7 @@ def forward(args):
         z = np.load(args.data)
         planes, exposure = z[args.split + "_inputs"][args.scene], float(z[args.split + "_exposure"][args.scene])
     net = build(torch, architecture_of(meta), planes.shape[-1])
-    load_weights(torch, net, args.model)
+    load_weights(torch, net, weights, args.model)
     net.eval()
     x = torch.from_numpy(planes.astype(np.float32)).permute(2, 0, 1)[None]
     with torch.no_grad():
