@@ -28,8 +28,10 @@ def main():
         scenes += json.load(open(path))["scenes"]
     cards = {}
     for family in ("oidn", "oidn-cleanaux"):
-        rows = [s["results"][family] for s in scenes if family in s["results"]]
-        noisy = [s["results"]["noisy"] for s in scenes if family in s["results"]]
+        # An evaluation of one precision labels the column FAMILY; one of several, "FAMILY fp32" (the card's).
+        column = lambda r: family if family in r else family + " fp32"  # noqa: E731
+        rows = [s["results"][column(s["results"])] for s in scenes if column(s["results"]) in s["results"]]
+        noisy = [s["results"]["noisy"] for s in scenes if column(s["results"]) in s["results"]]
         if not rows:
             continue
         cards[family] = {"validation": {

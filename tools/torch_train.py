@@ -173,6 +173,15 @@ def build(torch, arch_text, in_channels):
     return net
 
 
+def check_exposure(meta, path, autoexposure, key):
+    """Refuses a model file whose autoexposure or exposure key differs from the data's (the export's metadata)."""
+    if (meta.get("residue.autoexposure", "0") == "1") != autoexposure or \
+            (autoexposure and meta.get("residue.exposure_key") != key):
+        sys.exit(f"torch_train: {path} has autoexposure {meta.get('residue.autoexposure', '0')} "
+                 f"(key {meta.get('residue.exposure_key')}), the data {int(autoexposure)} (key {key}): "
+                 "export the data with the model's --autoexposure and --exposure-key")
+
+
 def architecture_of(meta):
     """BLOCKS/WIDTH text of a model file, refusing the variants this port lacks."""
     for key, ok in (("residue.features", "full"), ("residue.demodulate", "0"),
@@ -383,11 +392,8 @@ def train(args):
     data = Data(torch, args.data, device)
     if args.patch:
         data.set_patch(args.patch)
-    if args.init_from and (meta_in.get("residue.autoexposure", "0") == "1") != data.autoexposure or \
-            (data.autoexposure and meta_in and meta_in.get("residue.exposure_key") != data.exposure_key):
-        sys.exit(f"torch_train: {args.init_from} has autoexposure {meta_in.get('residue.autoexposure', '0')} "
-                 f"(key {meta_in.get('residue.exposure_key')}), the data {int(data.autoexposure)} (key "
-                 f"{data.exposure_key}): export the data with the model's --autoexposure and --exposure-key")
+    if args.init_from:
+        check_exposure(meta_in, args.init_from, data.autoexposure, data.exposure_key)
     net = build(torch, arch, len(data.planes))
     if args.init_from:
         load_weights(torch, net, tensors_in, args.init_from)
@@ -498,15 +504,17 @@ def train(args):
 def forward(args):
     """The network on one scene's first noisy half, as core runs it without post-steps: exp(y) - 1 (negatives 0),
     divided by the exposure the planes were scaled by."""
-    import torch
     weights, meta = read_safetensors(args.model)
     if args.data.endswith(".safetensors"):  # the export itself: float32, exactly what core computes from
-        tensors = read_safetensors(args.data)[0]
+        tensors, data_meta = read_safetensors(args.data)
         planes = tensors[f"{args.split}/{args.scene}/input0"]
         exposure = float(tensors[f"{args.split}/{args.scene}/exposure0"][0])
     else:
         z = np.load(args.data)
+        data_meta = json.loads(bytes(z["meta"]).decode())
         planes, exposure = z[args.split + "_inputs"][args.scene], float(z[args.split + "_exposure"][args.scene])
+    check_exposure(meta, args.model, data_meta.get("autoexposure", "0") == "1", data_meta.get("exposure_key"))
+    import torch  # after the checks, which need none of it
     net = build(torch, architecture_of(meta), planes.shape[-1])
     load_weights(torch, net, weights, args.model)
     net.eval()

@@ -18,6 +18,7 @@ repo, trainer, cli = sys.argv[1], sys.argv[2], sys.argv[3]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(repo, "tools"))
 from checks import check, finish  # noqa: E402
+import safetensors_meta  # noqa: E402
 import torch_train  # noqa: E402
 
 starter = os.path.join(repo, "..", "shared", "datasets", "cycles-starter")
@@ -104,18 +105,33 @@ with tempfile.TemporaryDirectory() as tmp:
     check(r.returncode == 0 and zp["train_inputs"].shape[0] == 1 and "val_inputs" not in zp and
           np.array_equal(zp["train_inputs"][0], z["train_inputs"][3]), f"part 1/2, half 1: scene 1's half 1 alone")
 
-    # With autoexposure (the shipped multiscale's: key 1), each half's colour planes and target are scaled by its
+    # With autoexposure (at the shipped multiscale's key), each half's colour planes and target are scaled by its
     # exposure, which the export records.
+    multiscale = os.path.join(repo, "resources", "models", "multiscale.safetensors")
+    ms_key = torch_train.read_safetensors(multiscale)[1]["residue.exposure_key"]
     export_ae = os.path.join(tmp, "export_ae.safetensors")
     r = subprocess.run([trainer, "--data", data, "--val", "1", "--arch", "2,2,2,2/24,40,56,80", "--patch", "128",
-                        "--autoexposure", "--exposure-key", "1", "--threads", "2", "--export-training-set", export_ae],
-                       capture_output=True, text=True)
+                        "--autoexposure", "--exposure-key", ms_key, "--threads", "2", "--export-training-set",
+                        export_ae], capture_output=True, text=True)
     check(r.returncode == 0, f"the export with autoexposure runs: {r.stderr}")
     tae, mae = torch_train.read_safetensors(export_ae)
     e = float(tae["train/0/exposure0"][0])
     err = np.max(np.abs(tae["train/0/target0"] - np.log1p(np.maximum(reference, 0) * e)))
-    check(mae.get("autoexposure") == "1" and mae.get("exposure_key") == "1" and e != 1.0 and err < 1e-4,
+    check(mae.get("autoexposure") == "1" and mae.get("exposure_key") == ms_key and e != 1.0 and err < 1e-4,
           f"the target is log(1 + reference x exposure {e}) (largest difference {err}); key {mae.get('exposure_key')}")
+
+    # forward refuses a model that would read the planes at another exposure: without autoexposure, or at another key.
+    other_key = os.path.join(tmp, "other_key.safetensors")
+    header, blob = safetensors_meta.read_header(multiscale)
+    header["__metadata__"]["residue.exposure_key"] = "2.5" if ms_key != "2.5" else "1"
+    safetensors_meta.write_header(other_key, header, blob)
+    for model in (os.path.join(repo, "resources", "models", "tiny.safetensors"), other_key):
+        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "forward", "--data",
+                            export_ae, "--model", model, "--out", os.path.join(tmp, "never.npy")],
+                           capture_output=True, text=True)
+        check(r.returncode != 0 and "--exposure-key" in r.stderr and "key " + ms_key in r.stderr and
+              not os.path.exists(os.path.join(tmp, "never.npy")),
+              f"forward refuses {os.path.basename(model)} on data at key {ms_key}: {r.returncode} {r.stderr}")
 
     # The port's network equals core's, where PyTorch is installed.
     try:
@@ -203,7 +219,7 @@ with tempfile.TemporaryDirectory() as tmp:
                                    (os.path.join(repo, "docs", "models", "weights",
                                                  "study_ms_wide_p128_20k.safetensors"), export),
                                    (trained, export),
-                                   (os.path.join(repo, "resources", "models", "multiscale.safetensors"), export_ae)):
+                                   (multiscale, export_ae)):
             ours = os.path.join(tmp, "port.npy")
             r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "forward", "--data",
                                 planes_file, "--model", model, "--out", ours], capture_output=True, text=True)
