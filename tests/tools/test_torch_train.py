@@ -120,12 +120,19 @@ with tempfile.TemporaryDirectory() as tmp:
     check(mae.get("autoexposure") == "1" and mae.get("exposure_key") == ms_key and e != 1.0 and err < 1e-4,
           f"the target is log(1 + reference x exposure {e}) (largest difference {err}); key {mae.get('exposure_key')}")
 
+    # `tiny` as trained, without autoexposure (the shipped file runs autoexposed since lever 3d, session 21).
+    tiny_raw = os.path.join(tmp, "tiny_raw.safetensors")
+    header, blob = safetensors_meta.read_header(os.path.join(repo, "resources", "models", "tiny.safetensors"))
+    header["__metadata__"]["residue.autoexposure"] = "0"
+    header["__metadata__"].pop("residue.exposure_key", None)
+    safetensors_meta.write_header(tiny_raw, header, blob)
+
     # forward refuses a model that would read the planes at another exposure: without autoexposure, or at another key.
     other_key = os.path.join(tmp, "other_key.safetensors")
     header, blob = safetensors_meta.read_header(multiscale)
     header["__metadata__"]["residue.exposure_key"] = "2.5" if ms_key != "2.5" else "1"
     safetensors_meta.write_header(other_key, header, blob)
-    for model in (os.path.join(repo, "resources", "models", "tiny.safetensors"), other_key):
+    for model in (tiny_raw, other_key):
         r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "forward", "--data",
                             export_ae, "--model", model, "--out", os.path.join(tmp, "never.npy")],
                            capture_output=True, text=True)
@@ -190,7 +197,7 @@ with tempfile.TemporaryDirectory() as tmp:
         # low rate, so that the output stays within core's overshoot guard, which an untrained network trips).
         trained = os.path.join(tmp, "trained.safetensors")
         r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "train", "--data", packed,
-                            "--init-from", os.path.join(repo, "resources", "models", "tiny.safetensors"),
+                            "--init-from", tiny_raw,
                             "--steps", "30", "--batch", "2", "--lr", "1e-4", "--val-every", "10",
                             "--precise-bn", "4", "--device", "cpu", "--out", trained], capture_output=True, text=True)
         check(r.returncode == 0 and "val relMSE" in r.stdout, f"a 30-step run on the CPU: {r.stdout} {r.stderr}")
@@ -207,7 +214,7 @@ with tempfile.TemporaryDirectory() as tmp:
         subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "pack", export_ae, ae_packed],
                        capture_output=True)
         r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "train", "--data",
-                            ae_packed, "--init-from", os.path.join(repo, "resources", "models", "tiny.safetensors"),
+                            ae_packed, "--init-from", tiny_raw,
                             "--steps", "1", "--device", "cpu", "--out", os.path.join(tmp, "never.safetensors")],
                            capture_output=True, text=True)
         never = os.path.join(tmp, "never.safetensors")
@@ -215,7 +222,7 @@ with tempfile.TemporaryDirectory() as tmp:
               f"a model without autoexposure on data with it is refused: {r.returncode} {r.stderr}")
 
         val = os.path.join(starter, scenes[2])
-        for model, planes_file in ((os.path.join(repo, "resources", "models", "tiny.safetensors"), export),
+        for model, planes_file in ((tiny_raw, export),
                                    (os.path.join(repo, "docs", "models", "weights",
                                                  "study_ms_wide_p128_20k.safetensors"), export),
                                    (trained, export),
