@@ -11,10 +11,13 @@ model's seconds per megapixel from its card (`residue-cli models --json`: benchm
 an idle machine) instead of the evaluation's own timing of small whole scenes, which a busy machine or a model's
 first run skews; a model without a benchmark (the bilateral filter) keeps the evaluation's.
 """
-import argparse, json, math, os, subprocess
+import argparse, json, math, os, subprocess, sys
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from safetensors_meta import metadata  # noqa: E402
 
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -33,7 +36,10 @@ def main():
         out = subprocess.run([a.cli, "models", "--json"], check=True, capture_output=True, text=True).stdout
         cards = {c["family"]: c.get("benchmark") or {} for c in json.loads(out[out.index("["):])}
         for r in rows:
-            s = cards.get(r["model"], {}).get(f"{r['precision']}_s_per_mp")
+            # A model given as a file (a variant has no card of its own): the benchmark its metadata records.
+            bench = json.loads(metadata(r["model"]).get("benchmark", "{}")) if os.path.isfile(r["model"]) \
+                else cards.get(r["model"], {})
+            s = bench.get(f"{r['precision']}_s_per_mp")
             if s:
                 r["seconds_per_megapixel"] = s
         speed_note = "benchmarked: the model cards"
@@ -79,7 +85,8 @@ def main():
     n = len(d["scenes"])
     fig.suptitle(a.title or f"speed against accuracy, {n} scenes of {d['dataset'].rstrip('/').split('/')[-1]}",
                  fontsize=11)
-    fig.tight_layout(rect=(0, 0.1 if len(points) > 6 else 0.06, 1, 1))
+    legend_rows = math.ceil(len(labels) / min(len(labels), 6))
+    fig.tight_layout(rect=(0, 0.02 + 0.045 * legend_rows, 1, 1))
     fig.savefig(a.png, dpi=110)
     print(f"wrote {a.png}")
 
