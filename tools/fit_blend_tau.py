@@ -12,9 +12,10 @@ only add noise back), the smallest candidate. Prints the whole sweep.
   /usr/bin/python3 tools/fit_blend_tau.py resources/models/base.safetensors /work/datasets/residue-v1 \\
       [--taus 0,0.0001,0.0003,0.001,0.003,0.01] [--last N (a data set without index.json: its last N scenes)] [--max-ssim-loss 0.005] [--relmse-tolerance 0.005] [--cli build/release/app/residue-cli/residue-cli] [--dry-run]
 """
-import argparse, json, os, subprocess, sys, tempfile
+import argparse, json, os, sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from evaluate_mean import mean_scores  # noqa: E402
 from safetensors_meta import read_header, write_header  # noqa: E402
 
 
@@ -33,20 +34,13 @@ def main():
     p.add_argument("--dry-run", action="store_true", help="print the sweep, leave the model file as it is")
     a = p.parse_args()
 
-    label = os.path.splitext(os.path.basename(a.model))[0]
     sweep = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for tau in [float(t) for t in a.taus.split(",")]:
-            out = os.path.join(tmp, f"{tau}.json")
-            scenes = ["--last", str(a.last)] if a.last > 0 else ["--split", "validation"]
-            blend = ["--blend-tau", str(tau)] if tau > 0 else ["--variance-blend", "off"]
-            subprocess.run([a.cli, "evaluate-set", a.dataset, *scenes, "--models", a.model, *blend,
-                            "--json", out, "--force"], check=True,
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            summary = {r["label"]: r for r in json.load(open(out))["summary"]}
-            relmse, ssim = summary[label]["mean_relmse"], summary[label]["mean_ssim"]
-            sweep.append((relmse, tau, ssim))
-            print(f"tau {tau:<8g} mean relMSE {relmse:.5f}  SSIM {ssim:.4f}", flush=True)
+    scenes = ["--last", str(a.last)] if a.last > 0 else ["--split", "validation"]
+    for tau in [float(t) for t in a.taus.split(",")]:
+        blend = ["--blend-tau", str(tau)] if tau > 0 else ["--variance-blend", "off"]
+        relmse, ssim = mean_scores(a.cli, a.dataset, a.model, scenes, blend)
+        sweep.append((relmse, tau, ssim))
+        print(f"tau {tau:<8g} mean relMSE {relmse:.5f}  SSIM {ssim:.4f}", flush=True)
     best_ssim = max(s for _, _, s in sweep)
     eligible = [r for r in sweep if r[2] >= best_ssim - a.max_ssim_loss]
     lowest = min(r[0] for r in eligible)

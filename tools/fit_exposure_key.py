@@ -15,9 +15,10 @@ at).
       [--keys 0.7,1,1.2,1.4,1.6,2,2.5 (a model without autoexposure: off,0.3,0.45,0.6,0.8,1,1.4)]
       [--max-ssim-loss 0.0005] [--relmse-tolerance 0.001] [--dry-run]
 """
-import argparse, json, os, shutil, subprocess, sys, tempfile
+import argparse, json, os, shutil, sys, tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from evaluate_mean import mean_scores  # noqa: E402
 from safetensors_meta import read_header, write_header  # noqa: E402
 
 
@@ -77,13 +78,11 @@ def main():
     sweep = []
     with tempfile.TemporaryDirectory() as tmp:
         for key in keys:
-            copy, out = os.path.join(tmp, "candidate.safetensors"), os.path.join(tmp, "eval.json")
+            copy = os.path.join(tmp, "candidate.safetensors")
             with_key(a.model, copy, key)
-            subprocess.run([a.cli, "evaluate-set", a.dataset, "--split", "validation", "--models", copy,
-                            "--json", out, "--force"], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            summary = {r["label"]: r for r in json.load(open(out))["summary"]}["candidate"]
-            sweep.append((summary["mean_relmse"], key, summary["mean_ssim"]))
-            print(f"key {name(key):<6} mean relMSE {sweep[-1][0]:.6f}  SSIM {sweep[-1][2]:.5f}", flush=True)
+            relmse, ssim = mean_scores(a.cli, a.dataset, copy)
+            sweep.append((relmse, key, ssim))
+            print(f"key {name(key):<6} mean relMSE {relmse:.6f}  SSIM {ssim:.5f}", flush=True)
     best_ssim = max(s for _, _, s in sweep)
     eligible = [r for r in sweep if r[2] >= best_ssim - a.max_ssim_loss]
     lowest = min(r[0] for r in eligible)
