@@ -15,7 +15,7 @@ only add noise back), the smallest candidate. Prints the whole sweep.
 import argparse, json, os, sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from evaluate_mean import mean_scores  # noqa: E402
+from evaluate_mean import mean_scores, near_best  # noqa: E402
 from safetensors_meta import read_header, write_header  # noqa: E402
 
 
@@ -41,10 +41,8 @@ def main():
         relmse, ssim = mean_scores(a.cli, a.dataset, a.model, scenes, blend)
         sweep.append((relmse, tau, ssim))
         print(f"tau {tau:<8g} mean relMSE {relmse:.5f}  SSIM {ssim:.4f}", flush=True)
-    best_ssim = max(s for _, _, s in sweep)
-    eligible = [r for r in sweep if r[2] >= best_ssim - a.max_ssim_loss]
-    lowest = min(r[0] for r in eligible)
-    best = min((r for r in eligible if r[0] <= lowest * (1 + a.relmse_tolerance)), key=lambda r: r[1])
+    near, lowest, best_ssim = near_best(sweep, a.max_ssim_loss, a.relmse_tolerance)
+    best = min(near, key=lambda r: r[1])
     print(f"best tau {best[1]:g} (mean relMSE {best[0]:.5f}, SSIM {best[2]:.4f}; the smallest tau within "
           f"{a.relmse_tolerance:g} of the lowest relMSE, {lowest:.5f}, among those within {a.max_ssim_loss:g} "
           f"of the best SSIM, {best_ssim:.4f})")

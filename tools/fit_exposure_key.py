@@ -15,10 +15,10 @@ at).
       [--keys 0.7,1,1.2,1.4,1.6,2,2.5 (a model without autoexposure: off,0.3,0.45,0.6,0.8,1,1.4)]
       [--max-ssim-loss 0.0005] [--relmse-tolerance 0.001] [--dry-run]
 """
-import argparse, json, os, shutil, sys, tempfile
+import argparse, copy, json, os, sys, tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from evaluate_mean import mean_scores  # noqa: E402
+from evaluate_mean import mean_scores, near_best  # noqa: E402
 from safetensors_meta import read_header, write_header  # noqa: E402
 
 
@@ -30,11 +30,10 @@ def set_key(meta, key):
         meta["residue.exposure_key"] = f"{key:g}"
 
 
-def with_key(src, dst, key):
-    """A copy of the model file src at dst, set to run at key."""
-    shutil.copyfile(src, dst)
-    header, data = read_header(dst)
-    set_key(header["__metadata__"], key)
+def write_with_key(header, data, dst, key):
+    """A model file (read_header's header and data) written to dst set to run at key; the header is left as it is."""
+    header = copy.deepcopy(header)
+    set_key(header.setdefault("__metadata__", {}), key)
     write_header(dst, header, data)
 
 
@@ -68,8 +67,8 @@ def main():
     p.add_argument("--dry-run", action="store_true", help="print the sweep, leave the model file as it is")
     a = p.parse_args()
 
-    header, _ = read_header(a.model)
-    meta = header.get("__metadata__", {})
+    header, data = read_header(a.model)
+    meta = header.setdefault("__metadata__", {})
     # What the model was trained at: kept from an earlier fit, which changed the file's own setting.
     earlier = json.loads(meta.get("exposure_key_fit", "{}")).get("trained")
     trained = earlier or (name(float(meta.get("residue.exposure_key", "0.18")))
@@ -78,22 +77,18 @@ def main():
     sweep = []
     with tempfile.TemporaryDirectory() as tmp:
         for key in keys:
-            copy = os.path.join(tmp, "candidate.safetensors")
-            with_key(a.model, copy, key)
-            relmse, ssim = mean_scores(a.cli, a.dataset, copy)
+            candidate = os.path.join(tmp, "candidate.safetensors")
+            write_with_key(header, data, candidate, key)
+            relmse, ssim = mean_scores(a.cli, a.dataset, candidate)
             sweep.append((relmse, key, ssim))
             print(f"key {name(key):<6} mean relMSE {relmse:.6f}  SSIM {ssim:.5f}", flush=True)
-    best_ssim = max(s for _, _, s in sweep)
-    eligible = [r for r in sweep if r[2] >= best_ssim - a.max_ssim_loss]
-    lowest = min(r[0] for r in eligible)
-    best = max((r for r in eligible if r[0] <= lowest * (1 + a.relmse_tolerance)), key=lambda r: r[2])
+    near, lowest, best_ssim = near_best(sweep, a.max_ssim_loss, a.relmse_tolerance)
+    best = max(near, key=lambda r: r[2])
     print(f"best key {name(best[1])} (mean relMSE {best[0]:.6f}, SSIM {best[2]:.5f}; the highest SSIM among the keys "
           f"within {a.relmse_tolerance:g} of the lowest relMSE, {lowest:.6f}, and {a.max_ssim_loss:g} of the best "
           f"SSIM, {best_ssim:.5f})")
     if a.dry_run:
         return
-    header, data = read_header(a.model)
-    meta = header.setdefault("__metadata__", {})
     set_key(meta, best[1])
     meta["exposure_key_fit"] = json.dumps({"dataset": os.path.abspath(a.dataset), "split": "validation",
                                            "trained": trained, "chosen": name(best[1]),

@@ -29,9 +29,9 @@ def main():
     cards = {}
     for family in ("oidn", "oidn-cleanaux"):
         # An evaluation of one precision labels the column FAMILY; one of several, "FAMILY fp32" (the card's).
-        column = lambda r: family if family in r else family + " fp32"  # noqa: E731
-        rows = [s["results"][column(s["results"])] for s in scenes if column(s["results"]) in s["results"]]
-        noisy = [s["results"]["noisy"] for s in scenes if column(s["results"]) in s["results"]]
+        picked = [(s["results"][c], s["results"]["noisy"]) for s in scenes
+                  if (c := family if family in s["results"] else family + " fp32") in s["results"]]
+        rows, noisy = [r for r, _ in picked], [n for _, n in picked]
         if not rows:
             continue
         cards[family] = {"validation": {

@@ -18,6 +18,7 @@ repo, trainer, cli = sys.argv[1], sys.argv[2], sys.argv[3]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(repo, "tools"))
 from checks import check, finish  # noqa: E402
+import fit_exposure_key  # noqa: E402
 import safetensors_meta  # noqa: E402
 import torch_train  # noqa: E402
 
@@ -122,16 +123,12 @@ with tempfile.TemporaryDirectory() as tmp:
 
     # `tiny` as trained, without autoexposure (the shipped file runs autoexposed since lever 3d, session 21).
     tiny_raw = os.path.join(tmp, "tiny_raw.safetensors")
-    header, blob = safetensors_meta.read_header(os.path.join(repo, "resources", "models", "tiny.safetensors"))
-    header["__metadata__"]["residue.autoexposure"] = "0"
-    header["__metadata__"].pop("residue.exposure_key", None)
-    safetensors_meta.write_header(tiny_raw, header, blob)
+    fit_exposure_key.write_with_key(*safetensors_meta.read_header(os.path.join(repo, "resources", "models",
+                                                                               "tiny.safetensors")), tiny_raw, None)
 
     # forward refuses a model that would read the planes at another exposure: without autoexposure, or at another key.
     other_key = os.path.join(tmp, "other_key.safetensors")
-    header, blob = safetensors_meta.read_header(multiscale)
-    header["__metadata__"]["residue.exposure_key"] = "2.5" if ms_key != "2.5" else "1"
-    safetensors_meta.write_header(other_key, header, blob)
+    fit_exposure_key.write_with_key(*safetensors_meta.read_header(multiscale), other_key, 2.5 if ms_key != "2.5" else 1)
     for model in (tiny_raw, other_key):
         r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "forward", "--data",
                             export_ae, "--model", model, "--out", os.path.join(tmp, "never.npy")],
