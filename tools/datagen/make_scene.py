@@ -46,7 +46,10 @@ def parse_args():
     p.add_argument("--res", type=int, default=256)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--max-bounces", type=int, default=8)
-    p.add_argument("--clamp-indirect", type=float, default=10.0)
+    p.add_argument("--clamp-indirect", type=float, default=10.0, help="Cycles' indirect clamp (0: none)")
+    p.add_argument("--caustics", action="store_true",
+                   help="keep caustics and sharp glossy reflections (no glossy filter): the fireflies other "
+                        "renderers leave in, which the default settings remove from noisy and reference alike")
     p.add_argument("--probe-res", type=int, default=48, help="auto-exposure probe resolution (0 = no probe)")
     p.add_argument("--probe-spp", type=int, default=16)
     p.add_argument("--save-blend", action="store_true", help="also save DIR/scene.blend (debugging)")
@@ -1636,12 +1639,13 @@ def configure(scene, args):
     c.volume_bounces = 0
     c.sample_clamp_direct = 0.0
     c.sample_clamp_indirect = args.clamp_indirect
-    # No caustics (diffuse -> specular -> light paths) and glossy filtering: they are what turns small lamps
-    # and sun patches into fireflies that no 1024-spp reference resolves. Same for noisy and reference.
+    # By default no caustics (diffuse -> specular -> light paths) and glossy filtering: they are what turns small
+    # lamps and sun patches into fireflies that no 1024-spp reference resolves. Same for noisy and reference.
+    # --caustics keeps them (with --clamp-indirect 0: a render as an unclamped path tracer leaves it).
     scene.cycles_curves.shape = "THICK"
-    c.caustics_reflective = False
-    c.caustics_refractive = False
-    c.blur_glossy = 1.0
+    c.caustics_reflective = args.caustics
+    c.caustics_refractive = args.caustics
+    c.blur_glossy = 0.0 if args.caustics else 1.0
     scene.render.film_transparent = False
     scene.render.threads_mode = "FIXED"
     scene.render.threads = args.threads
@@ -1850,6 +1854,8 @@ def main():
             "transmission_bounces": scene.cycles.transmission_bounces,
             "clamp_direct": scene.cycles.sample_clamp_direct,
             "clamp_indirect": scene.cycles.sample_clamp_indirect,
+            "caustics": scene.cycles.caustics_reflective,
+            "blur_glossy": scene.cycles.blur_glossy,
             "film_transparent": False,
             "aovs": "minimal (noisy: " + NOISY_PASSES + "; reference: Combined)",
             "exr": "OPEN_EXR_MULTILAYER, color_depth 16 (half colour passes, float data passes), ZIP",
@@ -1858,7 +1864,9 @@ def main():
                        "--scene-seed {s} --renders {r} --outdir <dir> --res {res} --threads {t}{ph}".format(
                            t=args.threads, s=args.scene_seed, r=args.renders, res=args.res,
                            ph=(f" --photos {args.photos} --photo-share {args.photo_share}" if args.photos else "") +
-                              (f" --hdris {args.hdris}" if args.hdris else "")),
+                              (f" --hdris {args.hdris}" if args.hdris else "") +
+                              (f" --clamp-indirect {args.clamp_indirect:g}" if args.clamp_indirect != 10.0 else "") +
+                              (" --caustics" if args.caustics else "")),
         },
         "timing": {
             "process_wall_s": process_wall(),

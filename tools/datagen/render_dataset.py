@@ -224,22 +224,31 @@ def make_scene_command(blender, threads, seed, renders, outdir, res, extra=()):
 
 
 def scene_flags(doc):
-    """make_scene.py's --photos/--photo-share/--hdris flags, as the scene was rendered (from its scene.json)."""
+    """make_scene.py's --photos/--photo-share/--hdris/--clamp-indirect/--caustics flags, as the scene was rendered
+    (from its scene.json)."""
     cmd = doc["render_settings"]["command"].split()
     flags = []
-    for name in ("--photos", "--photo-share", "--hdris"):
+    for name in ("--photos", "--photo-share", "--hdris", "--clamp-indirect"):
         if name in cmd:
             flags += [name, cmd[cmd.index(name) + 1]]
-    return flags
+    return flags + (["--caustics"] if "--caustics" in cmd else [])
+
+
+def render_flags(args):
+    """make_scene.py's flags for a new scene, from this command's options."""
+    flags = ["--photos", args.photos, "--photo-share", str(args.photo_share)] if args.photos else []
+    flags += ["--hdris", args.hdris] if args.hdris else []
+    flags += ["--clamp-indirect", f"{args.clamp_indirect:g}"] if args.clamp_indirect != 10.0 else []
+    return flags + (["--caustics"] if args.caustics else [])
 
 
 def run_blender(args, seed, renders, outdir, names, log_mode="w", scene=None):
     """Renders scene SEED with make_scene.py into OUTDIR, logging to OUT/logs/s<seed>.log; Blender's exit status,
-    or None when it ran past --timeout (killed). The resolution and the photograph and HDRI flags are --res,
-    --photos and --hdris, or those recorded in SCENE (a scene.json) for a scene that exists."""
+    or None when it ran past --timeout (killed). The resolution and make_scene.py's flags are this command's
+    (--res, --photos, --hdris, --clamp-indirect, --caustics), or those recorded in SCENE (a scene.json) for a scene
+    that exists."""
     if scene is None:
-        res, flags = args.res, (["--photos", args.photos, "--photo-share", str(args.photo_share)] if args.photos
-                                else []) + (["--hdris", args.hdris] if args.hdris else [])
+        res, flags = args.res, render_flags(args)
     else:
         res, flags = scene["resolution"][0], scene_flags(scene)
     cmd = make_scene_command(args.blender, args.threads, seed, renders, outdir, res, names + flags)
@@ -377,6 +386,11 @@ def main():
     p.add_argument("--photo-share", type=float, default=0.5)
     p.add_argument("--hdris", default=None, help="environment maps for the world (make_scene.py --hdris), e.g. "
                    "/usr/share/blender/datafiles/studiolights/world (Blender's CC0 HDRIs)")
+    p.add_argument("--clamp-indirect", type=float, default=10.0,
+                   help="Cycles' indirect clamp (make_scene.py --clamp-indirect; 0: none)")
+    p.add_argument("--caustics", action="store_true",
+                   help="keep caustics and sharp glossy reflections (make_scene.py --caustics): fireflies as an "
+                        "unclamped path tracer leaves them, with --clamp-indirect 0")
     p.add_argument("--pseudo-ref", default=None, metavar="MODEL",
                    help="training scenes get a pseudo-reference: a --pseudo-ref-spp render denoised by MODEL (a "
                         "residue-cli model name or file) as a self-ensemble, instead of a --ref-spp render "
@@ -416,7 +430,9 @@ def main():
                   f"{len(todo)} to render at {args.res}x{args.res}, spp {spp_list}, reference {args.ref_spp} spp "
                   f"(validation {args.val_ref_spp}), "
                   + (f"training {args.pseudo_ref_for}' references pseudo ({args.pseudo_ref_spp} spp denoised by "
-                     f"{args.pseudo_ref} x{args.pseudo_ref_ensemble}), " if args.pseudo_ref else "") +
+                     f"{args.pseudo_ref} x{args.pseudo_ref_ensemble}), " if args.pseudo_ref else "")
+                  + (f"indirect clamp {args.clamp_indirect:g}, " if args.clamp_indirect != 10.0 else "")
+                  + ("caustics and sharp glossy kept, " if args.caustics else "") +
                   f"{args.threads} threads -> {args.out}")
     failed, times = [], []
     t_all = time.time()

@@ -7,7 +7,8 @@
 # halves are the same renders (within what two runs of one render differ by: Cycles is not bit-exact run to run, a
 # few samples differ), that the reference is in the data set's layout, finite, closer to the true reference than the
 # noisy input is, recorded with the model's SHA-256, and that scene.json's metrics are recomputed against it; last,
-# that --restore-low-band gives a pseudo-reference made without --pseudo-ref-low-band its low band, keeping the old.
+# that --restore-low-band gives a pseudo-reference made without --pseudo-ref-low-band its low band, keeping the old;
+# and that a render with fireflies kept (--clamp-indirect 0 --caustics) records its settings where re-renders read them.
 # Usage: smoke_test.sh CLI_PATH      (ctest: datagen_smoke). Exit 77 (skipped) without /usr/bin/blender.
 # Environment: RESIDUE_SMOKE_SEED (default 1002, an interior training scene; odd seeds are open-air scenes, and
 #              seed % 11 == 10 a validation scene, which keeps its true reference),
@@ -142,4 +143,29 @@ cp "$old/reference.exr" "$dir/restored.exr"
 ls "$old" | tr '\n' ' ' | grep -qx "noisy_a.exr noisy_b.exr reference.exr scene.json " ||
   fail "a restored scene holds $(ls "$old" | tr '\n' ' '), not the four files"
 echo "datagen_smoke: ok   --restore-low-band"
+# Fireflies kept (--clamp-indirect 0 --caustics): recorded in scene.json and read back by scene_flags, which every
+# re-render of an existing scene takes its settings from (--restore-low-band, pseudo_reference_check.py).
+"$py" "$here/render_dataset.py" --out "$dir/fireflies" --seeds "$seed" --res 32 --spp 2 --ref-spp 16 --val-ref-spp 16 \
+  --threads 2 --clamp-indirect 0 --caustics > /dev/null || fail "render_dataset.py --clamp-indirect 0 --caustics failed"
+"$py" - "$here" "$dir/fireflies/s$seed/scene.json" "$scene/scene.json" <<'EOF'
+import json
+import sys
+
+sys.path.insert(0, sys.argv[1])
+from render_dataset import scene_flags  # noqa: E402
+
+kept, plain = (json.load(open(p)) for p in sys.argv[2:4])
+k, p = kept["render_settings"], plain["render_settings"]
+checks = {
+    "the unclamped scene records clamp 0, caustics and no glossy filter":
+        (k["clamp_indirect"], k["caustics"], k["blur_glossy"]) == (0, True, 0),
+    "the default scene records clamp 10, no caustics and the glossy filter":
+        (p["clamp_indirect"], p["caustics"], p["blur_glossy"]) == (10, False, 1),
+    "scene_flags reads the settings back": scene_flags(kept) == ["--clamp-indirect", "0", "--caustics"]
+        and scene_flags(plain) == [],
+}
+for what, ok in checks.items():
+    print(f"datagen_smoke: {'ok  ' if ok else 'FAIL'} {what}")
+sys.exit(0 if all(checks.values()) else 1)
+EOF
 echo "datagen_smoke: OK ($scene, $pseudo)"
