@@ -6,7 +6,8 @@
 # since session 8: its 300 training seeds were trained on only as residue-v1-pseudo's copies, 189 of them.
 #   tools/render_training_data.sh [SET...]   SET: validation, residue-v1-pseudo, residue-photo, residue-pseudo,
 #                                            residue-photo-plain or all (the default: all five, in that order),
-#                                            or residue-v1-true (not in all: session 19's next lever, below)
+#                                            or residue-v1-true (not in all: session 19's next lever, below),
+#                                            or residue-v1-fireflies (not in all: a test set, session 22)
 # The order is the order of use: residue-v1's 30 validation scenes (1024-spp references; tools/goal_check.py scores
 # on them), then the bulk of the training scenes (more residue-v1 scenes is the one data lever that measured gains,
 # MODELS.md lever 5), then the photographed set (its 6 validation scenes are study_photo.sh's and study_demod.sh's
@@ -62,6 +63,11 @@ render() {
       # every fine-tune on the pseudo-referenced ones ended behind its start (GOAL_JOURNAL.md, session 19). About
       # 2.5 min a scene on 2 cores (the reference), 6 h in all.
       "${R[@]}" --out $D/residue-v1-true --seeds "$(seeds 1002 1328 2)" ;;
+    residue-v1-fireflies)  # 10 of the 30 validation scenes (5 interiors, 5 open air; the quicker ones) as an
+      # unclamped path tracer leaves them: no indirect clamp, caustics and sharp glossy reflections kept, in noisy and
+      # reference alike (session 22's probe of renders from other renderers; MODELS.md lever 3e). About 30 min.
+      "${R[@]}" --out $D/residue-v1-fireflies --seeds 1000,1066,1132,1176,1242,1055,1077,1121,1165,1297 \
+        --clamp-indirect 0 --caustics ;;
     residue-photo)  # 6 validation scenes (1024 spp), 16 training scenes with 256-spp references
       photos
       "${R[@]}" --out $D/residue-photo --seeds 2001,2012,2023,2034,2045,2056 "${P[@]}" "${H[@]}"
@@ -77,7 +83,7 @@ render() {
     residue-photo-plain)  # residue-photo's 16 training seeds without photographs (HDRIs kept)
       "${R[@]}" --out $D/residue-photo-plain --seeds $train_photo "${H[@]}" --ref-spp 256 ;;
     *) echo "render_training_data.sh: unknown set $1 (validation, residue-v1-pseudo, residue-photo, residue-pseudo," \
-         "residue-photo-plain, all, residue-v1-true)" >&2; exit 2 ;;
+         "residue-photo-plain, all, residue-v1-true, residue-v1-fireflies)" >&2; exit 2 ;;
   esac
 }
 
