@@ -4,9 +4,12 @@
 # data and checkpoints live in .cache) picks up where the last session was cut off. One job at a time: training
 # beside the renderer runs 5-6x slower (docs/MODELS.md, "Training speed"). The queue (GOAL_JOURNAL.md, sessions 18-21):
 #   1. residue-v1's 30 validation scenes (tools/goal_check.py and every model card score on them)
-#   2. the next lever's data: residue-v1-pseudo's 150 interiors with rendered 512-spp references
-#      (.cache/datasets/residue-v1-true, about 6 hours)
-#   3. residue-v1-pseudo (its 39 open-air scenes have rendered references too; its interiors pseudo-references)
+#   2. a test set: 10 of those validation scenes with fireflies kept (no indirect clamp, caustics), as an unclamped
+#      path tracer leaves them (.cache/datasets/residue-v1-fireflies, about 30 min; session 22; scored by
+#      tools/compare_conditions.py against the same scenes as rendered for training, MODELS.md lever 3e)
+#   3. the next lever's data: residue-v1-pseudo's 150 interiors with rendered 512-spp references
+#      (.cache/datasets/residue-v1-true; on the Intel Xeon of sessions 20-22 4-47 minutes a scene, over 10 hours)
+#   4. residue-v1-pseudo (its 39 open-air scenes have rendered references too; its interiors pseudo-references)
 # Done and so out of the queue: lever 2c's long run (session 19: a tie with the shipped network, not adopted;
 # `GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=14000 PRECISION=bf16 EXTRA_SETS=
 # tools/finetune_full.sh .cache/train/lever2c-14k`). A fine-tune added back here goes through
@@ -32,6 +35,8 @@ step() { echo "== $(date -u +%FT%TZ) $*"; }
 
 step "data: the validation scenes"
 tools/render_training_data.sh validation
+step "a test set: validation scenes with fireflies kept"
+tools/render_training_data.sh residue-v1-fireflies
 step "the next lever's data: interiors with rendered references"
 tools/render_training_data.sh residue-v1-true
 step "data: residue-v1-pseudo"
