@@ -34,6 +34,7 @@ import exr_metrics  # noqa: E402  (numpy + OpenImageIO; Blender's Python on Debi
 
 T0 = time.time()
 NOISY_PASSES = "Combined, Denoising Albedo/Depth/Normal, Depth, DiffCol, GlossCol, Normal"
+CLAMP_INDIRECT = 10.0  # Blender's default indirect clamp: every data set so far (a scene's command names another)
 
 
 def parse_args():
@@ -46,7 +47,7 @@ def parse_args():
     p.add_argument("--res", type=int, default=256)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--max-bounces", type=int, default=8)
-    p.add_argument("--clamp-indirect", type=float, default=10.0, help="Cycles' indirect clamp (0: none)")
+    p.add_argument("--clamp-indirect", type=float, default=CLAMP_INDIRECT, help="Cycles' indirect clamp (0: none)")
     p.add_argument("--caustics", action="store_true",
                    help="keep caustics and sharp glossy reflections (no glossy filter): the fireflies other "
                         "renderers leave in, which the default settings remove from noisy and reference alike")
@@ -1865,7 +1866,8 @@ def main():
                            t=args.threads, s=args.scene_seed, r=args.renders, res=args.res,
                            ph=(f" --photos {args.photos} --photo-share {args.photo_share}" if args.photos else "") +
                               (f" --hdris {args.hdris}" if args.hdris else "") +
-                              (f" --clamp-indirect {args.clamp_indirect:g}" if args.clamp_indirect != 10.0 else "") +
+                              (f" --clamp-indirect {args.clamp_indirect:g}"
+                               if args.clamp_indirect != CLAMP_INDIRECT else "") +
                               (" --caustics" if args.caustics else "")),
         },
         "timing": {

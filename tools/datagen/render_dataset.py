@@ -38,6 +38,7 @@ MAKE_SCENE = os.path.join(HERE, "make_scene.py")
 SEEDS = {"noisy_a": 1001, "noisy_b": 1002, "reference": 1007, "pseudo": 1009}
 REPO = os.path.dirname(os.path.dirname(HERE))
 DEFAULT_CLI = os.path.join(REPO, "build", "release", "app", "residue-cli", "residue-cli")
+CLAMP_INDIRECT = 10.0  # make_scene.py's default (Blender's): left out of its command line
 
 
 def parse_seeds(text):
@@ -238,7 +239,7 @@ def render_flags(args):
     """make_scene.py's flags for a new scene, from this command's options."""
     flags = ["--photos", args.photos, "--photo-share", str(args.photo_share)] if args.photos else []
     flags += ["--hdris", args.hdris] if args.hdris else []
-    flags += ["--clamp-indirect", f"{args.clamp_indirect:g}"] if args.clamp_indirect != 10.0 else []
+    flags += ["--clamp-indirect", f"{args.clamp_indirect:g}"] if args.clamp_indirect != CLAMP_INDIRECT else []
     return flags + (["--caustics"] if args.caustics else [])
 
 
@@ -386,7 +387,7 @@ def main():
     p.add_argument("--photo-share", type=float, default=0.5)
     p.add_argument("--hdris", default=None, help="environment maps for the world (make_scene.py --hdris), e.g. "
                    "/usr/share/blender/datafiles/studiolights/world (Blender's CC0 HDRIs)")
-    p.add_argument("--clamp-indirect", type=float, default=10.0,
+    p.add_argument("--clamp-indirect", type=float, default=CLAMP_INDIRECT,
                    help="Cycles' indirect clamp (make_scene.py --clamp-indirect; 0: none)")
     p.add_argument("--caustics", action="store_true",
                    help="keep caustics and sharp glossy reflections (make_scene.py --caustics): fireflies as an "
@@ -431,7 +432,7 @@ def main():
                   f"(validation {args.val_ref_spp}), "
                   + (f"training {args.pseudo_ref_for}' references pseudo ({args.pseudo_ref_spp} spp denoised by "
                      f"{args.pseudo_ref} x{args.pseudo_ref_ensemble}), " if args.pseudo_ref else "")
-                  + (f"indirect clamp {args.clamp_indirect:g}, " if args.clamp_indirect != 10.0 else "")
+                  + (f"indirect clamp {args.clamp_indirect:g}, " if args.clamp_indirect != CLAMP_INDIRECT else "")
                   + ("caustics and sharp glossy kept, " if args.caustics else "") +
                   f"{args.threads} threads -> {args.out}")
     failed, times = [], []
