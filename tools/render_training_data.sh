@@ -21,10 +21,12 @@
 # - residue-v1-pseudo's 189 seeds are not listed anywhere; they follow from the recorded counts: the render ran in
 #   seed order (its first 61: 30 interiors + 31 open-air), then interiors first from session 12 (47 + 39 at the
 #   86-scene snapshot), all 150 interiors by session 13, nothing after. Its pseudo-references came from multiscale
-#   as shipped in b18b439 (HEAD's), without their low band; session 13 restored the snapshot's 47 (the first 47
+#   as shipped in b18b439 (its weights are HEAD's, but it ran at exposure key 1 where HEAD's runs at 1.4, so that
+#   file is taken from git as the teacher), without their low band; session 13 restored the snapshot's 47 (the first 47
 #   interiors, --restore-low-band in seed order), i.e. the default --pseudo-ref-low-band 16 here, the other 103 not.
 # - residue-pseudo (session 9) was rendered between 878c1ff and 9a82ee7, when the shipped multiscale was
 #   d7253a6's (session 7's), before the low band existed: that file is taken from git as its teacher.
+# - The teachers are files from git, but the denoise around them is today's residue-cli.
 # - Re-renders are close, not bit-exact (docs/models/GOAL_JOURNAL.md, session 9); pseudo-references also depend
 #   on residue-cli.
 # Not rendered: the other 111 open-air seeds of residue-v1 (odd 1087-1329; `seeds 1087 1329 2` into
@@ -50,13 +52,24 @@ photos() {
       exit 2; }
 }
 
+# teacher COMMIT: the shipped multiscale as it was at COMMIT (a pseudo-reference set's teacher), cached in .cache/models.
+teacher() {
+  local file=.cache/models/multiscale-$1.safetensors
+  mkdir -p .cache/models
+  [ -f "$file" ] ||
+    { git show "$1:resources/models/multiscale.safetensors" > "$file.tmp" && mv "$file.tmp" "$file"; }
+  echo "$file"
+}
+
 render() {
   case "$1" in
     validation)  # 1000, 1011, ..., 1319; default spp 4,8,16,32 and 1024-spp references
       "${R[@]}" --out $D/residue-v1 --seeds "$(seq -s, 1000 11 1329)" ;;
     residue-v1-pseudo)  # 150 interiors (pseudo-references: 128 spp, multiscale x8), 39 open-air (512-spp references)
-      "${R[@]}" --out $D/residue-v1-pseudo --seeds "$(seeds 1002 1102 2)" --pseudo-ref multiscale
-      "${R[@]}" --out $D/residue-v1-pseudo --seeds "$(seeds 1104 1328 2)" --pseudo-ref multiscale \
+      local teacher
+      teacher=$(teacher b18b439)
+      "${R[@]}" --out $D/residue-v1-pseudo --seeds "$(seeds 1002 1102 2)" --pseudo-ref "$teacher"
+      "${R[@]}" --out $D/residue-v1-pseudo --seeds "$(seeds 1104 1328 2)" --pseudo-ref "$teacher" \
         --pseudo-ref-low-band 0
       "${R[@]}" --out $D/residue-v1-pseudo --seeds "$(seeds 1001 1085 2)" ;;
     residue-v1-true)  # residue-v1-pseudo's 150 interiors with rendered 512-spp references, not pseudo-references:
@@ -74,10 +87,8 @@ render() {
       "${R[@]}" --out $D/residue-photo --seeds $train_photo "${P[@]}" "${H[@]}" --ref-spp 256 ;;
     residue-pseudo)  # 36 interiors, 2-16 spp, pseudo-references by session 7's multiscale
       photos
-      local teacher=.cache/models/multiscale-s7.safetensors
-      mkdir -p .cache/models
-      [ -f $teacher ] ||
-        { git show d7253a6:resources/models/multiscale.safetensors > $teacher.tmp && mv $teacher.tmp $teacher; }
+      local teacher
+      teacher=$(teacher d7253a6)
       "${R[@]}" --out $D/residue-pseudo --seeds "$(seeds 3000 3078 2)" --spp 2,4,8,16 "${P[@]}" "${H[@]}" \
         --pseudo-ref $teacher --pseudo-ref-low-band 0 ;;
     residue-photo-plain)  # residue-photo's 16 training seeds without photographs (HDRIs kept)
