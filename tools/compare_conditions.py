@@ -1,9 +1,9 @@
 #!/usr/bin/python3
 """The same scenes rendered two ways (e.g. residue-v1's validation scenes as the generator renders them and as an
 unclamped path tracer leaves them, fireflies and caustics kept), each scored by `residue-cli evaluate-set --json`:
-per model, the mean relMSE and SSIM under each condition over the scenes both hold, and each model's relMSE
-against a yardstick's (default `oidn`) under each, so that a model that copes worse with the second condition shows
-as a ratio that grows.
+per model, the mean relMSE and SSIM under each condition over the scenes both hold, each model's relMSE against a
+yardstick's (default `oidn`) and its SSIM less the yardstick's under each, so that a model that copes worse with the
+second condition shows as a ratio that grows or a difference that falls.
 
 A reference at R spp is itself noisy, and more so with fireflies: against it every model's expected relMSE carries
 the reference's own error, about the noisy input's relMSE x n / (n + R) for an n-spp input (independent samples of
@@ -71,12 +71,13 @@ def main():
     y1, y2 = rows[a.yardstick]
     lines = [f"{len(scenes)} scenes: {', '.join(scenes)}", "",
              f"| model | {names[0]} relMSE / SSIM | {names[1]} relMSE / SSIM | relMSE x {a.yardstick}'s, {names[0]} "
-             f"| {names[1]} | the same less the reference's floor, {names[0]} | {names[1]} |",
-             "|---|---|---|---|---|---|---|"]
+             f"| {names[1]} | the same less the reference's floor, {names[0]} | {names[1]} "
+             f"| SSIM - {a.yardstick}'s, {names[0]} | {names[1]} |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for m in models:
         (r1, q1, c1), (r2, q2, c2) = rows[m]
-        ratios = (f"{r1 / y1[0]:.3f} | {r2 / y2[0]:.3f} | {c1 / y1[2]:.3f} | {c2 / y2[2]:.3f}"
-                  if m != "noisy" else "| | |")
+        ratios = (f"{r1 / y1[0]:.3f} | {r2 / y2[0]:.3f} | {c1 / y1[2]:.3f} | {c2 / y2[2]:.3f} "
+                  f"| {q1 - y1[1]:+.4f} | {q2 - y2[1]:+.4f}" if m != "noisy" else "| | | | |")
         lines.append(f"| `{m}` | {r1:.6f} / {q1:.4f} | {r2:.6f} / {q2:.4f} | {ratios} |")
     floor1 = rows["noisy"][0][0] - rows["noisy"][0][2]
     floor2 = rows["noisy"][1][0] - rows["noisy"][1][2]

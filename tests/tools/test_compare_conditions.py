@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """tools/compare_conditions.py on two hand-made evaluations whose answers are known: the means over the scenes both
 hold (a scene only one has is left out), each model's relMSE against the yardstick's, and the reference's floor
-(noisy relMSE x n / (n + R)) taken off.
+(noisy relMSE x n / (n + R)) taken off, and each model's SSIM less the yardstick's.
 
   test_compare_conditions.py REPO
 """
@@ -49,7 +49,9 @@ with tempfile.TemporaryDirectory() as tmp:
     check(net is not None and net[2] == "1.500" and net[3] == "2.000", "relMSE against the yardstick's")
     # Less the floor: a (0.03 - 0.006) / (0.02 - 0.006) = 1.714..., b (0.08 - 0.024) / (0.04 - 0.024) = 3.5
     check(net is not None and net[4] == "1.714" and net[5] == "3.500", "the ratios less the floor")
-    check(oidn is not None and oidn[2:] == ["1.000"] * 4, "the yardstick's own row is 1")
+    # SSIM: a 0.85 - 0.9 = -0.05, b 0.65 - 0.85 = -0.2
+    check(net is not None and net[6:] == ["-0.0500", "-0.2000"], "SSIM less the yardstick's")
+    check(oidn is not None and oidn[2:] == ["1.000"] * 4 + ["+0.0000"] * 2, "the yardstick's own row is 1 and 0")
     check(os.path.isfile(md) and open(md).read() == out.stdout, "--md writes the printed table")
     bad = subprocess.run(["/usr/bin/python3", os.path.join(repo, "tools", "compare_conditions.py"), *first, *second,
                           "--models", "nothing"], capture_output=True, text=True)
