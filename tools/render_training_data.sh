@@ -73,9 +73,12 @@ render() {
         --pseudo-ref-low-band 0
       "${R[@]}" --out $D/residue-v1-pseudo --seeds "$(seeds 1001 1085 2)" ;;
     residue-v1-true)  # residue-v1-pseudo's 150 interiors with rendered 512-spp references, not pseudo-references:
-      # every fine-tune on the pseudo-referenced ones ended behind its start (GOAL_JOURNAL.md, session 19). About
-      # 2.5 min a scene on 2 cores (the reference), 6 h in all.
-      "${R[@]}" --out $D/residue-v1-true --seeds "$(seeds 1002 1328 2)" ;;
+      # every fine-tune on the pseudo-referenced ones ended behind its start (GOAL_JOURNAL.md, session 19); then its
+      # 39 open-air scenes (rendered references there too), so that this one folder is residue-v1-pseudo's 189 scenes
+      # with true references: V1_PSEUDO=residue-v1-true tools/finetune_full.sh. About 3.5 min an interior and 1.5
+      # an open-air scene on 2 idle cores (the reference; Intel Xeon, session 23), 9-10 h in all.
+      "${R[@]}" --out $D/residue-v1-true --seeds "$(seeds 1002 1328 2)"
+      "${R[@]}" --out $D/residue-v1-true --seeds "$(seeds 1001 1085 2)" ;;
     residue-v1-fireflies)  # 10 of the 30 validation scenes (5 interiors, 5 open air; the quicker ones) as an
       # unclamped path tracer leaves them: no indirect clamp, caustics and sharp glossy reflections kept, in noisy and
       # reference alike (session 22's probe of renders from other renderers; MODELS.md lever 3e). About 30 min.

@@ -7,8 +7,9 @@
 #   2. a test set: 10 of those validation scenes with fireflies kept (no indirect clamp, caustics), as an unclamped
 #      path tracer leaves them (.cache/datasets/residue-v1-fireflies, about 30 min; session 22; scored by
 #      tools/compare_conditions.py against the same scenes as rendered for training, MODELS.md lever 3e)
-#   3. the next lever's data: residue-v1-pseudo's 150 interiors with rendered 512-spp references
-#      (.cache/datasets/residue-v1-true; on the Intel Xeon of sessions 20-22 4-47 minutes a scene, over 10 hours)
+#   3. the next lever's data: residue-v1-pseudo's 150 interiors with rendered 512-spp references, then its 39
+#      open-air scenes (.cache/datasets/residue-v1-true; on the idle Intel Xeon of sessions 20-23 about 3.5 minutes
+#      an interior, 9-10 hours in all; beside a training run 5-10x that)
 #   4. residue-v1-pseudo (its 39 open-air scenes have rendered references too; its interiors pseudo-references)
 # Done and so out of the queue: lever 2c's long run (session 19: a tie with the shipped network, not adopted;
 # `GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=14000 PRECISION=bf16 EXTRA_SETS=
