@@ -7,6 +7,8 @@
 #include <limits>
 
 #include "core/aov/dataset.h"
+#include "core/denoise/oidn_filter.h"
+#include "core/denoise/pu_curve.h"
 #include "core/features/features.h"
 #include "core/metrics/metrics.h"
 #include "core/metrics/tonemap.h"
@@ -212,13 +214,52 @@ TEST(TrainLoss, FiniteWithFiniteGradientsAtExtremes) {
   auto target = torch::zeros({1, 3, 32, 32}, torch::kFloat32);
   target.index_put_({0, 0}, std::log1p(1e4f));  // a light in one channel
   target.index_put_({0, 1, torch::indexing::Slice(0, 16)}, std::log1p(11.2f));
-  for (const float fill : {0.0f, 1e-7f, 2.5f, 40.0f, -3.0f}) {
-    auto prediction = torch::full({1, 3, 32, 32}, fill, torch::requires_grad());
-    const auto loss = train::training_loss("l1-log+ssim", prediction, target);
-    loss.backward();
-    EXPECT_TRUE(std::isfinite(loss.item<double>())) << "prediction " << fill;
-    EXPECT_TRUE(torch::isfinite(prediction.grad()).all().item<bool>()) << "prediction " << fill;
+  for (const char* kind : {"l1-log+ssim", "l1-pu+ssim"}) {
+    for (const float fill : {0.0f, 1e-7f, 2.5f, 40.0f, -3.0f}) {
+      auto prediction = torch::full({1, 3, 32, 32}, fill, torch::requires_grad());
+      const auto loss = train::training_loss(kind, prediction, target);
+      loss.backward();
+      EXPECT_TRUE(std::isfinite(loss.item<double>())) << kind << ", prediction " << fill;
+      EXPECT_TRUE(torch::isfinite(prediction.grad()).all().item<bool>()) << kind << ", prediction " << fill;
+    }
   }
+}
+
+// The trainer's PU is core's (the OIDN filter's oidn_pu_forward, normalised to 1 at 65504), at 0.18 x the colour
+// and in units of its log slope: differences of the two agree at points in each of the three pieces, and across
+// the breaks.
+TEST(TrainLoss, PuTransferIsCoresCurve) {
+  const std::vector<double> colour = {-1e-6, 0.0, 1e-6, 8.7e-6, 1e-4, 0.01, 0.17, 0.179, 0.18, 0.2, 1.0, 30.0, 1e4};
+  const auto pu = train::pu_transfer(torch::tensor(colour, torch::kFloat64));
+  // Core's curve is normalised, pu(y) / pu(65504), and 65504 is on the log piece.
+  const double pu_max = pu_curve::E * std::log(static_cast<double>(pu_curve::kHdrMax) + pu_curve::F) + pu_curve::G;
+  for (size_t i = 1; i < colour.size(); ++i) {
+    const double ours = pu[i].item<double>() - pu[0].item<double>();
+    const double cores = (static_cast<double>(oidn_pu_forward(static_cast<float>(0.18 * colour[i]))) -
+                          oidn_pu_forward(static_cast<float>(0.18 * colour[0]))) * pu_max / pu_curve::E;
+    EXPECT_NEAR(ours, cores, 1e-5 * std::max(1.0, std::abs(cores))) << "colour " << colour[i];
+  }
+  // Above the knee it is the log of the colour, as log(1 + c) is above 1: equal steps for equal ratios.
+  EXPECT_NEAR(pu[11].item<double>() - pu[10].item<double>(), std::log((0.18 * 30 + pu_curve::F) / (0.18 + pu_curve::F)),
+              1e-9);
+}
+
+TEST(TrainLoss, PuLossIsTheL1OfThePuTransferPlusTheSsimTerm) {
+  torch::manual_seed(6);
+  const auto target = torch::log1p(torch::rand({2, 3, 64, 64}, torch::kFloat64) * 4.0);
+  EXPECT_NEAR(train::training_loss("l1-pu+ssim", target, target).item<double>(), 0.0, 1e-9);
+  const auto prediction = target + 0.1 * torch::randn_like(target);
+  const double ssim_term = train::training_loss("l1-log+ssim", prediction, target).item<double>() -
+                           train::training_loss("l1-log", prediction, target).item<double>();
+  const double l1_pu =
+      (train::pu_transfer(torch::expm1(prediction)) - train::pu_transfer(torch::expm1(target))).abs().mean().item<double>();
+  EXPECT_NEAR(train::training_loss("l1-pu+ssim", prediction, target).item<double>(), l1_pu + ssim_term, 1e-9);
+  EXPECT_NEAR(train::training_loss("l1-pu+ssim", prediction, target, 0.0).item<double>(), l1_pu, 1e-9);
+  // Dark pixels weigh more than in log(1 + c): the same relative error costs PU's L1 more at c = 0.3 than log's.
+  const auto dark = torch::full({1, 3, 16, 16}, std::log1p(0.3), torch::kFloat64);
+  const auto dark_off = torch::full({1, 3, 16, 16}, std::log1p(0.33), torch::kFloat64);
+  EXPECT_GT(train::training_loss("l1-pu+ssim", dark_off, dark, 0.0).item<double>(),
+            2.0 * train::training_loss("l1-log", dark_off, dark).item<double>());
 }
 
 }  // namespace

@@ -60,7 +60,7 @@ struct Options {
   bool force = false;
   bool bf16 = false;  // CPU autocast: convolutions in bfloat16, weights, loss and optimiser in float
   std::string loss = "l1-log";  // see training_loss.h
-  double ssim_weight = 1.0;      // for l1-log+ssim
+  double ssim_weight = 1.0;      // for l1-log+ssim and l1-pu+ssim
   double relmse_weight = 0.0;    // adds relmse_weight x relMSE (eps 0.01) to the loss
   double lowband_weight = 0.0;   // adds lowband_weight x the relMSE of lowband_width-px box means
   int lowband_width = 16;
@@ -415,7 +415,7 @@ int run(const Options& o) {
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features},
                              {"precise_bn_batches", o.precise_bn}, {"freeze_bn_after", o.freeze_bn_after}};
   if (!init_from_name.empty()) training["init_from"] = init_from_name;
-  if (o.loss == "l1-log+ssim") training["ssim_weight"] = o.ssim_weight;
+  if (o.loss == "l1-log+ssim" || o.loss == "l1-pu+ssim") training["ssim_weight"] = o.ssim_weight;
   if (o.relmse_weight > 0) training["relmse_weight"] = o.relmse_weight;
   if (o.lowband_weight > 0) {
     training["lowband_weight"] = o.lowband_weight;
@@ -487,8 +487,9 @@ int main(int argc, char** argv) {
   app.add_option("--seed", o.seed, "Random seed")->capture_default_str();
   app.add_flag("-f,--force", o.force, "Replace the output model file");
   app.add_option("--loss", o.loss,
-                 "l1-log (the paper's), l1-log+mean (adds the L1 of the log patch means) or l1-log+ssim (adds "
-                 "--ssim-weight x (1 - SSIM) over 3 scales, on the SSIM metric's tonemap)")
+                 "l1-log (the paper's), l1-log+mean (adds the L1 of the log patch means), l1-log+ssim (adds "
+                 "--ssim-weight x (1 - SSIM) over 3 scales, on the SSIM metric's tonemap) or l1-pu+ssim (the same, "
+                 "its L1 on OIDN's PU transfer instead of log(1 + c))")
       ->capture_default_str()->check(CLI::IsMember(train::loss_names()));
   app.add_option("--relmse-weight", o.relmse_weight,
                  "Adds this weight x relMSE (the metric's, eps 0.01, on linear colour) to the loss")
@@ -502,7 +503,7 @@ int main(int argc, char** argv) {
                  "Adds this weight x the albedo/normal edge pixels' share of 1 - SSIM (full resolution, the metric's "
                  "tonemap): their SSIM loss counted again, on its own")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--ssim-weight", o.ssim_weight, "Weight of the SSIM term of l1-log+ssim")
+  app.add_option("--ssim-weight", o.ssim_weight, "Weight of the SSIM term of l1-log+ssim and l1-pu+ssim")
       ->capture_default_str()->check(CLI::NonNegativeNumber);
   app.add_option("--precise-bn", o.precise_bn,
                  "Before each validation and the export, recompute BN statistics as the plain mean over N batches "

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/denoise/pu_curve.h"
+
 namespace residue::train {
 namespace {
 
@@ -64,7 +66,7 @@ torch::Tensor steps_above(const torch::Tensor& planes, double threshold) {
 }  // namespace
 
 const std::vector<std::string>& loss_names() {
-  static const std::vector<std::string> names = {"l1-log", "l1-log+mean", "l1-log+ssim"};
+  static const std::vector<std::string> names = {"l1-log", "l1-log+mean", "l1-log+ssim", "l1-pu+ssim"};
   return names;
 }
 
@@ -72,6 +74,9 @@ std::string loss_description(const std::string& kind) {
   if (kind == "l1-log+mean") return "L1 on log(1+c) + L1 of the log patch means";
   if (kind == "l1-log+ssim")
     return "L1 on log(1+c) + w * (1 - SSIM averaged over 3 scales) on the metric's filmic-sRGB tonemap";
+  if (kind == "l1-pu+ssim")
+    return "L1 on OIDN's PU transfer of 0.18 c (in units of its log slope) + w * (1 - SSIM averaged over 3 scales) "
+           "on the metric's filmic-sRGB tonemap";
   return "L1 on log(1+c)";
 }
 
@@ -87,6 +92,16 @@ torch::Tensor tonemap_filmic_srgb(const torch::Tensor& linear) {
   // The OETF's power branch sees t >= its threshold only, so that its gradient stays finite near 0.
   const auto power = 1.055 * t.clamp_min(0.0031308).pow(1.0 / 2.4) - 0.055;
   return torch::where(t < 0.0031308, 12.92 * t, power);
+}
+
+torch::Tensor pu_transfer(const torch::Tensor& linear) {
+  using namespace pu_curve;
+  const auto y = linear * kPuExposure;
+  // Each branch sees only values inside its own piece (clamped), so that no gradient is infinite or NaN: the power
+  // at 0, the log below -F. The linear piece continues below 0, so a negative prediction is pulled back up.
+  const auto power = B * y.clamp_min(Y0).pow(C) + D;
+  const auto log = E * torch::log(y.clamp_min(Y1) + F) + G;
+  return torch::where(y <= Y0, A * y, torch::where(y <= Y1, power, log)) / E;
 }
 
 torch::Tensor ssim_map(const torch::Tensor& x, const torch::Tensor& y) {
@@ -125,6 +140,9 @@ torch::Tensor multiscale_ssim(const torch::Tensor& x, const torch::Tensor& y, in
 // relative mean error, which dark patches dominated: validation relMSE 0.075 against 0.027 at 2000 steps).
 // "l1-log+ssim" adds the structural term production denoisers train with (issue 16, lever 1), on the very values
 // the SSIM metric scores, at full, half and quarter resolution (coarse scales weigh the low-frequency blotches).
+// "l1-pu+ssim" is the same with the L1 measured in the PU transfer OIDN trains in (lever 1's transfer): log(1 + c)
+// weighs an error relatively only above c ~ 1 (the image's log-average, autoexposed), PU above c ~ 0.2 and as a
+// power (0.43) below it: nearer relMSE, which is relative down to c ~ 0.1.
 torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target,
                             double ssim_weight) {
   torch::Tensor loss = torch::l1_loss(prediction, target);
@@ -136,6 +154,11 @@ torch::Tensor training_loss(const std::string& kind, const torch::Tensor& predic
     const auto p = tonemap_filmic_srgb(torch::expm1(prediction.clamp_max(20.0)));
     const auto t = tonemap_filmic_srgb(torch::expm1(target));
     loss = loss + ssim_weight * (1.0 - multiscale_ssim(p, t, 3));
+  } else if (kind == "l1-pu+ssim") {
+    const auto p = torch::expm1(prediction.clamp_max(20.0));
+    const auto t = torch::expm1(target);
+    loss = torch::l1_loss(pu_transfer(p), pu_transfer(t)) +
+           ssim_weight * (1.0 - multiscale_ssim(tonemap_filmic_srgb(p), tonemap_filmic_srgb(t), 3));
   } else if (kind != "l1-log") {
     throw std::invalid_argument("unknown loss '" + kind + "'");
   }

@@ -17,6 +17,7 @@ std::string loss_description(const std::string& kind);
 // "l1-log": the paper's L1 on log colour.
 // "l1-log+mean": adds the L1 of the log patch means (see the .cpp).
 // "l1-log+ssim": adds ssim_weight * (1 - multi-scale SSIM) on the tonemap the SSIM metric uses.
+// "l1-pu+ssim": the same SSIM term, the L1 on pu_transfer of the linear colour instead of on log(1 + c).
 torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target,
                             double ssim_weight = 1.0);
 
@@ -53,6 +54,13 @@ torch::Tensor remodulate(const torch::Tensor& prediction, const torch::Tensor& a
 // Linear colour -> the metric's display values: Hable's filmic curve normalised at 11.2, clamped, then the
 // sRGB OETF (core/metrics/tonemap.h), differentiable (the OETF's power is taken above its linear segment only).
 torch::Tensor tonemap_filmic_srgb(const torch::Tensor& linear);
+
+// OIDN's PU transfer (core/denoise/pu_curve.h) of kPuExposure x the linear colour, divided by its log branch's
+// slope E so that above the knee it is log(y + F) + const, as log(1 + c) is above 1: the two L1 terms then weigh
+// bright pixels alike. kPuExposure puts the trainer's autoexposed colour (key 1) at OIDN's key, 0.18. Differentiable
+// everywhere; below 0 the linear piece continues.
+constexpr double kPuExposure = 0.18;
+torch::Tensor pu_transfer(const torch::Tensor& linear);
 
 // SSIM per pixel and channel, N x C x (H - 10) x (W - 10): the pixels whose whole window is inside.
 torch::Tensor ssim_map(const torch::Tensor& x, const torch::Tensor& y);

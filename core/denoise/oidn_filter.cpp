@@ -4,28 +4,27 @@
 #include <cfloat>
 #include <cmath>
 
+#include "core/denoise/pu_curve.h"
+
 namespace residue {
 namespace {
 
-// PU: a fit of the perceptually uniform encoding (Aydin et al. 2008) normalised at 100 cd/m^2, in three pieces.
-constexpr float kA = 1.41283765e+03f, kB = 1.64593172e+00f, kC = 4.31384981e-01f, kD = -2.94139609e-03f;
-constexpr float kE = 1.92653254e-01f, kF = 6.26026094e-03f, kG = 9.98620152e-01f;
-constexpr float kY0 = 1.57945760e-06f, kY1 = 3.22087631e-02f, kX0 = 2.23151711e-03f, kX1 = 3.70974749e-01f;
-constexpr float kHdrMax = 65504.0f;  // the largest half value: what PU normalises to 1
-
+// PU, unnormalised (core/denoise/pu_curve.h).
 float pu(float y) {
-  if (y <= kY0) return kA * y;
-  if (y <= kY1) return kB * std::pow(y, kC) + kD;
-  return kE * std::log(y + kF) + kG;
+  using namespace pu_curve;
+  if (y <= Y0) return A * y;
+  if (y <= Y1) return B * std::pow(y, C) + D;
+  return E * std::log(y + F) + G;
 }
 
 float pu_inv(float x) {
-  if (x <= kX0) return x / kA;
-  if (x <= kX1) return std::pow((x - kD) / kB, 1.0f / kC);
-  return std::exp((x - kG) / kE) - kF;
+  using namespace pu_curve;
+  if (x <= X0) return x / A;
+  if (x <= X1) return std::pow((x - D) / B, 1.0f / C);
+  return std::exp((x - G) / E) - F;
 }
 
-const float kPuNorm = 1.0f / pu(kHdrMax);
+const float kPuNorm = 1.0f / pu(pu_curve::kHdrMax);
 
 float srgb(float y) { return y <= 0.0031308f ? 12.92f * y : 1.055f * std::pow(y, 1.0f / 2.4f) - 0.055f; }
 float srgb_inv(float x) { return x <= 0.04045f ? x / 12.92f : std::pow((x + 0.055f) / 1.055f, 2.4f); }
