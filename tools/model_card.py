@@ -1,11 +1,12 @@
 #!/usr/bin/python3
 """A model card (Markdown) from what the model file and an `evaluate-set --json` result record: architecture,
 data, steps, training time, schedule, the training curve, per-scene validation relMSE/SSIM against the noisy
-input and the cross-bilateral baseline, the brightness ratio, seconds per megapixel, and the release checks
-(lowers the noisy relMSE; the reduction at 4-16 spp; beats the bilateral filter).
+input and the cross-bilateral baseline (and, with --compare, other columns of the evaluation such as `oidn`), the
+brightness ratio, seconds per megapixel, and the release checks (lowers the noisy relMSE; the reduction at 4-16 spp;
+beats the bilateral filter; against each compared column, its means and on how many scenes it is better).
 
   /usr/bin/python3 tools/model_card.py resources/models/base.safetensors --eval eval.json \\
-      --label base --dataset /work/datasets/residue-v1 --curve models/base_training.png > card.md
+      --label base --dataset /work/datasets/residue-v1 --curve models/base_training.png [--compare oidn,best] > card.md
 """
 import argparse, json, os, subprocess, sys
 
@@ -32,6 +33,9 @@ def main():
     p.add_argument("--label", help="the model's column in the evaluation (default: the file's stem)")
     p.add_argument("--dataset", help="data set folder, for each scene's samples per pixel")
     p.add_argument("--curve", help="training curve PNG, as linked from the card")
+    p.add_argument("--compare", default="",
+                   help="other columns of the evaluation to show per scene, comma-separated (e.g. oidn,best; "
+                        "with or without the precision: `oidn` matches `oidn fp32`)")
     p.add_argument("--cli", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "build", "release",
                                                  "app", "residue-cli", "residue-cli"))
     a = p.parse_args()
@@ -80,11 +84,20 @@ def main():
     if not scenes or label not in scenes[0]["results"]:
         raise SystemExit(f"model_card: no column '{label}' in {a.eval}")
     have_bilateral = "bilateral" in scenes[0]["results"]
+    compared = []  # (name, column label)
+    for name in filter(None, a.compare.split(",")):
+        found = [c for c in (name, name + " fp32") if c in scenes[0]["results"]]
+        if not found:
+            raise SystemExit(f"model_card: no column '{name}' in {a.eval}")
+        compared.append((name, found[0]))
     out += ["", f"Validation ({len(scenes)} scenes of `{ev.get('dataset', '')}`, split {ev.get('split', 'all')}):", ""]
     head = "| scene | spp | noisy relMSE | relMSE | reduction | SSIM | brightness |"
     rule = "|---|---|---|---|---|---|---|"
     if have_bilateral:
         head += " bilateral relMSE | bilateral SSIM |"
+        rule += "---|---|"
+    for name, _ in compared:
+        head += f" {name} relMSE | {name} SSIM |"
         rule += "---|---|"
     out += [head, rule]
     rows = []
@@ -97,6 +110,9 @@ def main():
                 f"{n['relmse'] / r['relmse']:.1f}x | {r['ssim']:.4f} | {r['mean_ratio']:.3f} |")
         if b:
             line += f" {b['relmse']:.4g} | {b['ssim']:.4f} |"
+        for _, column in compared:
+            c = s["results"][column]
+            line += f" {c['relmse']:.4g} | {c['ssim']:.4f} |"
         out.append(line)
     k = len(rows)
     mean = lambda xs: sum(xs) / max(1, len(xs))
@@ -105,6 +121,9 @@ def main():
             f"**{mean([x[3]['ssim'] for x in rows]):.4f}** | {mean([x[3]['mean_ratio'] for x in rows]):.3f} |")
     if have_bilateral:
         line += f" {mean([x[4]['relmse'] for x in rows]):.4g} | {mean([x[4]['ssim'] for x in rows]):.4f} |"
+    for _, column in compared:
+        line += (f" {mean([s['results'][column]['relmse'] for s in scenes]):.4g} | "
+                 f"{mean([s['results'][column]['ssim'] for s in scenes]):.4f} |")
     out.append(line)
 
     # The release checks.
@@ -121,6 +140,15 @@ def main():
         m_bil = mean([x[4]["relmse"] for x in rows])
         checks.append(f"{'beats' if m_model < m_bil else 'does not beat'} the bilateral filter on mean relMSE "
                       f"({m_model:.4g} vs {m_bil:.4g}; better on {beats} of {k} scenes)")
+    for name, column in compared:
+        theirs = [s["results"][column] for s in scenes]
+        m_rel, m_ssim = mean([t["relmse"] for t in theirs]), mean([t["ssim"] for t in theirs])
+        lower = sum(1 for x, t in zip(rows, theirs) if x[3]["relmse"] < t["relmse"])
+        higher = sum(1 for x, t in zip(rows, theirs) if x[3]["ssim"] > t["ssim"])
+        m_ssim_model = mean([x[3]["ssim"] for x in rows])
+        checks.append(f"against `{name}`: mean relMSE {m_model:.4g} vs {m_rel:.4g} ({m_model / m_rel - 1:+.1%}; "
+                      f"lower on {lower} of {k} scenes), mean SSIM {m_ssim_model:.4f} vs {m_ssim:.4f} "
+                      f"(higher on {higher} of {k})")
     out += ["", "Checks: " + "; ".join(checks) + "."]
     print("\n".join(out))
 
