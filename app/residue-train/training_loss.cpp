@@ -150,15 +150,11 @@ torch::Tensor training_loss(const std::string& kind, const torch::Tensor& predic
     const auto mp = torch::log1p(torch::expm1(prediction.clamp_max(20.0)).mean({2, 3}).clamp_min(0.0));
     const auto mt = torch::log1p(torch::expm1(target).mean({2, 3}));
     loss = loss + (mp - mt).abs().mean();
-  } else if (kind == "l1-log+ssim") {
-    const auto p = tonemap_filmic_srgb(torch::expm1(prediction.clamp_max(20.0)));
-    const auto t = tonemap_filmic_srgb(torch::expm1(target));
-    loss = loss + ssim_weight * (1.0 - multiscale_ssim(p, t, 3));
-  } else if (kind == "l1-pu+ssim") {
+  } else if (kind == "l1-log+ssim" || kind == "l1-pu+ssim") {
     const auto p = torch::expm1(prediction.clamp_max(20.0));
     const auto t = torch::expm1(target);
-    loss = torch::l1_loss(pu_transfer(p), pu_transfer(t)) +
-           ssim_weight * (1.0 - multiscale_ssim(tonemap_filmic_srgb(p), tonemap_filmic_srgb(t), 3));
+    if (kind == "l1-pu+ssim") loss = torch::l1_loss(pu_transfer(p), pu_transfer(t));
+    loss = loss + ssim_weight * (1.0 - multiscale_ssim(tonemap_filmic_srgb(p), tonemap_filmic_srgb(t), 3));
   } else if (kind != "l1-log") {
     throw std::invalid_argument("unknown loss '" + kind + "'");
   }
