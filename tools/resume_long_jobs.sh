@@ -11,6 +11,9 @@
 #      open-air scenes (.cache/datasets/residue-v1-true; on the idle Intel Xeon of sessions 20-23 about 3.5 minutes
 #      an interior, 9-10 hours in all; beside a training run 5-10x that)
 #   4. residue-v1-pseudo (its 39 open-air scenes have rendered references too; its interiors pseudo-references)
+#   5. the other training sets tools/finetune_full.sh trains on (residue-photo, residue-pseudo, residue-photo-plain;
+#      about 1.7 h; the photographs need `apt-get install plasma-workspace-wallpapers`, which tools/setup.sh leaves
+#      out), so that the fine-tune on residue-v1-true (issue 16's next lever for x1) has all its data
 # Done and so out of the queue: lever 2c's long run (session 19: a tie with the shipped network, not adopted;
 # `GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=14000 PRECISION=bf16 EXTRA_SETS=
 # tools/finetune_full.sh .cache/train/lever2c-14k`). A fine-tune added back here goes through
@@ -42,4 +45,6 @@ step "the next lever's data: interiors with rendered references"
 tools/render_training_data.sh residue-v1-true
 step "data: residue-v1-pseudo"
 tools/render_training_data.sh residue-v1-pseudo
+step "data: the other training sets"
+tools/render_training_data.sh residue-photo residue-pseudo residue-photo-plain
 step "done"
