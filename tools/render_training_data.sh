@@ -75,8 +75,8 @@ render() {
     residue-v1-true)  # residue-v1-pseudo's 150 interiors with rendered 512-spp references, not pseudo-references:
       # every fine-tune on the pseudo-referenced ones ended behind its start (GOAL_JOURNAL.md, session 19); then its
       # 39 open-air scenes (rendered references there too), so that this one folder is residue-v1-pseudo's 189 scenes
-      # with true references: V1_PSEUDO=residue-v1-true tools/finetune_full.sh. About 3.5 min an interior and 1.5
-      # an open-air scene on 2 idle cores (the reference; Intel Xeon, session 23), 9-10 h in all.
+      # with true references: V1_PSEUDO=residue-v1-true tools/finetune_full.sh. About 1.5-4.5 min an interior (2.5
+      # on average) and 1.5 an open-air scene on 2 idle cores (the reference; Intel Xeon, session 23), about 7 h in all.
       "${R[@]}" --out $D/residue-v1-true --seeds "$(seeds 1002 1328 2)"
       "${R[@]}" --out $D/residue-v1-true --seeds "$(seeds 1001 1085 2)" ;;
     residue-v1-fireflies)  # 10 of the 30 validation scenes (5 interiors, 5 open air; the quicker ones) as an

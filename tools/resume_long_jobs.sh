@@ -8,8 +8,8 @@
 #      path tracer leaves them (.cache/datasets/residue-v1-fireflies, about 30 min; session 22; scored by
 #      tools/compare_conditions.py against the same scenes as rendered for training, MODELS.md lever 3e)
 #   3. the next lever's data: residue-v1-pseudo's 150 interiors with rendered 512-spp references, then its 39
-#      open-air scenes (.cache/datasets/residue-v1-true; on the idle Intel Xeon of sessions 20-23 about 3.5 minutes
-#      an interior, 9-10 hours in all; beside a training run 5-10x that)
+#      open-air scenes (.cache/datasets/residue-v1-true; on the idle Intel Xeon of sessions 20-23 about 2.5 minutes
+#      an interior, about 7 hours in all; beside a training run 5-10x that)
 #   4. residue-v1-pseudo (its 39 open-air scenes have rendered references too; its interiors pseudo-references)
 #   5. the other training sets tools/finetune_full.sh trains on (residue-photo, residue-pseudo, residue-photo-plain;
 #      about 1.7 h; the photographs need `apt-get install plasma-workspace-wallpapers`, which tools/setup.sh leaves
