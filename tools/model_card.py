@@ -117,13 +117,16 @@ def main():
     k = len(rows)
     mean = lambda xs: sum(xs) / max(1, len(xs))
     m_noisy, m_model = mean([x[2] for x in rows]), mean([x[3]["relmse"] for x in rows])
+    m_ssim = mean([x[3]["ssim"] for x in rows])
     line = (f"| **mean** | | {m_noisy:.4g} | **{m_model:.4g}** | {m_noisy / m_model:.1f}x | "
-            f"**{mean([x[3]['ssim'] for x in rows]):.4f}** | {mean([x[3]['mean_ratio'] for x in rows]):.3f} |")
+            f"**{m_ssim:.4f}** | {mean([x[3]['mean_ratio'] for x in rows]):.3f} |")
     if have_bilateral:
         line += f" {mean([x[4]['relmse'] for x in rows]):.4g} | {mean([x[4]['ssim'] for x in rows]):.4f} |"
-    for _, column in compared:
-        line += (f" {mean([s['results'][column]['relmse'] for s in scenes]):.4g} | "
-                 f"{mean([s['results'][column]['ssim'] for s in scenes]):.4f} |")
+    # Each compared column's scores per scene and their means: (name, scores, mean relMSE, mean SSIM).
+    theirs = [(name, [s["results"][column] for s in scenes]) for name, column in compared]
+    theirs = [(name, t, mean([x["relmse"] for x in t]), mean([x["ssim"] for x in t])) for name, t in theirs]
+    for _, _, t_rel, t_ssim in theirs:
+        line += f" {t_rel:.4g} | {t_ssim:.4f} |"
     out.append(line)
 
     # The release checks.
@@ -140,14 +143,11 @@ def main():
         m_bil = mean([x[4]["relmse"] for x in rows])
         checks.append(f"{'beats' if m_model < m_bil else 'does not beat'} the bilateral filter on mean relMSE "
                       f"({m_model:.4g} vs {m_bil:.4g}; better on {beats} of {k} scenes)")
-    for name, column in compared:
-        theirs = [s["results"][column] for s in scenes]
-        m_rel, m_ssim = mean([t["relmse"] for t in theirs]), mean([t["ssim"] for t in theirs])
-        lower = sum(1 for x, t in zip(rows, theirs) if x[3]["relmse"] < t["relmse"])
-        higher = sum(1 for x, t in zip(rows, theirs) if x[3]["ssim"] > t["ssim"])
-        m_ssim_model = mean([x[3]["ssim"] for x in rows])
-        checks.append(f"against `{name}`: mean relMSE {m_model:.4g} vs {m_rel:.4g} ({m_model / m_rel - 1:+.1%}; "
-                      f"lower on {lower} of {k} scenes), mean SSIM {m_ssim_model:.4f} vs {m_ssim:.4f} "
+    for name, scores, t_rel, t_ssim in theirs:
+        lower = sum(1 for x, t in zip(rows, scores) if x[3]["relmse"] < t["relmse"])
+        higher = sum(1 for x, t in zip(rows, scores) if x[3]["ssim"] > t["ssim"])
+        checks.append(f"against `{name}`: mean relMSE {m_model:.4g} vs {t_rel:.4g} ({m_model / t_rel - 1:+.1%}; "
+                      f"lower on {lower} of {k} scenes), mean SSIM {m_ssim:.4f} vs {t_ssim:.4f} "
                       f"(higher on {higher} of {k})")
     out += ["", "Checks: " + "; ".join(checks) + "."]
     print("\n".join(out))
