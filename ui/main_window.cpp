@@ -178,7 +178,7 @@ void MainWindow::showRendered(Rendered&& r) {
   }
   // Tiles that landed while these panes were being drawn are in the session: show them too.
   if (const int d = paneIndex(Source::Denoised); d >= 0 && session_->denoised()) {
-    canvas_->setPaneValues(d, std::shared_ptr<const Image>(std::shared_ptr<const Image>(), session_->denoised()));
+    canvas_->setPaneValues(d, session_->denoisedShared());
     if (denoise_->running())
       for (const Rect& t : run_tiles_) drawDenoisedTile(t);
   }
@@ -505,12 +505,14 @@ void MainWindow::patchDenoisedTile(const Rect& rect) {
 
 void MainWindow::drawDenoisedTile(const Rect& rect) {
   const int i = paneIndex(Source::Denoised);
-  const Image* d = session_->denoised();
+  // Shared, not borrowed: the canvas may paint these values after the session has let the result go (a new
+  // image adopted), until its next panes arrive.
+  const std::shared_ptr<const Image> d = session_->denoisedShared();
   if (i < 0 || !d) return;
   try {
     canvas_->patchPane(i, QPoint(static_cast<int>(rect.x), static_cast<int>(rect.y)),
                        display_->render(*d, 0, 3, rect, displaySettings(), Encoding::SceneLinear));
-    canvas_->setPaneValues(i, std::shared_ptr<const Image>(std::shared_ptr<const Image>(), d));
+    canvas_->setPaneValues(i, d);
   } catch (const std::exception&) {
     // a display/view that cannot be built is reported by the full render
   }

@@ -130,6 +130,54 @@ class TevStreamTest : public QObject {
     QVERIFY(w.tevServer()->listening());
   }
 
+  // A small test frame, fitted so far in that every pixel shows its values, then the real frame under another
+  // name: the viewer goes on showing the new image (it once crashed drawing the old image's values at the new
+  // size). Painted between every step, as a screen would be.
+  void smallThenLargeImage() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.resize(1280, 720);
+    w.show();
+    QCOMPARE(w.listenForRenderers(0), QString());
+    QTcpSocket renderer;
+    renderer.connectToHost(QHostAddress::LocalHost, w.tevServer()->port());
+    QVERIFY(renderer.waitForConnected(5000));
+    const auto create_and_fill = [&](const std::string& name, int width, int height, int tile) {
+      TevPacket create(4);
+      create.u8(1).str(name).i32(width).i32(height).i32(3).str("R").str("G").str("B");
+      QVERIFY(send(renderer, create.done()));
+      for (int ty = 0; ty < height; ty += tile)
+        for (int tx = 0; tx < width; tx += tile) {
+          const int tw = std::min(tile, width - tx), th = std::min(tile, height - ty);
+          TevPacket update(3);
+          update.u8(0).str(name).str("R").i32(tx).i32(ty).i32(tw).i32(th);
+          for (int i = 0; i < tw * th; ++i) update.f32(0.25f);
+          QVERIFY(send(renderer, update.done()));
+          w.grab();
+        }
+    };
+    const auto shown = [&](const QString& name, int width) {
+      w.grab();
+      const auto stack = w.session()->stack();
+      return stack && w.session()->liveName() == name && stack->width() == width && !w.busy() &&
+             w.canvas()->panes().size() >= 1 && !w.canvas()->panes().front().display.isNull() &&
+             w.canvas()->panes().front().display.width() == width;
+    };
+    create_and_fill("test frame", 4, 4, 4);
+    QVERIFY(QTest::qWaitFor([&] { return shown("test frame", 4); }, 10000));
+    QVERIFY2(w.canvas()->zoom() >= ImageCanvas::kValueTextZoom, qPrintable(QString::number(w.canvas()->zoom())));
+    // The stream pauses: the viewer denoises the test frame, and its values are drawn in the denoised pane.
+    QVERIFY(QTest::qWaitFor([&] { return w.session()->denoised() != nullptr && !w.denoisePanel()->running() && !w.busy(); },
+                            30000));
+    const int denoised_pane = w.paneIndex(Source::Denoised);
+    QVERIFY(denoised_pane >= 0 && w.canvas()->panes()[static_cast<size_t>(denoised_pane)].values);
+    w.grab();
+    create_and_fill("beauty", 512, 512, 128);
+    QVERIFY(QTest::qWaitFor([&] { return shown("beauty", 512); }, 20000));
+    QVERIFY(w.canvas()->zoom() < ImageCanvas::kValueTextZoom);  // fitted to the new size
+    QCOMPARE(w.session()->stack()->color.image.at(511, 511, 0), 0.25f);
+  }
+
   // `residue --help` on a machine without a display (no DISPLAY, no QT_QPA_PLATFORM) prints the options.
   void helpNeedsNoDisplay() {
     QProcess viewer;
