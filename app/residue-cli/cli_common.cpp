@@ -39,6 +39,23 @@ LoadOptions InputOptions::load_options() const {
   return o;
 }
 
+std::vector<std::filesystem::path> InputOptions::files_named() const {
+  std::vector<std::filesystem::path> files(inputs.begin(), inputs.end());
+  if (!reference.empty()) files.emplace_back(reference);
+  if (!mapping_file.empty()) files.emplace_back(mapping_file);
+  for (const auto& f : map_flags) {
+    ChannelMapping one;
+    try {
+      one.add_flag(f);
+    } catch (const Error&) {
+      continue;  // reported when the stack is loaded
+    }
+    for (const auto& [role, binding] : one.roles)
+      if (!binding.file.empty()) files.push_back(binding.file);
+  }
+  return files;
+}
+
 AovStack InputOptions::load() const {
   std::vector<std::filesystem::path> paths(inputs.begin(), inputs.end());
   return load_aov_stack(paths, load_options());

@@ -39,6 +39,9 @@ struct InputOptions {
   void add_to(CLI::App& app, bool with_reference);
   LoadOptions load_options() const;
   AovStack load() const;
+  // Every file these options name as something to read (inputs, reference, mapping file, --map files), for
+  // checking that no output replaces one of them.
+  std::vector<std::filesystem::path> files_named() const;
 };
 
 // "x,y,w,h" -> Rect; throws CLI::ValidationError on a malformed one.

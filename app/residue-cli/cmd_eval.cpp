@@ -7,6 +7,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "core/io/atomic_file.h"
 #include "core/io/frame_sequence.h"
 #include "eval_sequence.h"
 #include "core/io/map_writer.h"
@@ -53,6 +54,7 @@ void write_maps(const EvalOptions& o, const std::string& name, const Image& test
 }
 
 int run(const EvalOptions& o) {
+  if (!o.metrics_out.empty()) io::refuse_input_as_output(o.metrics_out, o.input.files_named(), "--metrics-out");
   if (o.input.inputs.size() == 1 && io::FramePattern::parse(o.input.inputs.front())) {
     if (!o.maps_dir.empty()) throw Error(ErrorKind::Usage, "--maps-dir is for single images, not sequences");
     if (!o.metrics_out.empty() && std::filesystem::path(o.metrics_out).extension() != ".json")

@@ -108,6 +108,24 @@ std::string fmt(const char* f, double v) {
   return buf;
 }
 
+// Every check on the --md and --json outputs, before any model runs: their names, that neither is a file of
+// the data set (its index.json, a scene's files), and prepare_output's.
+void check_outputs(const EvalSetOptions& o, const std::vector<std::filesystem::path>& scenes) {
+  std::vector<std::filesystem::path> read = {std::filesystem::path(o.dataset) / "index.json"};
+  for (const auto& scene : scenes) {
+    std::error_code ec;
+    for (std::filesystem::directory_iterator it(scene, ec), end; !ec && it != end; it.increment(ec))
+      read.push_back(it->path());
+  }
+  const std::pair<const std::string*, const char*> outputs[] = {{&o.out_md, "--md"}, {&o.out_json, "--json"}};
+  for (const auto& [path, option] : outputs) {
+    if (path->empty()) continue;
+    io::require_extension(*path, {std::string(option) == "--md" ? ".md" : ".json"}, option);
+    io::refuse_input_as_output(*path, read, option);
+    io::prepare_output(*path, o.force);
+  }
+}
+
 int run(const EvalSetOptions& o) {
   std::vector<std::filesystem::path> scenes = list_dataset_scenes(o.dataset);
   if (o.split != "all") {
@@ -119,6 +137,7 @@ int run(const EvalSetOptions& o) {
   if (o.last > 0 && static_cast<size_t>(o.last) < scenes.size())
     scenes.erase(scenes.begin(), scenes.end() - o.last);
   if (scenes.empty()) throw Error(ErrorKind::Input, "no scenes in '" + o.dataset + "'");
+  check_outputs(o, scenes);
 
   struct Column {
     std::string label, model, precision;

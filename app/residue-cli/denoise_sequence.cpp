@@ -102,7 +102,17 @@ int run_sequence(const DenoiseCliOptions& o) {
     throw Error(ErrorKind::Input, "no frame of '" + in.to_string() + "' exists (give --frames to name them)");
 
   // Every check before the first frame: the summary file, then each output (a conflict lists them all).
-  if (!o.summary.empty()) io::prepare_output(o.summary, o.force || skip_existing);
+  if (!o.summary.empty()) {
+    io::require_extension(o.summary, {".json"}, "--summary");
+    std::vector<fs::path> read = o.input.files_named();
+    for (int64_t f : frames) {
+      read.push_back(in.path(f));
+      read.push_back(out.path(f));  // written, and so not to be replaced by the summary either
+      if (reference) read.push_back(reference->path(f));
+    }
+    io::refuse_input_as_output(o.summary, read, "--summary");
+    io::prepare_output(o.summary, o.force || skip_existing);
+  }
   std::vector<FrameRecord> records;
   std::vector<std::string> existing;
   const io::ExrWriteOptions w = o.write_options();

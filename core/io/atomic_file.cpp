@@ -1,9 +1,12 @@
 #include "core/io/atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/statvfs.h>
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <climits>
 #include <csignal>
 #include <cerrno>
@@ -47,8 +50,43 @@ std::string host_name() {
   return s;
 }
 
+// ".NAME.residue-tmp-": NAME cut short so that the whole temporary name (HOST-PID-XXXXXX and the extension
+// follow) fits in NAME_MAX even when the destination's own name nearly fills it.
 std::string temp_prefix(const fs::path& destination) {
-  return "." + destination.filename().string() + ".residue-tmp-";
+  static const std::string host = host_name();
+  constexpr size_t kFixed = 1 + 13 + 1 + 10 + 1 + 6;  // ".", ".residue-tmp-", "-", a pid, "-", XXXXXX
+  const std::string name = destination.filename().string();
+  const size_t room = NAME_MAX - std::min<size_t>(NAME_MAX, kFixed + host.size() + destination.extension().string().size());
+  return "." + name.substr(0, std::min(name.size(), room)) + ".residue-tmp-";
+}
+
+// What an existing path is, when it is not something an output may replace ("" when it may).
+std::string not_replaceable(const fs::path& destination) {
+  std::error_code ec;
+  const fs::file_status link = fs::symlink_status(destination, ec);
+  const fs::file_status target = fs::status(destination, ec);  // what a link points to
+  for (const fs::file_status& st : {link, target}) {
+    switch (st.type()) {
+      case fs::file_type::character: return "a character device";
+      case fs::file_type::block: return "a block device";
+      case fs::file_type::fifo: return "a FIFO (named pipe)";
+      case fs::file_type::socket: return "a socket";
+      default: break;
+    }
+  }
+  return "";
+}
+
+// Bytes the user may still write in `folder`'s file system (-1 when unknown).
+int64_t free_bytes(const fs::path& folder) {
+  struct statvfs st {};
+  if (::statvfs(folder.c_str(), &st) != 0) return -1;
+  return static_cast<int64_t>(st.f_bavail) * static_cast<int64_t>(st.f_frsize);
+}
+
+std::string lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
 }
 
 // The temporary files of writes in progress in this process (removed by remove_temp_files_in_progress()).
@@ -184,6 +222,8 @@ std::vector<fs::path> prepare_output(const fs::path& destination, bool overwrite
   if (!fs::is_directory(folder, ec))
     fail("cannot write " + quoted(destination) + ": the folder " + quoted(folder) + " does not exist");
   if (fs::is_directory(destination, ec)) fail("output " + quoted(destination) + " is a folder, not a file");
+  if (const std::string what = not_replaceable(destination); !what.empty())
+    fail("output " + quoted(destination) + " is " + what + ": Residue writes regular files only (even with --force)");
   if (::access(folder.c_str(), W_OK | X_OK) != 0)
     fail("cannot write " + quoted(destination) + ": the folder " + quoted(folder) + " is not writable (" +
          errno_text(errno) + ")");
@@ -199,6 +239,31 @@ std::vector<fs::path> prepare_output(const fs::path& destination, bool overwrite
   return removed;
 }
 
+void require_extension(const fs::path& destination, const std::vector<std::string>& extensions,
+                       const std::string& option) {
+  const std::string extension = lower(destination.extension().string());
+  for (const std::string& e : extensions)
+    if (extension == e && destination.stem() != "") return;
+  std::string list;
+  for (const std::string& e : extensions) list += (list.empty() ? "" : " or ") + e;
+  throw Error(ErrorKind::Usage, option + " " + quoted(destination) + ": give it a name ending in " + list);
+}
+
+void refuse_input_as_output(const fs::path& destination, const std::vector<fs::path>& inputs,
+                            const std::string& option) {
+  std::error_code ec;
+  const fs::path absolute = fs::weakly_canonical(fs::absolute(destination, ec), ec);
+  for (const fs::path& input : inputs) {
+    std::error_code e1, e2;
+    const bool same = fs::equivalent(destination, input, e1) ||
+                      (!absolute.empty() && absolute == fs::weakly_canonical(fs::absolute(input, e2), e2));
+    if (same)
+      throw Error(ErrorKind::Output, option + " " + quoted(destination) + " is the input " + quoted(input) +
+                                         ", which this run reads: writing there would lose it (even with --force); "
+                                         "choose another name");
+  }
+}
+
 void remove_temp_files_in_progress() {
   std::lock_guard lock(g_temps_mutex);
   for (const std::string& path : g_temps) ::unlink(path.c_str());
@@ -212,10 +277,21 @@ void write_atomically(const fs::path& destination, bool overwrite,
   std::error_code ec;
   const fs::path temp = create_temp_file(folder, destination);
   TempGuard guard(temp);
-  write(temp);
-  if (!fs::is_regular_file(temp, ec))
-    fail("cannot write " + quoted(destination) + ": the temporary file " + quoted(temp) + " disappeared");
-  sync_path(temp, false, true, destination);
+  // A full disk surfaces as whatever the writer makes of a short write, naming the hidden temporary file: say
+  // what happened, naming the destination.
+  const auto no_space = [&] {
+    const int64_t left = free_bytes(folder);
+    return left >= 0 && left < (int64_t{1} << 16);
+  };
+  try {
+    write(temp);
+    if (!fs::is_regular_file(temp, ec))
+      fail("cannot write " + quoted(destination) + ": the temporary file " + quoted(temp) + " disappeared");
+    sync_path(temp, false, true, destination);
+  } catch (const Error&) {
+    if (no_space()) fail("cannot write " + quoted(destination) + ": no space left on device (" + quoted(folder) + ")");
+    throw;
+  }
   move_into_place(temp, destination, overwrite);
   guard.release();
   sync_path(folder, true, false, destination);  // make the rename durable; not fatal if unsupported

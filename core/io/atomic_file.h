@@ -4,15 +4,27 @@
 
 #include <filesystem>
 #include <functional>
+#include <string>
 #include <vector>
 
 namespace residue::io {
 
 // Checks, before any work is done, that `destination` can be written: a file name (not a folder, not ending in
 // "/"), in an existing folder the user may write to, and absent unless `overwrite`. Throws Error(Output) naming
-// the path and what is wrong. Then removes the temporary files that earlier runs writing `destination` on this
+// the path and what is wrong; an existing output that is not a regular file (a device, a FIFO, a socket, or a
+// link to one) is refused even with `overwrite`. Then removes the temporary files that earlier runs writing `destination` on this
 // machine left when they were killed (their process is gone) and returns their paths, so the caller can say so.
 std::vector<std::filesystem::path> prepare_output(const std::filesystem::path& destination, bool overwrite);
+
+// Refuses an output whose name does not end in one of `extensions` (".json"; case-insensitive): a summary
+// named like a frame would replace the frame. Throws Error(Usage) naming `option`, the path and what it needs.
+void require_extension(const std::filesystem::path& destination, const std::vector<std::string>& extensions,
+                       const std::string& option);
+
+// Refuses an output that is one of the files the run reads (the same file by inode, or the same path once
+// made absolute), even with --force: replacing it would lose the user's data. Throws Error(Output) naming both.
+void refuse_input_as_output(const std::filesystem::path& destination,
+                            const std::vector<std::filesystem::path>& inputs, const std::string& option);
 
 // Calls write(temp_path) to produce the file, then moves it to `destination` (prepare_output() runs first).
 // The temporary file is created empty (mode 0666 less the umask) beside the destination, hidden, names the

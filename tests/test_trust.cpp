@@ -1,0 +1,147 @@
+// The second bad-input audit (issue 49): each test is one defect found there, end to end where the user meets
+// it, on the bundled room example. Suites that start residue-cli have "Cli" in their name (the sanitizer run in
+// .ci/run leaves those out).
+#include <sys/mount.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include <gtest/gtest.h>
+
+#include "core/io/atomic_file.h"
+#include "support/test_support.h"
+
+namespace residue {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::run_cli;
+using testing::TempDir;
+
+const fs::path kRoom = fs::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+
+std::string read_text(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+// A two-frame shot (the room twice) and a mapping file, in a fresh folder.
+class TrustSequenceCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    for (const char* f : {"shot.0001.exr", "shot.0002.exr"}) fs::copy_file(kRoom / "noisy.exr", dir_ / f);
+    frame1_ = read_text(dir_ / "shot.0001.exr");
+  }
+  std::vector<std::string> sequence(const std::vector<std::string>& extra) const {
+    std::vector<std::string> args = {"denoise", (dir_ / "shot.####.exr").string(), "-o", (dir_ / "out.####.exr").string(),
+                                     "-m", "tiny"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  }
+  TempDir dir_;
+  std::string frame1_;
+};
+
+// Defect 2: `--summary shot.0001.exr --force` turned frame 1 into JSON.
+TEST_F(TrustSequenceCli, SummaryNamedLikeAFrameIsRefused) {
+  std::string out;
+  EXPECT_EQ(run_cli(sequence({"--summary", (dir_ / "shot.0001.exr").string(), "--force"}), &out), 2) << out;
+  EXPECT_TRUE(contains(out, "--summary") && contains(out, "ending in .json")) << out;
+  EXPECT_EQ(read_text(dir_ / "shot.0001.exr"), frame1_);
+  EXPECT_FALSE(fs::exists(dir_ / "out.0001.exr")) << "refused before any frame ran";
+}
+
+// Defect 2: a summary may not replace any file the run reads, whatever its name (here the mapping file).
+TEST_F(TrustSequenceCli, SummaryOverAnInputIsRefusedEvenWithForce) {
+  const fs::path mapping = dir_ / "mapping.json";
+  std::ofstream(mapping) << R"({"color": {"channels": ["R", "G", "B"]}})";
+  const std::string before = read_text(mapping);
+  std::string out;
+  EXPECT_EQ(run_cli(sequence({"--mapping", mapping.string(), "--summary", mapping.string(), "--force"}), &out), 4) << out;
+  EXPECT_TRUE(contains(out, "is the input")) << out;
+  EXPECT_EQ(read_text(mapping), before);
+}
+
+// Defects 2 and 9: evaluate-set's --json over a scene's scene.json is refused, before any model runs; so is a
+// Markdown table not named .md.
+TEST(TrustEvaluateSetCli, OutputsAreCheckedFirstAndNeverReplaceTheDataSet) {
+  TempDir dir;
+  fs::create_directories(dir / "s0001");
+  fs::copy_file(kRoom / "noisy.exr", dir / "s0001/noisy_a.exr");
+  fs::copy_file(kRoom / "reference.exr", dir / "s0001/reference.exr");
+  std::ofstream(dir / "s0001/scene.json") << "{\"scene_seed\": 1}";
+  const std::string scene_json = read_text(dir / "s0001/scene.json");
+  std::string out;
+  EXPECT_EQ(run_cli({"evaluate-set", dir.path().string(), "--models", "tiny", "--json", (dir / "s0001/scene.json").string(),
+                     "-f"}, &out), 4) << out;
+  EXPECT_TRUE(contains(out, "is the input")) << out;
+  EXPECT_EQ(read_text(dir / "s0001/scene.json"), scene_json);
+  EXPECT_FALSE(contains(out, "evaluate-set: 1/1")) << "refused before the first scene: " << out;
+  EXPECT_EQ(run_cli({"evaluate-set", dir.path().string(), "--models", "tiny", "--md", (dir / "table.exr").string()}, &out), 2)
+      << out;
+  EXPECT_TRUE(contains(out, "--md") && contains(out, "ending in .md")) << out;
+  EXPECT_FALSE(contains(out, "evaluate-set: 1/1")) << out;
+  EXPECT_EQ(run_cli({"evaluate-set", dir.path().string(), "--models", "tiny", "--md", (dir / "no/such/t.md").string()}, &out), 4)
+      << out;
+  EXPECT_FALSE(contains(out, "evaluate-set: 1/1")) << "a folder that does not exist is found before the run: " << out;
+}
+
+// Defect 6: `-o /dev/null --force` would have replaced the device with a regular file (as root).
+TEST(TrustOutputs, DevicesAndFifosAreNeverReplaced) {
+  EXPECT_TRUE(contains(testing::error_message([] { io::prepare_output("/dev/null", true); }, ErrorKind::Output),
+                       "is a character device"));
+  struct stat st {};
+  ASSERT_EQ(::stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+  TempDir dir;
+  ASSERT_EQ(::mkfifo((dir / "pipe.exr").c_str(), 0644), 0);
+  EXPECT_TRUE(contains(testing::error_message([&] { io::prepare_output(dir / "pipe.exr", true); }, ErrorKind::Output),
+                       "is a FIFO"));
+  fs::create_symlink("/dev/null", dir / "link.exr");
+  EXPECT_TRUE(contains(testing::error_message([&] { io::prepare_output(dir / "link.exr", true); }, ErrorKind::Output),
+                       "is a character device"));
+}
+
+TEST(TrustOutputsCli, DeviceOutputIsRefusedByDenoise) {
+  std::string out;
+  EXPECT_EQ(run_cli({"denoise", (kRoom / "noisy.exr").string(), "-m", "tiny", "-o", "/dev/null", "--force"}, &out), 4) << out;
+  EXPECT_TRUE(contains(out, "'/dev/null' is a character device")) << out;
+}
+
+// Defect 20: a 244-byte output name (legal: NAME_MAX is 255) was refused because its temporary name was longer.
+TEST(TrustOutputsCli, LongOutputNameIsWritten) {
+  TempDir dir;
+  const fs::path output = dir / (std::string(240, 'a') + ".exr");
+  std::string out;
+  EXPECT_EQ(run_cli({"denoise", (kRoom / "noisy.exr").string(), "-m", "tiny", "-o", output.string()}, &out), 0) << out;
+  EXPECT_TRUE(fs::is_regular_file(output));
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1) << "no temporary file left";
+}
+
+// Defect 19: a full disk was reported naming the hidden temporary file, never saying the disk was full. A small
+// tmpfs stands for the full disk (mounting needs root: skipped otherwise).
+TEST(TrustOutputsCli, FullDiskIsSaidAndNamesTheOutput) {
+  TempDir dir;
+  const fs::path mount_point = dir / "small";
+  fs::create_directory(mount_point);
+  if (::mount("tmpfs", mount_point.c_str(), "tmpfs", 0, "size=64k") != 0)
+    GTEST_SKIP() << "cannot mount a small tmpfs here (needs root)";
+  std::string out;
+  const int code = run_cli({"denoise", (kRoom / "noisy.exr").string(), "-m", "tiny", "--float", "--compression", "none",
+                            "-o", (mount_point / "out.exr").string()}, &out);
+  const auto left = std::distance(fs::directory_iterator(mount_point), fs::directory_iterator());
+  ::umount(mount_point.c_str());
+  EXPECT_EQ(code, 4) << out;
+  EXPECT_TRUE(contains(out, "no space left on device")) << out;
+  EXPECT_TRUE(contains(out, "out.exr'")) << out;
+  EXPECT_FALSE(contains(out, "residue-tmp")) << "the temporary file is not the user's business: " << out;
+  EXPECT_EQ(left, 0) << "the temporary file is removed";
+}
+
+}  // namespace
+}  // namespace residue
