@@ -143,5 +143,55 @@ TEST(TrustOutputsCli, FullDiskIsSaidAndNamesTheOutput) {
   EXPECT_EQ(left, 0) << "the temporary file is removed";
 }
 
+// Defect 4: devices, FIFOs and sockets spun or blocked for ever in info, denoise and the viewer; a link loop was
+// an internal error (defect 13). Each is refused at once, named, exit 3.
+TEST(TrustInputsCli, NonRegularFilesAreRefusedAtOnce) {
+  TempDir dir;
+  ASSERT_EQ(::mkfifo((dir / "pipe.exr").c_str(), 0644), 0);
+  fs::create_symlink("/dev/zero", dir / "zero.exr");
+  fs::create_symlink(dir / "b.exr", dir / "a.exr");
+  fs::create_symlink(dir / "a.exr", dir / "b.exr");
+  const std::pair<fs::path, std::string> cases[] = {
+      {"/dev/zero", "is a device"},      {"/dev/urandom", "is a device"},
+      {dir / "zero.exr", "is a device"}, {dir / "pipe.exr", "is a pipe (FIFO): pipes are not supported"},
+      {dir / "a.exr", "is a loop of symbolic links"}};
+  for (const auto& [path, says] : cases)
+    for (const char* command : {"info", "denoise"}) {
+      std::vector<std::string> args = {command, path.string()};
+      if (std::string(command) == "denoise") args.insert(args.end(), {"-m", "tiny", "-o", (dir / "out.exr").string()});
+      std::string out;
+      EXPECT_EQ(run_cli(args, &out), 3) << command << " " << path << ": " << out;
+      EXPECT_TRUE(contains(out, "'" + path.string() + "' " + says))
+          << command << " " << path << ": " << out;
+    }
+  std::string out;
+  EXPECT_EQ(run_cli({"denoise", (kRoom / "noisy.exr").string(), "-m", "/dev/null", "-o", (dir / "out.exr").string()}, &out), 3)
+      << out;
+  EXPECT_TRUE(contains(out, "model file '/dev/null' is a device")) << out;
+  // /dev/stdin that is a regular file (a redirection) is a regular file: it keeps working.
+  EXPECT_EQ(testing::run_program("/bin/sh", {"-c", std::string(RESIDUE_CLI_PATH) + " info /dev/stdin < " +
+                                                       (kRoom / "noisy.exr").string()}, &out), 0) << out;
+  EXPECT_TRUE(contains(out, "192 x 192")) << out;
+}
+
+// Defect 19: `--map depth=/missing/z.exr` reported the file as a missing channel.
+TEST(TrustInputsCli, MissingMapFileIsNamedAsAFile) {
+  TempDir dir;
+  std::string out;
+  EXPECT_EQ(run_cli({"info", (kRoom / "noisy.exr").string(), "--map", "depth=/missing/z.exr"}, &out), 3) << out;
+  EXPECT_TRUE(contains(out, "the file '/missing/z.exr' does not exist")) << out;
+}
+
+// Defect 19: a deep EXR said "read_native_scanlines without an open file".
+TEST(TrustInputsCli, DeepImagesAreRefusedByName) {
+  TempDir dir;
+  const fs::path deep = dir / "deep.exr";
+  std::string out;
+  ASSERT_EQ(testing::run_program("/usr/bin/oiiotool", {"--pattern", "constant:color=0.5,0.5,0.5,1", "8x8", "4", "--chnames", "R,G,B,Z", "--deepen", "-o",
+                                              deep.string()}, &out), 0) << out;
+  EXPECT_EQ(run_cli({"info", deep.string()}, &out), 3) << out;
+  EXPECT_TRUE(contains(out, "is a deep image") && contains(out, "not supported")) << out;
+}
+
 }  // namespace
 }  // namespace residue

@@ -109,7 +109,8 @@ void print_table(const AovStack& stack, bool list_channels_too, const std::vecto
   }
   if (list_channels_too) {
     for (const auto& in : inputs) {
-      if (std::filesystem::is_directory(in)) continue;
+      std::error_code ec;
+      if (std::filesystem::is_directory(in, ec)) continue;
       FileChannels fc = list_channels(in);
       std::printf("\nchannels of %s (%lldx%lld)\n", display_path(fc.file).c_str(), static_cast<long long>(fc.width),
                   static_cast<long long>(fc.height));

@@ -15,6 +15,7 @@
 #include "core/aov/exr_header_check.h"
 #include "core/aov/file_sets.h"
 #include "core/util/error.h"
+#include "core/util/input_file.h"
 
 namespace residue {
 namespace fs = std::filesystem;
@@ -60,7 +61,7 @@ struct OpenedFile {
 };
 
 OpenedFile open_file(const fs::path& path) {
-  if (!fs::exists(path)) throw Error(ErrorKind::Input, "input '" + path.string() + "' does not exist");
+  check_input_file(path, "input");
   check_exr_header(path);  // before OpenEXR allocates what a corrupt header declares
   auto in = OIIO::ImageInput::open(path.string());
   if (!in)
@@ -76,6 +77,10 @@ OpenedFile open_file(const fs::path& path) {
   f.format = in->format_name();
   for (int sub = 0; in->seek_subimage(sub, 0); ++sub) {
     const OIIO::ImageSpec& spec = in->spec();
+    if (spec.deep)
+      throw Error(ErrorKind::Input, "'" + path.string() + "'" + (sub > 0 ? " part " + std::to_string(sub) : std::string()) +
+                                        " is a deep image (several samples per pixel): deep images are not supported; "
+                                        "flatten it first (oiiotool in.exr --flatten -o flat.exr)");
     f.specs.push_back(spec);
     // Parts of a multipart EXR may name channels without their layer ("R" in part "albedo"): qualify them.
     const std::string part = spec.get_string_attribute("name");
@@ -341,7 +346,8 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
 
   // 1. The primary file and what it holds by its own naming.
   std::vector<fs::path> files = inputs;
-  if (files.size() == 1 && fs::is_directory(files.front())) files.front() = colour_file_in_folder(files.front());
+  std::error_code ec;
+  if (files.size() == 1 && fs::is_directory(files.front(), ec)) files.front() = colour_file_in_folder(files.front());
   std::optional<FileSet> set;
   if (files.size() > 1) {
     set = file_set_from_names(files);

@@ -1,11 +1,13 @@
 #include "core/aov/channel_mapping.h"
 
+#include <cctype>
 #include <fstream>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
 
 #include "core/util/error.h"
+#include "core/util/input_file.h"
 
 namespace residue {
 namespace {
@@ -29,6 +31,20 @@ AovRole parse_role(const std::string& name, const std::string& where) {
 
 }  // namespace
 
+namespace {
+
+// A value that can only be a file name (a folder in it, or an image's extension), never a channel list.
+bool names_a_file(const std::string& value) {
+  if (value.find('/') != std::string::npos) return true;
+  std::string extension = std::filesystem::path(value).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* e : {".exr", ".hdr", ".pfm", ".tif", ".tiff", ".png", ".jpg"})
+    if (extension == e) return true;
+  return false;
+}
+
+}  // namespace
+
 void ChannelMapping::add_flag(const std::string& flag) {
   const auto eq = flag.find('=');
   if (eq == std::string::npos || eq == 0 || eq + 1 == flag.size())
@@ -43,6 +59,8 @@ void ChannelMapping::add_flag(const std::string& flag) {
     b.channels = split_commas(value.substr(colon + 1));
   } else if (std::filesystem::is_regular_file(value)) {
     b.file = value;
+  } else if (names_a_file(value)) {
+    check_input_file(value, "mapping \"" + flag + "\": the file");  // says what it is instead
   } else {
     b.channels = split_commas(value);
   }
@@ -50,6 +68,7 @@ void ChannelMapping::add_flag(const std::string& flag) {
 }
 
 ChannelMapping ChannelMapping::from_json_file(const std::filesystem::path& path) {
+  check_input_file(path, "mapping file");
   std::ifstream in(path);
   if (!in) throw Error(ErrorKind::Mapping, "cannot open mapping file '" + path.string() + "'");
   nlohmann::json j;

@@ -9,6 +9,7 @@
 #include "core/nn/oidn_network.h"
 #include "core/nn/tza.h"
 #include "core/util/error.h"
+#include "core/util/input_file.h"
 #include "core/util/resources.h"
 
 namespace residue::nn {
@@ -304,7 +305,13 @@ std::string model_variant_name(const std::string& family, FeatureSet set) {
 }
 
 std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available) {
-  if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
+  std::error_code ec;
+  if (std::filesystem::is_regular_file(name_or_path, ec)) return name_or_path;
+  // A path (a folder in it, or a model file's extension) is a file the user named: say what is wrong with it
+  // rather than looking for a model of that name.
+  const std::string extension = std::filesystem::path(name_or_path).extension().string();
+  if (name_or_path.find('/') != std::string::npos || extension == ".safetensors" || extension == ".tza")
+    check_input_file(name_or_path, "model file");
   if (const auto alias = find_model_alias(name_or_path)) {
     // One level only: an alias of an alias could loop, and what runs should be one lookup away from the name.
     if (find_model_alias(alias->model))

@@ -12,6 +12,7 @@
 
 #include "core/io/atomic_file.h"
 #include "core/util/error.h"
+#include "core/util/input_file.h"
 
 namespace residue::nn {
 namespace {
@@ -36,6 +37,7 @@ int64_t Tensor::numel() const {
 
 SafetensorsFile read_safetensors(const std::filesystem::path& path) {
   const std::string where = "model file '" + path.string() + "'";
+  check_input_file(path, "model file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(ErrorKind::Input, "cannot open " + where);
   const auto file_size = static_cast<uint64_t>(std::filesystem::file_size(path));

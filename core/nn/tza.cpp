@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "core/util/error.h"
+#include "core/util/input_file.h"
 #include "core/util/little_endian.h"
 
 namespace residue::nn {
@@ -208,6 +209,7 @@ TzaFile parse_tza(const std::vector<uint8_t>& bytes, const std::string& where) {
 
 TzaFile read_tza(const std::filesystem::path& path) {
   const std::string where = "TZA file '" + path.string() + "'";
+  check_input_file(path, "TZA file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw Error(ErrorKind::Input, "cannot open " + where);
   std::error_code ec;

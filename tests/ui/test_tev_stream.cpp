@@ -178,6 +178,26 @@ class TevStreamTest : public QObject {
     QCOMPARE(w.session()->stack()->color.image.at(511, 511, 0), 0.25f);
   }
 
+  // An "open image" packet naming a device (/dev/zero reads for ever) or a FIFO: refused at once, named, and the
+  // viewer goes on taking packets (it used to freeze reading the device).
+  void openImageOfADeviceIsRefused() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    QCOMPARE(w.listenForRenderers(0), QString());
+    QTcpSocket client;
+    client.connectToHost(QHostAddress::LocalHost, w.tevServer()->port());
+    QVERIFY(client.waitForConnected(5000));
+    QVERIFY(send(client, TevPacket(7).u8(1).str("/dev/zero").str("").done()));
+    QVERIFY(QTest::qWaitFor([&] { return w.lastError().contains("'/dev/zero' is a device"); }, 10000));
+    QVERIFY(!w.session()->hasStack());
+    // Still serving: a created image arrives.
+    TevPacket create(4);
+    create.u8(1).str("after").i32(2).i32(2).i32(3).str("R").str("G").str("B");
+    QVERIFY(send(client, create.done()));
+    QVERIFY(QTest::qWaitFor([&] { return w.tevServer()->images().find("after") != nullptr; }, 10000));
+  }
+
   // `residue --help` on a machine without a display (no DISPLAY, no QT_QPA_PLATFORM) prints the options.
   void helpNeedsNoDisplay() {
     QProcess viewer;
