@@ -11,7 +11,10 @@
 
 #include <gtest/gtest.h>
 
+#include "core/aov/aov_loader.h"
+#include "core/denoise/denoiser.h"
 #include "core/io/atomic_file.h"
+#include "core/nn/model_file.h"
 #include "support/test_support.h"
 
 namespace residue {
@@ -192,6 +195,89 @@ TEST(TrustInputsCli, DeepImagesAreRefusedByName) {
   EXPECT_EQ(run_cli({"info", deep.string()}, &out), 3) << out;
   EXPECT_TRUE(contains(out, "is a deep image") && contains(out, "not supported")) << out;
 }
+
+// --- extremes: finite output that scales with the input, whatever the tiling ---------------------------------
+
+AovStack room() { return load_aov_stack({kRoom / "noisy.exr"}); }
+
+void scale_colour(AovStack& s, float k) {
+  for (size_t i = 0; i < s.color.image.size(); ++i) s.color.image.data()[i] *= k;
+}
+
+double max_rgb(const Image& im, int64_t x_end) {
+  double m = 0;
+  for (int64_t y = 0; y < im.height(); ++y)
+    for (int64_t x = 0; x < x_end; ++x)
+      for (int c = 0; c < 3; ++c) m = std::max(m, static_cast<double>(im.at(x, y, c)));
+  return m;
+}
+
+int64_t non_finite(const Image& im) {
+  int64_t n = 0;
+  for (size_t i = 0; i < im.size(); ++i) n += !std::isfinite(im.data()[i]);
+  return n;
+}
+
+class TrustExtremes : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override { model_ = nn::load_model(nn::find_model_for(GetParam(), FeatureSet::Full)); }
+  Image run(const AovStack& s, int64_t tile = 0) const {
+    DenoiseOptions o;
+    o.tile = tile;
+    return denoise(s, model_, o);
+  }
+  nn::Model model_;
+};
+
+// Defect 5: the room scaled by 1e-10 came out at up to 0.0147 (the network's bias on a black-looking input):
+// every model sees the same image at any brightness, so the output scales with the input.
+TEST_P(TrustExtremes, OutputScalesWithTheInput) {
+  const AovStack s = room();
+  const Image base = run(s);
+  const double peak = max_rgb(base, base.width());
+  for (const float k : {1e-30f, 1e-10f, 1e10f, 1e30f}) {
+    AovStack scaled = s;
+    scale_colour(scaled, k);
+    const Image out = run(scaled);
+    ASSERT_EQ(non_finite(out), 0) << "x" << k;
+    double worst = 0;
+    for (size_t i = 0; i < out.size(); i += 3)
+      for (int c = 0; c < 3; ++c)
+        worst = std::max(worst, std::abs(static_cast<double>(out.data()[i + c]) / k - base.data()[i + c]));
+    EXPECT_LT(worst, 1e-4 * peak) << GetParam() << " at x" << k;
+  }
+}
+
+// Defect 5: a black frame with one pixel of 1e-12 got 0.0147 of light 45 px away; the room with its left half
+// exactly 0 got light there that --tile 32 (skipping empty tiles) did not.
+TEST_P(TrustExtremes, BlackStaysBlackAndTheTilingChangesNothing) {
+  AovStack one = room();
+  std::fill(one.color.image.data(), one.color.image.data() + one.color.image.size(), 0.0f);
+  for (int c = 0; c < 3; ++c) one.color.image.at(50, 50, c) = 1e-12f;
+  EXPECT_LE(max_rgb(run(one), one.width()), 2e-12) << "never brighter than twice the brightest input";
+  AovStack half = room();
+  for (int64_t y = 0; y < half.height(); ++y)
+    for (int64_t x = 0; x < 96; ++x)
+      for (int c = 0; c < 3; ++c) half.color.image.at(x, y, c) = 0.0f;
+  const Image whole = run(half), tiled = run(half, 32);
+  for (size_t i = 0; i < whole.size(); ++i) ASSERT_EQ(whole.data()[i], tiled.data()[i]) << GetParam() << " value " << i;
+}
+
+// Defect 3: a block of 1e37-3e38 (finite, legal in a float EXR) gave thousands of NaN (the energy correction's
+// sums overflowed) or +Inf (OIDN's inverse transfer).
+TEST_P(TrustExtremes, ValuesNearTheFloatRangeGiveFiniteOutput) {
+  AovStack s = room();
+  for (int64_t y = 80; y < 100; ++y)
+    for (int64_t x = 80; x < 100; ++x)
+      for (int c = 0; c < 3; ++c) s.color.image.at(x, y, c) = 1e37f + 3e36f * static_cast<float>((x * 7 + y * 3 + c) % 97);
+  EXPECT_EQ(non_finite(run(s)), 0) << GetParam();
+  AovStack top = room();
+  scale_colour(top, std::numeric_limits<float>::max() / static_cast<float>(max_rgb(top.color.image, top.width())));
+  EXPECT_EQ(non_finite(run(top)), 0) << GetParam() << " with the brightest pixel at FLT_MAX";
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, TrustExtremes, ::testing::Values("tiny", "multiscale", "oidn"),
+                         [](const auto& p) { return p.param; });
 
 }  // namespace
 }  // namespace residue

@@ -475,6 +475,7 @@ class BandDenoiser {
     if (correct_) correction_.apply(b.out, b.y0, y0, rows);
     if (b.blend) apply_strength(b.base, b.y0, b.out, b.y0, region_, y0, rows, options_.strength);
     stats_.guarded_values = runner_.guarded;
+    check_finite(b.out, y0, rows);
     return std::move(b.out);
   }
 
@@ -485,6 +486,20 @@ class BandDenoiser {
     Image base;  // the band's noisy colour, for the strength blend
     bool blend = false;
   };
+
+  // Output is finite or the run fails, after every post-step too. Only the region is the model's: outside it the
+  // input stays as it was, NaN included.
+  void check_finite(const Image& out, int64_t y0, int64_t rows) const {
+    int64_t bad = 0;
+    const int64_t first = std::max(y0, region_.y), end = std::min(y0 + rows, region_.y + region_.height);
+    for (int64_t y = first; y < end; ++y)
+      for (int64_t x = region_.x; x < region_.x + region_.width; ++x)
+        for (int c = 0; c < out.channels(); ++c) bad += !std::isfinite(out.at(x, y - y0, c));
+    if (bad > 0)
+      throw Error(ErrorKind::Input, model_.name + ": " + std::to_string(bad) + " output values of rows " +
+                                        std::to_string(first) + "-" + std::to_string(end - 1) +
+                                        " are not finite after the post-steps; nothing was written");
+  }
 
   void denoise_band(int64_t y0) {
     const int64_t rows = std::min(tile_, H_ - y0), h = model_.graph.halo();

@@ -1,6 +1,7 @@
 #include "core/denoise/energy_correction.h"
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 
 #include <tbb/parallel_for.h>
@@ -24,6 +25,11 @@ Lerp lerp_at(int64_t pixel, int64_t blocks) {
 }
 
 float luminance(const float* p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
+
+// Each value a block sums is kept within FLT_MAX / (pixels in a block), so that a block of fireflies near the
+// float range (legal in a float EXR) sums to a finite value instead of Inf, whose ratio would be NaN.
+constexpr float kMaxSummand = FLT_MAX / static_cast<float>(EnergyCorrection::kBlock * EnergyCorrection::kBlock);
+float summand(float v) { return std::clamp(v, -kMaxSummand, kMaxSummand); }
 
 }  // namespace
 
@@ -49,10 +55,10 @@ void EnergyCorrection::accumulate(const Image& noisy, int64_t noisy_y0, const Im
         const float* n = noisy.data() + noisy.offset(x, y - noisy_y0);
         if (!std::isfinite(d[0]) || !std::isfinite(d[1]) || !std::isfinite(d[2])) continue;
         Sums& s = block((x - region_.x) / kBlock, by);
-        for (int c = 0; c < 3; ++c) s.output[c] += d[c];
+        for (int c = 0; c < 3; ++c) s.output[c] += summand(d[c]);
         s.output_count += 1;
         if (!std::isfinite(n[0]) || !std::isfinite(n[1]) || !std::isfinite(n[2])) continue;
-        const float limit = kFireflyClamp * std::max(luminance(d), 1e-6f);
+        const float limit = std::min(kFireflyClamp * std::max(luminance(d), 1e-6f), kMaxSummand);
         for (int c = 0; c < 3; ++c) s.noisy[c] += std::clamp(n[c], -limit, limit);
         s.noisy_count += 1;
       }
@@ -126,7 +132,8 @@ void EnergyCorrection::apply(Image& denoised, int64_t denoised_y0, int64_t y0, i
       for (int c = 0; c < 3; ++c) {
         const float top = row0[lx.lo * 3 + c] + lx.f * (row0[lx.hi * 3 + c] - row0[lx.lo * 3 + c]);
         const float bottom = row1[lx.lo * 3 + c] + lx.f * (row1[lx.hi * 3 + c] - row1[lx.lo * 3 + c]);
-        d[c] *= std::clamp(top + ly.f * (bottom - top), 1.0f / kMaxRatio, kMaxRatio);  // extrapolation stays in range
+        // The extrapolation stays in range, and so does the product (a value near FLT_MAX times a ratio above 1).
+        d[c] = std::clamp(d[c] * std::clamp(top + ly.f * (bottom - top), 1.0f / kMaxRatio, kMaxRatio), -FLT_MAX, FLT_MAX);
       }
     }
   });

@@ -62,18 +62,26 @@ void OidnAutoexposure::add(const Image& colour, int64_t y0) {
 }
 
 float OidnAutoexposure::scale() const {
-  double log_sum = 0;
-  int64_t count = 0;
+  std::vector<double> mean(sum_.size());
+  double brightest = 0;
   for (int64_t i = 0; i < bins_y_; ++i)
     for (int64_t j = 0; j < bins_x_; ++j) {
       const int64_t pixels = ((i + 1) * h_ / bins_y_ - i * h_ / bins_y_) * ((j + 1) * w_ / bins_x_ - j * w_ / bins_x_);
-      const double l = sum_[static_cast<size_t>(i * bins_x_ + j)] / static_cast<double>(pixels);
-      if (l > 1e-8) {
-        log_sum += std::log2(l);
-        ++count;
-      }
+      const size_t b = static_cast<size_t>(i * bins_x_ + j);
+      mean[b] = sum_[b] / static_cast<double>(pixels);
+      brightest = std::max(brightest, mean[b]);
     }
-  return count > 0 ? static_cast<float>(0.18 / std::exp2(log_sum / static_cast<double>(count))) : 1.0f;
+  constexpr double kOidnFloor = 1e-8;
+  const double black = std::min(kOidnFloor, 1e-5 * brightest);
+  double log_sum = 0;
+  int64_t count = 0;
+  for (const double l : mean)
+    if (l > black) {
+      log_sum += std::log2(l);
+      ++count;
+    }
+  if (count == 0) return 1.0f;
+  return static_cast<float>(std::min(1e38, 0.18 / std::exp2(log_sum / static_cast<double>(count))));
 }
 
 float oidn_autoexposure(const Image& colour) {
@@ -135,7 +143,10 @@ float OidnTransform::output(float v) const {
   const bool snorm = !in_.color && in_.normal;
   if (snorm) v = std::max(v * 2.0f - 1.0f, -1.0f);
   if (!in_.hdr) v = std::min(v, 1.0f);
-  return v * (scale_ != 0.0f ? 1.0f / scale_ : 0.0f);
+  // Finite always: the inverse transfer of a large network output, or a tiny autoexposure's inverse, overflows.
+  // (0 times the Inf inverse of a denormal autoexposure is 0.)
+  const float linear = v * (scale_ != 0.0f ? 1.0f / scale_ : 0.0f);
+  return std::isnan(linear) ? 0.0f : std::min(linear, FLT_MAX);
 }
 
 }  // namespace residue

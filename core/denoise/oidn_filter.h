@@ -29,7 +29,11 @@ class OidnAutoexposure {
   OidnAutoexposure(int64_t width, int64_t height);
   // Rows [y0, y0 + colour.height()) of the image's colour.
   void add(const Image& colour, int64_t y0);
-  float scale() const;  // the input scale; 1 when no bin is bright enough
+  // The input scale (at most 1e38); 1 when every bin is black. Bins below 1e-8 are left out of the mean as
+  // black, as OIDN does, in any image whose brightest bin reaches 1e-3; in a dimmer one, bins below 1e-5 x its
+  // brightest, so that it is exposed like the same image at any brightness (OIDN leaves an image whose every
+  // bin is below 1e-8, e.g. a render scaled by 1e-10, unexposed, and its network then adds its bias as light).
+  float scale() const;
 
  private:
   int64_t w_, h_, bins_x_, bins_y_;

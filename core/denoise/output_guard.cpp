@@ -74,8 +74,10 @@ int64_t guard_output(const Image& features, const Rect& tile, int64_t radius, Im
       for (int64_t x = 0; x < w; ++x)
         for (int c = 0; c < 3; ++c) {
           float& v = output.at(x0 + x, tile.y + y, c);
-          const float bound = window_max[static_cast<size_t>((y * w + x) * 3 + c)] + OutputGuard::kMargin;
-          if (v > bound) {  // NaN stays NaN: expand_color maps it to 0
+          const float m = window_max[static_cast<size_t>((y * w + x) * 3 + c)];
+          if (!(v > m)) continue;  // within the brightest input (most values): no bound to compute; NaN stays NaN
+          const float bound = OutputGuard::bound(m);
+          if (v > bound) {
             v = bound;
             ++n;
           }
