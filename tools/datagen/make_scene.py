@@ -21,6 +21,7 @@ import math
 import os
 import random
 import resource
+import shutil
 import subprocess
 import sys
 import time
@@ -31,6 +32,7 @@ from mathutils import Matrix, Vector
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import exr_metrics  # noqa: E402  (numpy + OpenImageIO; Blender's Python on Debian is the system Python)
+import shots  # noqa: E402  (shot kinds and their random stream, shared with render_shots.py)
 
 T0 = time.time()
 NOISY_PASSES = "Combined, Denoising Albedo/Depth/Normal, Depth, DiffCol, GlossCol, Normal"
@@ -67,7 +69,34 @@ def parse_args():
                    help="DX,DY,DZ,YAW: move the camera by (DX,DY,DZ) in its own axes (metres) and turn it by YAW "
                         "degrees about the world's up axis, after the scene and its exposure are set (animations: "
                         "tools/datagen/render_animation.py)")
+    p.add_argument("--shot", default=None, choices=["auto"] + shots.KINDS,
+                   help="render a shot instead of stills: the scene animated over --frames frames (auto: the kind "
+                        "drawn from the seed's shot stream); see tools/datagen/README.md, 'Shots and motion vectors'")
+    p.add_argument("--frames", type=int, default=16, help="with --shot: the shot's length")
+    p.add_argument("--frame-renders", default=None,
+                   help="with --shot: SPP:SEEDBASE,... rendered at every frame with sampling seed SEEDBASE + frame "
+                        "(last = reference, colour only; the others carry every AOV and the Vector pass), written "
+                        "as <name>.####.exr")
+    p.add_argument("--render-frames", default=None,
+                   help="with --shot: only these frames (e.g. 5-16); the animation is the whole shot's either way")
+    p.add_argument("--light-scale-log2", type=float, default=None,
+                   help="with --shot: the exposure (log2 of the light scale) instead of the probe's (a resumed "
+                        "shot keeps its first run's, which is also read from DIR/shot.json)")
     a = p.parse_args(argv)
+    if a.shot:
+        if not a.frame_renders:
+            p.error("--shot needs --frame-renders SPP:SEEDBASE,...")
+        a.frame_render_list = [tuple(int(v) for v in item.split(":")) for item in a.frame_renders.split(",")]
+        n = len(a.frame_render_list)
+        a.name_list = (a.names.split(",") if a.names else
+                       {1: ["reference"], 2: ["noisy", "reference"], 3: ["noisy_a", "noisy_b", "reference"]}.get(
+                           n, [f"render_{i}" for i in range(n - 1)] + ["reference"]))
+        if len(a.name_list) != n:
+            p.error("--names must have one entry per --frame-renders entry")
+        a.frame_list = shots.parse_int_list(a.render_frames) if a.render_frames else list(range(1, a.frames + 1))
+        if a.frames < 1 or any(f < 1 or f > a.frames for f in a.frame_list):
+            p.error(f"--render-frames must lie in 1-{a.frames}")
+        return a
     a.render_list = []
     for item in a.renders.split(","):
         spp, seed = item.split(":")
@@ -1660,23 +1689,24 @@ def configure(scene, args):
     scene.view_settings.view_transform = "Standard"
 
 
-def set_passes(scene, full):
+def set_passes(scene, full, vector=False):
     layer = scene.view_layers[0]
     layer.cycles.denoising_store_passes = full
     layer.use_pass_z = full
     layer.use_pass_normal = full
     layer.use_pass_diffuse_color = full
     layer.use_pass_glossy_color = full
+    layer.use_pass_vector = vector  # shots only (motion blur off): ViewLayer.Vector.XYZW
 
 
-def render_one(scene, path, spp, seed, full):
+def render_one(scene, path, spp, seed, full, vector=False, note=None):
     scene.cycles.samples = spp
     scene.cycles.seed = seed
-    set_passes(scene, full)
+    set_passes(scene, full, vector)
     w2c = scene.camera.matrix_world.inverted()
     scene.render.use_stamp_note = True
     scene.render.stamp_note_text = json.dumps({"worldToCamera": [round(v, 6) for row in w2c for v in row],
-                                               "spp": spp, "sampling_seed": seed})
+                                               "spp": spp, "sampling_seed": seed, **(note or {})})
     scene.render.filepath = path
     t = time.time()
     bpy.ops.render.render(write_still=True)
@@ -1754,6 +1784,39 @@ def camera_json(scene, res):
     }
 
 
+def scene_flags(args):
+    """The command-line flags that change what a seed builds or how it is lit and rendered (for the record)."""
+    return ((f" --photos {args.photos} --photo-share {args.photo_share}" if args.photos else "") +
+            (f" --hdris {args.hdris}" if args.hdris else "") +
+            (f" --clamp-indirect {args.clamp_indirect:g}" if args.clamp_indirect != CLAMP_INDIRECT else "") +
+            (" --caustics" if args.caustics else ""))
+
+
+def render_settings(scene, args, command):
+    return {
+        "blender": blender_version(),
+        "engine": "CYCLES",
+        "device": "CPU",
+        "threads": args.threads,
+        "sampling_pattern": scene.cycles.sampling_pattern,
+        "adaptive_sampling": False,
+        "denoising": False,
+        "max_bounces": scene.cycles.max_bounces,
+        "diffuse_bounces": scene.cycles.diffuse_bounces,
+        "glossy_bounces": scene.cycles.glossy_bounces,
+        "transmission_bounces": scene.cycles.transmission_bounces,
+        "clamp_direct": scene.cycles.sample_clamp_direct,
+        "clamp_indirect": scene.cycles.sample_clamp_indirect,
+        "caustics": scene.cycles.caustics_reflective,
+        "blur_glossy": scene.cycles.blur_glossy,
+        "film_transparent": False,
+        "aovs": "minimal (noisy: " + NOISY_PASSES + "; reference: Combined)",
+        "exr": "OPEN_EXR_MULTILAYER, color_depth 16 (half colour passes, float data passes), ZIP",
+        "generator": "tools/datagen/make_scene.py",
+        "command": command,
+    }
+
+
 def blender_version():
     v = bpy.app.version_string
     try:
@@ -1777,6 +1840,654 @@ def process_wall():
         return round(time.time() - T0, 3)
 
 
+# ----------------------------------------------------------------------------------------------------------
+# Shots (issue 51, "Shots, not frames"): the scene the seed builds, animated over --frames frames. The scene, its
+# exposure (probed once, before anything moves) and the render settings are the stills' own; the moves are drawn
+# from a random stream of their own (shots.shot_rng), so the scene is the one the seed makes anyway. Every
+# animated property has a keyframe at every frame from 0 to N+1 (linear in between), so that Cycles' Vector pass
+# (motion to frames f-1 and f+1) is a real motion at the first and last frame too. The moves are centred on the
+# middle of the shot (the framing the generator chose is frame (N+1)/2's) and their speed is set from the motion it
+# makes on the screen: a few to ~15 pixels per frame at 256x256 (scaled with --res), measured on points of the
+# scene projected through the camera of each frame, before anything is rendered.
+MOVABLE_KINDS = ("cube", "cylinder", "cone", "sphere", "icosphere", "monkey", "torus", "bevel_box")
+
+
+def _base_name(obj):
+    return obj.name.split(".")[0]
+
+
+def _material_name(obj):
+    slot = obj.material_slots[0] if obj.material_slots else None
+    return slot.material.name.split(".")[0] if slot and slot.material else ""
+
+
+def _about_up(point, angle):
+    """A turn by `angle` about the world's up axis through `point` (4x4)."""
+    point = Vector(point)
+    return Matrix.Translation(point) @ Matrix.Rotation(angle, 4, "Z") @ Matrix.Translation(-point)
+
+
+def _m4(m):
+    return [[round(float(v), 6) for v in row] for row in m]
+
+
+class Profile:
+    """The shot's timing: s(f), in frames, 0 at the middle of the shot. linear: constant speed (ds/df = 1);
+    smooth: a speed that swings smoothly between 1 - a and 1 + a over the shot (never stops)."""
+
+    def __init__(self, kind, frames, a, phase):
+        self.kind, self.n, self.a, self.phase = kind, frames, a, phase
+        self.mid = (frames + 1) / 2.0
+
+    def __call__(self, f):
+        x = f - self.mid
+        if self.kind == "linear":
+            return x
+        w = 2.0 * math.pi / (self.n + 1)
+        return x + self.a / w * (math.sin(w * x + self.phase) - math.sin(self.phase))
+
+    def json(self):
+        return {"kind": self.kind, "amplitude": round(self.a, 3) if self.kind == "smooth" else 0.0,
+                "phase": round(self.phase, 3) if self.kind == "smooth" else 0.0, "centre_frame": self.mid}
+
+
+class Mover:
+    """Something that moves: its world matrix at frame f for a speed lam (metres or radians per frame)."""
+
+    def __init__(self, obj, what, profile):
+        self.obj, self.what, self.profile = obj, what, profile
+        self.m0 = obj.matrix_world.copy()
+        self.lam = 0.0
+        self.info = {"object": obj.name, "what": what}
+
+    def matrix(self, f, lam=None):
+        raise NotImplementedError
+
+    def keyframe(self, frames):
+        obj = self.obj
+        parent = (obj.parent.matrix_world @ obj.matrix_parent_inverse) if obj.parent else Matrix.Identity(4)
+        pinv = parent.inverted()
+        scale = obj.scale.copy()
+        prev = obj.rotation_euler.copy()
+        for f in frames:
+            loc, rot, _ = (pinv @ self.matrix(f)).decompose()
+            eul = rot.to_euler(obj.rotation_mode, prev)
+            prev = eul
+            obj.location, obj.rotation_euler = loc, eul
+            obj.keyframe_insert("location", frame=f)
+            obj.keyframe_insert("rotation_euler", frame=f)
+        obj.scale = scale
+        for fc in obj.animation_data.action.fcurves:
+            for k in fc.keyframe_points:
+                k.interpolation = "LINEAR"
+
+
+class CameraMove(Mover):
+    def __init__(self, cam, kind, profile, sign, pivot=None):
+        super().__init__(cam, kind, profile)
+        self.kind, self.sign = kind, sign
+        self.pivot = Vector(pivot) if pivot is not None else cam.matrix_world.translation.copy()
+        self.forward = -(self.m0.to_3x3() @ Vector((0.0, 0.0, 1.0))).normalized()
+        self.right = (self.m0.to_3x3() @ Vector((1.0, 0.0, 0.0))).normalized()
+
+    def matrix(self, f, lam=None):
+        t = (self.lam if lam is None else lam) * self.profile(f) * self.sign
+        if self.kind == "dolly":
+            return Matrix.Translation(self.forward * t) @ self.m0
+        if self.kind == "truck":
+            return Matrix.Translation(self.right * t) @ self.m0
+        if self.kind == "pan":
+            return _about_up(self.m0.translation, t) @ self.m0
+        return _about_up(self.pivot, t) @ self.m0  # orbit
+
+    def json(self):
+        unit = "rad" if self.kind in ("pan", "orbit") else "m"
+        d = {"what": self.kind, "speed_per_frame": round(self.lam, 6), "unit": unit, "sign": self.sign}
+        if self.kind == "orbit":
+            d["pivot"] = r3(self.pivot)
+        if self.kind in ("pan", "orbit"):
+            d["deg_per_frame"] = round(math.degrees(self.lam), 4)
+        return d
+
+
+class ObjectMove(Mover):
+    """A prop (with what belongs to it or stands on it: the group's first object is the prop) that slides along a
+    horizontal direction (metres per frame: lam) and spins about its vertical axis (spin: radians per frame)."""
+
+    def __init__(self, group, profile, direction, spin, what="prop"):
+        super().__init__(group[0], what, profile)
+        self.group = list(group)
+        self.m0s = [o.matrix_world.copy() for o in self.group]
+        self.direction, self.spin = Vector(direction).normalized(), spin
+        self.centre = self.m0.translation.copy()
+
+    def delta(self, f, lam=None):
+        s = self.profile(f)
+        t = (self.lam if lam is None else lam) * s
+        return Matrix.Translation(self.direction * t) @ _about_up(self.centre, self.spin * s)
+
+    def matrix(self, f, lam=None):
+        return self.delta(f, lam) @ self.m0
+
+    def corners(self, f, lam=None):
+        d = self.delta(f, lam)
+        return [d @ (m0 @ Vector(c)) for o, m0 in zip(self.group, self.m0s) for c in o.bound_box]
+
+    def keyframe(self, frames):
+        for o, m0 in zip(self.group, self.m0s):
+            one = Mover(o, self.what, self.profile)
+            one.matrix = lambda f, lam=None, m0=m0: self.delta(f) @ m0
+            one.keyframe(frames)
+
+    def json(self):
+        return {"what": self.what, "object": self.obj.name, "type": _base_name(self.obj),
+                "material": _material_name(self.obj), "with": [o.name for o in self.group[1:]],
+                "direction": r3(self.direction), "speed_per_frame_m": round(self.lam, 6),
+                "spin_deg_per_frame": round(math.degrees(self.spin), 4)}
+
+
+class SunMove(Mover):
+    """The sun (and the sky's sun with it) turning about the world's up axis (radians per frame)."""
+
+    def __init__(self, sun, profile, sign):
+        super().__init__(sun, "sun", profile)
+        self.sign = sign
+
+    def angle(self, f):
+        return self.lam * self.profile(f) * self.sign
+
+    def matrix(self, f, lam=None):
+        t = (self.lam if lam is None else lam) * self.profile(f) * self.sign
+        return _about_up(self.m0.translation, t) @ self.m0
+
+    def keyframe(self, frames):
+        super().keyframe(frames)
+        world = bpy.context.scene.world
+        sky = next((n for n in world.node_tree.nodes if n.type == "TEX_SKY"), None) if world else None
+        if sky is None:
+            return
+        d0 = -(self.m0.to_3x3() @ Vector((0.0, 0.0, 1.0))).normalized()  # the direction the light travels
+        prev = None
+        for f in frames:
+            d = Matrix.Rotation(self.angle(f), 3, "Z") @ d0
+            if sky.sky_type == "NISHITA":
+                rot = math.atan2(-d.x, -d.y)  # as world() sets it
+                if prev is not None:
+                    rot += 2.0 * math.pi * round((prev - rot) / (2.0 * math.pi))
+                prev = rot
+                sky.sun_rotation = rot
+                sky.keyframe_insert("sun_rotation", frame=f)
+            else:
+                sky.sun_direction = -d
+                sky.keyframe_insert("sun_direction", frame=f)
+        for fc in world.node_tree.animation_data.action.fcurves:
+            for k in fc.keyframe_points:
+                k.interpolation = "LINEAR"
+
+    def json(self):
+        return {"what": "sun", "object": self.obj.name, "deg_per_frame": round(math.degrees(self.lam), 4),
+                "sign": self.sign, "sky_follows": True}
+
+
+class LampMove(Mover):
+    """A lamp sliding along a horizontal direction (metres per frame)."""
+
+    def __init__(self, obj, profile, direction):
+        super().__init__(obj, "lamp", profile)
+        self.direction = Vector(direction).normalized()
+
+    def matrix(self, f, lam=None):
+        t = (self.lam if lam is None else lam) * self.profile(f)
+        return Matrix.Translation(self.direction * t) @ self.m0
+
+    def json(self):
+        return {"what": "lamp", "object": self.obj.name, "type": self.obj.data.type if self.obj.type == "LIGHT"
+                else _base_name(self.obj), "direction": r3(self.direction), "speed_per_frame_m": round(self.lam, 6)}
+
+
+class Screen:
+    """Projects world points through the scene camera as it is at some frame (pinhole, square image, the sensor
+    fitted to the width: Blender's AUTO fit), in pixels of the render: (col, row), rows downwards."""
+
+    def __init__(self, cam, res):
+        self.res = res
+        self.f_px = res * cam.data.lens / cam.data.sensor_width
+
+    def __call__(self, cam_matrix, points):
+        inv = cam_matrix.inverted()
+        out = []
+        for p in points:
+            q = inv @ p
+            if q.z > -1e-6:
+                out.append(None)
+                continue
+            out.append((self.res / 2 + self.f_px * q.x / -q.z, self.res / 2 - self.f_px * q.y / -q.z))
+        return out
+
+    def ray(self, cam_matrix, col, row):
+        d = Vector(((col - self.res / 2) / self.f_px, -(row - self.res / 2) / self.f_px, -1.0))
+        return (cam_matrix.to_3x3() @ d).normalized()
+
+
+def _percentile(values, q):
+    v = sorted(values)
+    if not v:
+        return 0.0
+    return v[min(len(v) - 1, int(round(q * (len(v) - 1))))]
+
+
+def screen_motion(screen, cam_at, points_at, frames):
+    """Per pair of consecutive frames, the 90th percentile and the maximum over the points of their motion on the
+    screen (pixels); returns the largest of each over the shot. cam_at(f): the camera's matrix; points_at(f): the
+    points (the same ones, in order)."""
+    p90, pmax = 0.0, 0.0
+    prev = screen(cam_at(frames[0]), points_at(frames[0]))
+    for f in frames[1:]:
+        cur = screen(cam_at(f), points_at(f))
+        d = [math.hypot(a[0] - b[0], a[1] - b[1]) for a, b in zip(prev, cur) if a is not None and b is not None]
+        if d:
+            p90, pmax = max(p90, _percentile(d, 0.9)), max(pmax, max(d))
+        prev = cur
+    return p90, pmax
+
+
+def calibrate(measure, target, cap, lam=1.0):
+    """The speed whose largest 90th-percentile motion per frame is `target` px (its largest motion at most
+    `cap` px): measure(lam) -> (p90, max), close to linear in lam."""
+    for _ in range(4):
+        p90, pmax = measure(lam)
+        if p90 <= 1e-9 and pmax <= 1e-9:
+            return lam
+        k = target / p90 if p90 > 1e-9 else cap / pmax
+        if pmax * k > cap:
+            k = cap / pmax
+        lam *= k
+        if abs(k - 1.0) < 0.02:
+            break
+    return lam
+
+
+def scene_points(scene, cam, screen, far, n=12):
+    """Points of the scene seen through an n x n grid of pixels (the sky: points at distance `far`)."""
+    deps = bpy.context.evaluated_depsgraph_get()
+    m = cam.matrix_world
+    origin = m.translation.copy()
+    pts = []
+    for i in range(n):
+        for j in range(n):
+            d = screen.ray(m, (i + 0.5) * screen.res / n, (j + 0.5) * screen.res / n)
+            hit, where, *_ = scene.ray_cast(deps, origin, d, distance=far)
+            pts.append(where.copy() if hit else origin + d * far)
+    return pts
+
+
+def path_clear(scene, positions, margin, ignore=()):
+    """No surface on the path through `positions` (nor within `margin` beyond each step); surfaces of the
+    objects named in `ignore` (the thing that moves) do not count."""
+    deps = bpy.context.evaluated_depsgraph_get()
+    for a, b in zip(positions, positions[1:]):
+        d = b - a
+        if d.length < 1e-9:
+            continue
+        u, left, origin = d.normalized(), d.length + margin, a
+        while left > 0:
+            hit, where, _n, _i, obj, _m = scene.ray_cast(deps, origin, u, distance=left)
+            if not hit:
+                break
+            if obj is None or obj.original.name not in ignore:
+                return False
+            step = (where - origin).length + 1e-4
+            origin, left = origin + u * step, left - step
+    return True
+
+
+def _world_box(obj):
+    corners = [obj.matrix_world @ Vector(c) for c in obj.bound_box]
+    return (Vector([min(c[i] for c in corners) for i in range(3)]),
+            Vector([max(c[i] for c in corners) for i in range(3)]))
+
+
+def prop_groups(scene):
+    """What may move, each with what goes with it: primitives (not emitters, not thin parts such as stems and
+    discs) and chairs (seat, back and legs), each with whatever stands on it."""
+    meshes = [o for o in scene.objects if o.type == "MESH" and not o.hide_render]
+    boxes = {o.name: _world_box(o) for o in meshes}
+    groups = []
+    for o in meshes:
+        base = _base_name(o)
+        if _material_name(o) == "emission":
+            continue
+        lo, hi = boxes[o.name]
+        ext = hi - lo
+        if base == "chair":
+            members = [o] + [m for m in meshes if _base_name(m) in ("chair_back", "cylinder") and
+                             all(lo[i] <= (boxes[m.name][0][i] + boxes[m.name][1][i]) / 2 <= hi[i] for i in (0, 1))
+                             and boxes[m.name][1].z <= hi.z + 0.6]
+        elif base in MOVABLE_KINDS and min(ext) >= 0.15 * max(ext):
+            members = [o]
+        else:
+            continue
+        size = max(ext)
+        for m in meshes:  # things standing on it
+            mlo, mhi = boxes[m.name]
+            c = (mlo + mhi) / 2
+            if (m not in members and abs(mlo.z - hi.z) < 0.03 * size and lo.x <= c.x <= hi.x and lo.y <= c.y <= hi.y
+                    and max(mhi - mlo) < size):
+                members.append(m)
+        groups.append(members)
+    return groups
+
+
+def visible_props(scene, cam, screen):
+    """prop_groups() whose prop is in view and not hidden behind something else, largest on the screen first:
+    [(area of the group's screen bounding box in px, group)]."""
+    deps = bpy.context.evaluated_depsgraph_get()
+    origin = cam.matrix_world.translation
+    out = []
+    for group in prop_groups(scene):
+        names = {o.name for o in group}
+        lo, hi = _world_box(group[0])
+        centre = (lo + hi) / 2
+        sc = screen(cam.matrix_world, [centre])[0]
+        if sc is None or not (0 <= sc[0] < screen.res and 0 <= sc[1] < screen.res):
+            continue
+        d = centre - origin
+        hit, where, _n, _i, hobj, _m = scene.ray_cast(deps, origin, d.normalized(), distance=d.length)
+        if hit and hobj is not None and hobj.original.name not in names:
+            continue
+        corners = [o.matrix_world @ Vector(c) for o in group for c in o.bound_box]
+        pc = screen(cam.matrix_world, corners)
+        if any(p is None for p in pc):
+            continue
+        cols, rows = [p[0] for p in pc], [p[1] for p in pc]
+        area = (min(screen.res, max(cols)) - max(0, min(cols))) * (min(screen.res, max(rows)) - max(0, min(rows)))
+        if area > 0:
+            out.append((area, group))
+    out.sort(key=lambda t: -t[0])
+    return out
+
+
+def plan_shot(args, scene, ctx):
+    """Draws the shot from the seed's shot stream and keyframes it; returns its description."""
+    rng = shots.shot_rng(args.scene_seed)
+    drawn = shots.draw_kind(rng)
+    kind = drawn if args.shot == "auto" else args.shot
+    n = args.frames
+    frames = list(range(0, n + 2))  # keyframes: one frame before and after the shot, for the Vector pass
+    px = args.res / 256.0  # the speeds are set in pixels at 256x256
+    profile_kind = rng.choice(["linear", "smooth"])
+    scale = ctx.desc.get("scale", 1.0)  # open-air scenes are built at garden scale, then scaled
+    cam = scene.camera
+    screen = Screen(cam, args.res)
+    bpy.context.view_layer.update()
+    far = 500.0 * scale
+    desc = {"kind": kind, "kind_drawn": drawn, "frames": n, "keyframes": [frames[0], frames[-1]],
+            "interpolation": "a keyframe at every frame, linear in between", "notes": []}
+
+    def new_profile():
+        return Profile(profile_kind, n, rng.uniform(0.3, 0.8), rng.uniform(0.0, 2.0 * math.pi))
+
+    movers = []
+    cam_kind = kind if kind in shots.CAMERA_KINDS else rng.choice(shots.CAMERA_KINDS)  # drawn either way
+    cam_target = rng.uniform(3.0, 10.0) * px if kind != "mixed" else rng.uniform(2.0, 7.0) * px
+    obj_target = rng.uniform(3.0, 12.0) * px
+    sign = rng.choice([-1, 1])
+    cam_profile = new_profile()
+
+    def camera_move(what):
+        pivot = None
+        if what == "orbit":  # about the point the generator aimed the camera at (else what the centre sees)
+            m = cam.matrix_world
+            pivot = Vector(ctx.desc["camera"]["target"]) * scale
+            if not 0.3 * scale < (pivot - m.translation).length < 50.0 * scale:
+                deps = bpy.context.evaluated_depsgraph_get()
+                d = screen.ray(m, args.res / 2, args.res / 2)
+                hit, where, *_ = scene.ray_cast(deps, m.translation, d, distance=far)
+                pivot = where if hit else m.translation + d * min(far, 5.0 * scale)
+        mv = CameraMove(cam, what, cam_profile, sign, pivot)
+        pts = scene_points(scene, cam, screen, far)
+        measure = lambda lam: screen_motion(screen, lambda f: mv.matrix(f, lam), lambda f: pts, frames)  # noqa: E731
+        lam = calibrate(measure, cam_target, 16.0 * px, 0.01 * scale if what in ("dolly", "truck") else 0.005)
+        if what in ("dolly", "truck", "orbit"):
+            full = lam
+            while lam > 0.3 * full and not path_clear(scene, [mv.matrix(f, lam).translation for f in frames],
+                                                      0.15 * scale):
+                lam *= 0.8
+            if not path_clear(scene, [mv.matrix(f, lam).translation for f in frames], 0.15 * scale):
+                desc["notes"].append(f"{what}: the camera's path ran into the scene; a pan instead")
+                return camera_move("pan")
+            if lam < full:
+                desc["notes"].append(f"{what}: slowed to {lam / full:.2f} of the aimed speed to stay clear")
+        mv.lam = lam
+        return mv
+
+    def object_moves(count_range, target):
+        # Props of some size on the screen (at least ~13 x 13 px at 256x256; else ~6 x 6): a speck would need metres
+        # per frame.
+        cands = visible_props(scene, cam, screen)
+        pool = [g for a, g in cands if a >= (0.05 * args.res) ** 2][:5] or \
+            [g for a, g in cands if a >= (0.025 * args.res) ** 2][:3]
+        k = rng.randint(*count_range)
+        chosen = rng.sample(pool, min(k, len(pool))) if pool else []
+        out = []
+        right = (cam.matrix_world.to_3x3() @ Vector((1.0, 0.0, 0.0)))
+        right.z = 0.0
+        right = right.normalized() if right.length > 1e-6 else Vector((1.0, 0.0, 0.0))
+        taken = set()
+        for group in chosen:
+            ang = rng.uniform(-0.8, 0.8) + (math.pi if rng.random() < 0.5 else 0.0)
+            direction = Matrix.Rotation(ang, 3, "Z") @ right
+            mv = ObjectMove(group, new_profile(), direction, math.radians(rng.uniform(-6.0, 6.0)))
+            if taken & {o.name for o in group}:  # shares a thing with a group already moving
+                continue
+            taken |= {o.name for o in group}
+            measure = lambda lam, mv=mv: screen_motion(  # noqa: E731
+                screen, lambda f: cam.matrix_world, lambda f: mv.corners(f, lam), frames)
+            aim = target * rng.uniform(0.7, 1.3)
+            spin_only = measure(0.0)[0]
+            if spin_only > 0.6 * aim:  # a large prop close by: its spin alone would be most of the motion
+                mv.spin *= 0.6 * aim / spin_only
+            mv.lam = calibrate(measure, aim, 16.0 * px, 0.01 * scale)
+            out.append(mv)
+        return out
+
+    if kind in shots.CAMERA_KINDS or kind == "mixed":
+        movers.append(camera_move(cam_kind))
+    if kind in ("objects", "mixed"):
+        props = object_moves((1, 3) if ctx.desc["kind"] == "interior" else (1, 4), obj_target)
+        if not props:
+            desc["notes"].append("no prop in view to move" + ("; a truck instead" if kind == "objects" else ""))
+            if kind == "objects":
+                movers.append(camera_move("truck"))
+        movers += props
+    if kind == "light":
+        suns = [o for o in scene.objects if o.type == "LIGHT" and o.data.type == "SUN"]
+        lamps = [o for o in scene.objects if o.type == "LIGHT" and o.data.type != "SUN" and not o.data.cycles.is_portal]
+        glowing = [o for o in scene.objects if o.type == "MESH" and not o.hide_render
+                   and _base_name(o) in MOVABLE_KINDS and _material_name(o) == "emission"]
+        pick_sun = suns and (not (lamps or glowing) or rng.random() < (0.5 if lamps else 0.7))
+        lamp_pool = lamps or glowing  # a lamp, else something that glows (a ceiling spot, a bulb)
+        if pick_sun:
+            mv = SunMove(suns[0], new_profile(), rng.choice([-1, 1]))
+            mv.lam = math.radians(rng.uniform(0.4, 1.2))
+            movers.append(mv)
+        elif lamp_pool:
+            obj = lamp_pool[rng.randrange(len(lamp_pool))]
+            direction = Matrix.Rotation(rng.uniform(0.0, 2.0 * math.pi), 3, "Z") @ Vector((1.0, 0.0, 0.0))
+            mv = LampMove(obj, new_profile(), direction)
+            d = obj.matrix_world.translation - cam.matrix_world.translation
+            lam = rng.uniform(0.01, 0.025) * max(d.length, 1.0 * scale)
+            while lam > 1e-4 and not path_clear(scene, [mv.matrix(f, lam).translation for f in frames], 0.05 * scale,
+                                                {obj.name}):
+                lam *= 0.7
+            mv.lam = lam
+            movers.append(mv)
+        else:
+            desc["notes"].append("no sun or lamp to move; props instead")
+            movers += object_moves((1, 3), obj_target)
+    for mv in movers:
+        mv.keyframe(frames)
+    scene.frame_start, scene.frame_end = 1, n
+    bpy.context.view_layer.update()
+    desc["profile"] = profile_kind
+    desc["movers"] = [dict(mv.json(), profile=mv.profile.json()) for mv in movers]
+    # What the moves do on the screen (pixels per frame, before rendering; the rendered Vector pass is in each
+    # frame's record): the camera over the scene's points, each prop over its bounding box.
+    cam_mv = next((mv for mv in movers if isinstance(mv, CameraMove)), None)
+    pts = scene_points(scene, cam, screen, far) if cam_mv else []
+    pred = {}
+    if cam_mv:
+        pred["camera_p90_px"], pred["camera_max_px"] = (round(v, 2) for v in screen_motion(
+            screen, cam_mv.matrix, lambda f: pts, frames))
+    for mv in movers:
+        if isinstance(mv, ObjectMove):
+            pred.setdefault("props_max_px", []).append(round(screen_motion(
+                screen, lambda f: cam.matrix_world if cam_mv is None else cam_mv.matrix(f),
+                mv.corners, frames)[1], 2))
+    desc["predicted_motion"] = pred
+    desc["aimed_px_per_frame"] = {"camera": round(cam_target, 2), "props": round(obj_target, 2)}
+    return desc
+
+
+def vector_stats(img):
+    """The rendered motion (Vector pass) of a frame: magnitudes of both pairs, pixels."""
+    import numpy as np
+    ch = img["channels"]
+    v = img["pixels"][:, :, [ch.index(f"ViewLayer.Vector.{c}") for c in "XYZW"]].astype(np.float64)
+    out = {}
+    for name, pair in (("to_previous", v[..., 0:2]), ("from_next", v[..., 2:4])):
+        m = np.hypot(pair[..., 0], pair[..., 1]).ravel()
+        out[name] = {"mean": round(float(m.mean()), 3), "p50": round(float(np.percentile(m, 50)), 3),
+                     "p90": round(float(np.percentile(m, 90)), 3), "p99": round(float(np.percentile(m, 99)), 3),
+                     "max": round(float(m.max()), 3), "moving_share": round(float((m > 0.5).mean()), 4)}
+    return out
+
+
+def shot_main(args, scene, ctx, kind, build_s):
+    """--shot: exposure, the shot's moves, then every requested frame: scene.frame_set(f) and each render of
+    --frame-renders with sampling seed base + f, into DIR/.partial/ and renamed (the reference last, so that a
+    frame whose reference exists is complete); DIR/shot.json is rewritten after every frame."""
+    import numpy as np
+    shot_path = os.path.join(args.outdir, "shot.json")
+    old = None
+    if os.path.isfile(shot_path):
+        with open(shot_path) as f:
+            old = json.load(f)
+        same = (old.get("scene_seed") == args.scene_seed and old.get("shot", {}).get("requested") == args.shot
+                and old.get("frames") == args.frames and old.get("resolution") == [args.res, args.res]
+                and old.get("frame_renders") == args.frame_renders and old.get("names") == args.name_list)
+        if not same:
+            raise SystemExit(f"make_scene: {shot_path} is another shot's (seed, kind, frames, resolution or renders "
+                             "differ): render into another folder")
+    k_log2 = args.light_scale_log2
+    if k_log2 is None and old is not None:
+        k_log2 = old.get("scene", {}).get("exposure", {}).get("light_scale_log2")
+    if k_log2 is None:
+        probe_exposure(ctx, scene, args)
+        k = ctx.desc["exposure"].get("light_scale", 1.0)
+        ctx.desc["exposure"]["light_scale_log2"] = round(math.log2(k), 1) if args.probe_res > 0 else 0.0
+    else:  # the shot's first run probed it: every frame of a shot has the same exposure
+        ev = round(ctx.u(-1.0, 1.5), 2)  # drawn as the probe draws it
+        ctx.scale_lights(2.0 ** k_log2)
+        ctx.desc["exposure"] = {"target_ev": ev, "light_scale": round(2.0 ** k_log2, 5), "light_scale_log2": k_log2,
+                                "from": "--light-scale-log2" if args.light_scale_log2 is not None else "shot.json"}
+    scene.render.use_motion_blur = False  # Cycles writes the Vector pass only without motion blur
+    t = time.time()
+    shot = plan_shot(args, scene, ctx)
+    shot["requested"] = args.shot
+    plan_s = time.time() - t
+    if args.save_blend:
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.join(args.outdir, "scene.blend"))
+    names = args.name_list
+    partial = os.path.join(args.outdir, ".partial")
+    os.makedirs(partial, exist_ok=True)
+    records = {}
+    if old is not None:  # frames of an earlier run whose files are all there
+        for key, rec in old.get("frame_records", {}).items():
+            if all(os.path.isfile(os.path.join(args.outdir, shots.frame_file(nm, int(key)))) for nm in names):
+                records[key] = rec
+    flags = scene_flags(args)
+    doc = {
+        "scene_seed": args.scene_seed,
+        "kind": kind,
+        "shot": shot,
+        "frames": args.frames,
+        "resolution": [args.res, args.res],
+        "frame_renders": args.frame_renders,
+        "names": names,
+        "files": {nm: {"pattern": f"{nm}.####.exr", "spp": spp, "sampling_seed": f"{base} + frame",
+                       "passes": (NOISY_PASSES + ", Vector") if i < len(names) - 1 else "Combined (RGBA) only"}
+                  for i, (nm, (spp, base)) in enumerate(zip(names, args.frame_render_list))},
+        "vector_convention": shots.VECTOR_CONVENTION,
+        "render_settings": dict(render_settings(
+            scene, args, f"blender -b --factory-startup -noaudio -t {args.threads} --python "
+                         f"tools/datagen/make_scene.py -- --scene-seed {args.scene_seed} --shot {args.shot} "
+                         f"--frames {args.frames} --frame-renders {args.frame_renders} --names {','.join(names)} "
+                         f"--outdir <dir> --res {args.res} --threads {args.threads}{flags}"),
+            vector_pass="noisy renders (ViewLayer.Vector.XYZW, float)", motion_blur=False),
+        "camera": None,
+        "scene": ctx.desc,
+        "timing": {},
+        "frame_records": records,
+    }
+
+    def write_doc():
+        ru = resource.getrusage(resource.RUSAGE_SELF)
+        doc["frames_done"] = sorted(int(k) for k in records)
+        doc["complete"] = len(records) == args.frames
+        doc["timing"] = {"process_wall_s": process_wall(), "process_user_cpu_s": round(ru.ru_utime, 2),
+                         "process_max_rss_kb": ru.ru_maxrss, "build_scene_s": round(build_s, 3),
+                         "probe_s": ctx.desc.get("exposure", {}).get("probe_s"), "plan_shot_s": round(plan_s, 3),
+                         "frame_wall_s_mean": round(sum(r["frame_wall_s"] for r in records.values()) /
+                                                    max(1, len(records)), 2)}
+        doc["frame_records"] = {k: records[k] for k in sorted(records, key=int)}
+        tmp = shot_path + ".tmp"
+        with open(tmp, "w") as f:
+            json.dump(doc, f, indent=1)
+        os.replace(tmp, shot_path)
+
+    for fr in args.frame_list:
+        t_frame = time.time()
+        scene.frame_set(fr)
+        if doc["camera"] is None:
+            doc["camera"] = camera_json(scene, args.res)
+            doc["camera"]["note"] = "at frame %d; every frame's cameraToWorld is in frame_records" % fr
+        rec = {"frame": fr, "cameraToWorld": _m4(scene.camera.matrix_world),
+               "worldToCamera": _m4(scene.camera.matrix_world.inverted()), "files": {}}
+        paths = []
+        for i, (nm, (spp, base)) in enumerate(zip(names, args.frame_render_list)):
+            ref = i == len(names) - 1
+            path = os.path.join(partial, shots.frame_file(nm, fr))
+            wall = render_one(scene, path, spp, base + fr, not ref, vector=not ref, note={"frame": fr})
+            img = exr_metrics.read_exr(path)
+            a = img["attrs"]
+            rec["files"][shots.frame_file(nm, fr)] = {
+                "spp": spp, "sampling_seed": base + fr, "bytes": os.path.getsize(path), "render_wall_s": round(wall, 2),
+                "cycles_render_time_s": parse_time(a.get("cycles.ViewLayer.render_time")),
+                "cycles_sync_time_s": parse_time(a.get("cycles.ViewLayer.synchronization_time")),
+                "channels": len(img["channels"])}
+            if not ref and "motion" not in rec:
+                rec["motion"] = vector_stats(img)
+            paths.append((path, img))
+            print(f"make_scene: seed {args.scene_seed} shot frame {fr} {nm} {spp} spp in {wall:.2f} s", flush=True)
+        ref_rgb = exr_metrics.layer_rgb(paths[-1][1])
+        rec["relmse"] = {names[i]: round(exr_metrics.relmse(exr_metrics.layer_rgb(img), ref_rgb), 6)
+                         for i, (_p, img) in enumerate(paths[:-1])}
+        rec["all_finite"] = bool(all(np.isfinite(img["pixels"]).all() for _p, img in paths))
+        for path, _img in paths:  # the reference last: a frame is complete when its reference is there
+            os.replace(path, os.path.join(args.outdir, os.path.basename(path)))
+        rec["frame_wall_s"] = round(time.time() - t_frame, 2)
+        records[str(fr)] = rec
+        write_doc()
+    if doc["camera"] is None:
+        scene.frame_set(1)
+        doc["camera"] = camera_json(scene, args.res)
+    write_doc()
+    shutil.rmtree(partial, ignore_errors=True)
+    print(f"make_scene: seed {args.scene_seed} ({kind}) shot {shot['kind']} frames {args.frame_list[0]}-"
+          f"{args.frame_list[-1]} done in {process_wall():.1f} s", flush=True)
+
+
 def main():
     args = parse_args()
     args.outdir = os.path.abspath(args.outdir)
@@ -1791,6 +2502,8 @@ def main():
     apply_photos(ctx, args)
     configure(scene, args)
     build_s = time.time() - t
+    if args.shot:
+        return shot_main(args, scene, ctx, kind, build_s)
     probe_exposure(ctx, scene, args)
     if args.camera_move:  # after the exposure probe, so every frame of an animation has the same exposure
         dx, dy, dz, yaw = (float(v) for v in args.camera_move.split(","))
@@ -1841,35 +2554,10 @@ def main():
         "spp": spp_of,
         "sampling_seeds": seed_of,
         "files": files,
-        "render_settings": {
-            "blender": blender_version(),
-            "engine": "CYCLES",
-            "device": "CPU",
-            "threads": args.threads,
-            "sampling_pattern": scene.cycles.sampling_pattern,
-            "adaptive_sampling": False,
-            "denoising": False,
-            "max_bounces": scene.cycles.max_bounces,
-            "diffuse_bounces": scene.cycles.diffuse_bounces,
-            "glossy_bounces": scene.cycles.glossy_bounces,
-            "transmission_bounces": scene.cycles.transmission_bounces,
-            "clamp_direct": scene.cycles.sample_clamp_direct,
-            "clamp_indirect": scene.cycles.sample_clamp_indirect,
-            "caustics": scene.cycles.caustics_reflective,
-            "blur_glossy": scene.cycles.blur_glossy,
-            "film_transparent": False,
-            "aovs": "minimal (noisy: " + NOISY_PASSES + "; reference: Combined)",
-            "exr": "OPEN_EXR_MULTILAYER, color_depth 16 (half colour passes, float data passes), ZIP",
-            "generator": "tools/datagen/make_scene.py",
-            "command": "blender -b --factory-startup -noaudio -t {t} --python tools/datagen/make_scene.py -- "
-                       "--scene-seed {s} --renders {r} --outdir <dir> --res {res} --threads {t}{ph}".format(
-                           t=args.threads, s=args.scene_seed, r=args.renders, res=args.res,
-                           ph=(f" --photos {args.photos} --photo-share {args.photo_share}" if args.photos else "") +
-                              (f" --hdris {args.hdris}" if args.hdris else "") +
-                              (f" --clamp-indirect {args.clamp_indirect:g}"
-                               if args.clamp_indirect != CLAMP_INDIRECT else "") +
-                              (" --caustics" if args.caustics else "")),
-        },
+        "render_settings": render_settings(
+            scene, args, "blender -b --factory-startup -noaudio -t {t} --python tools/datagen/make_scene.py -- "
+                         "--scene-seed {s} --renders {r} --outdir <dir> --res {res} --threads {t}{ph}".format(
+                             t=args.threads, s=args.scene_seed, r=args.renders, res=args.res, ph=scene_flags(args))),
         "timing": {
             "process_wall_s": process_wall(),
             "process_user_cpu_s": round(ru.ru_utime, 2),
