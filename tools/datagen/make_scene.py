@@ -2389,8 +2389,11 @@ def shot_main(args, scene, ctx, kind, build_s):
     else:  # the shot's first run probed it: every frame of a shot has the same exposure
         ev = round(ctx.u(-1.0, 1.5), 2)  # drawn as the probe draws it
         ctx.scale_lights(2.0 ** k_log2)
-        ctx.desc["exposure"] = {"target_ev": ev, "light_scale": round(2.0 ** k_log2, 5), "light_scale_log2": k_log2,
-                                "from": "--light-scale-log2" if args.light_scale_log2 is not None else "shot.json"}
+        if args.light_scale_log2 is None:  # the first run's record, probe and all
+            ctx.desc["exposure"] = dict(old["scene"]["exposure"], reused_from="shot.json")
+        else:
+            ctx.desc["exposure"] = {"target_ev": ev, "light_scale": round(2.0 ** k_log2, 5),
+                                    "light_scale_log2": k_log2, "from": "--light-scale-log2"}
     scene.render.use_motion_blur = False  # Cycles writes the Vector pass only without motion blur
     t = time.time()
     shot = plan_shot(args, scene, ctx)
