@@ -23,10 +23,12 @@ frame is done; inside, every frame is written to a temporary and renamed (the re
 never looks complete, and a rerun of the same command renders only the missing frames (with the exposure of the
 shot's first run). OUT/index.json lists every complete shot, rewritten after each; one line per shot goes to
 OUT/render_log.txt, Blender's output to OUT/logs/s<seed>.log.
+One driver per OUT (OUT/.render_shots.lock): a second one exits with status 3, or with --wait waits and resumes.
 Exit status: 0 when every requested shot is complete at the end, 1 otherwise.
 """
 import argparse
 import datetime
+import fcntl
 import json
 import os
 import shutil
@@ -233,6 +235,9 @@ def main():
     p.add_argument("--blender", default="/usr/bin/blender")
     p.add_argument("--no-validation-first", action="store_true",
                    help="render in the order given (default: validation shots first)")
+    p.add_argument("--wait", action="store_true",
+                   help="when another render_shots.py renders into OUT, wait for it to end and then resume "
+                        "(default: exit with status 3)")
     args = p.parse_args()
     args.out = os.path.abspath(args.out)
     args.spp_list = [int(s) for s in args.spp.split(",")]
@@ -242,6 +247,22 @@ def main():
     if not os.path.isfile(args.blender):
         sys.exit(f"render_shots: no Blender at {args.blender} (apt-get install blender)")
     os.makedirs(args.out, exist_ok=True)
+    lock = open(os.path.join(args.out, ".render_shots.lock"), "a+")  # one driver per OUT (held until exit)
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.seek(0)
+        holder = lock.read().strip() or "?"
+        if not args.wait:
+            print(f"render_shots: another render_shots.py (pid {holder}) renders into {args.out}; --wait to wait "
+                  "for it", file=sys.stderr)
+            return 3
+        print(f"render_shots: waiting for render_shots.py pid {holder} to finish with {args.out}", flush=True)
+        fcntl.flock(lock, fcntl.LOCK_EX)
+    lock.seek(0)
+    lock.truncate()
+    lock.write(f"{os.getpid()}\n")
+    lock.flush()
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # the running Blender is killed on the way out
 
     todo = [s for s in seeds if not complete(args.out, s)]
