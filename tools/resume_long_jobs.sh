@@ -14,6 +14,9 @@
 #   5. the other training sets tools/finetune_full.sh trains on (residue-photo, residue-pseudo, residue-photo-plain;
 #      about 1.7 h; the photographs need `apt-get install plasma-workspace-wallpapers`, which tools/setup.sh leaves
 #      out), so that the fine-tune on residue-v1-true (issue 16's next lever for x1) has all its data
+#   6. issue 51's shots for a temporal denoiser: /work/datasets/residue-shots-v1, 48 shots of 16 frames (seeds
+#      8000-8047, validation 8007/8018/8029/8040 first; tools/datagen/README.md, "Shots and motion vectors"); started
+#      on its own on 2026-12-01, so this step resumes it, or waits for that run (--wait) and passes
 # Done and so out of the queue: lever 2c's long run (session 19: a tie with the shipped network, not adopted;
 # `GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=14000 PRECISION=bf16 EXTRA_SETS=
 # tools/finetune_full.sh .cache/train/lever2c-14k`). A fine-tune added back here goes through
@@ -47,4 +50,7 @@ step "data: residue-v1-pseudo"
 tools/render_training_data.sh residue-v1-pseudo
 step "data: the other training sets"
 tools/render_training_data.sh residue-photo residue-pseudo residue-photo-plain
+step "data: shots for a temporal denoiser (issue 51)"
+mkdir -p /work/datasets
+/usr/bin/python3 tools/datagen/render_shots.py --out /work/datasets/residue-shots-v1 --seeds 8000-8047 --threads 1 --wait
 step "done"
