@@ -238,7 +238,7 @@ std::vector<std::string> long_denoise(const TempDir& dir, bool streamed) {
   return args;
 }
 
-// SIGINT / SIGTERM a second into the run must stop it (in memory: inside its only tile), exit 130 / 143 and leave
+// SIGINT / SIGTERM / SIGHUP a second into the run must stop it (in memory: inside its only tile), exit 130 / 143 and leave
 // the folder as it was (no output, no temporary file). The time it took is printed (measured, not asserted;
 // docs/RELIABILITY.md).
 TEST_P(Signals, StopInsideTheTileAndLeaveNoFile) {
@@ -275,9 +275,12 @@ TEST_P(Signals, StopInsideTheTileAndLeaveNoFile) {
 
 INSTANTIATE_TEST_SUITE_P(Cli, Signals,
                          ::testing::Values(SignalCase{SIGINT, 130, "eigen", false}, SignalCase{SIGTERM, 143, "eigen", false},
-                                           SignalCase{SIGTERM, 143, "onednn", false}, SignalCase{SIGINT, 130, "eigen", true}),
+                                           SignalCase{SIGTERM, 143, "onednn", false}, SignalCase{SIGINT, 130, "eigen", true},
+                                           // A dropped ssh session (issue 49, 18): handled as SIGTERM is.
+                                           SignalCase{SIGHUP, 129, "eigen", true}),
                          [](const ::testing::TestParamInfo<SignalCase>& p) {
-                           return std::string(p.param.signal == SIGINT ? "Sigint" : "Sigterm") + "_" + p.param.backend +
+                           const int s = p.param.signal;
+                           return std::string(s == SIGINT ? "Sigint" : s == SIGTERM ? "Sigterm" : "Sighup") + "_" + p.param.backend +
                                   (p.param.streamed ? "_streamed" : "");
                          });
 

@@ -9,12 +9,15 @@
 #include <fstream>
 #include <limits>
 
+#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include "core/aov/aov_loader.h"
 #include "core/denoise/denoiser.h"
 #include "core/io/atomic_file.h"
+#include "core/io/frame_claim.h"
 #include "core/nn/model_file.h"
+#include "support/exr_fixture.h"
 #include "support/test_support.h"
 
 namespace residue {
@@ -194,6 +197,178 @@ TEST(TrustInputsCli, DeepImagesAreRefusedByName) {
                                               deep.string()}, &out), 0) << out;
   EXPECT_EQ(run_cli({"info", deep.string()}, &out), 3) << out;
   EXPECT_TRUE(contains(out, "is a deep image") && contains(out, "not supported")) << out;
+}
+
+// Defect 8: a valid region render (a 64x64 data window in a 16384x8640 display window, a few KB) was refused as
+// corrupt: the header's size check counted the display window, which nothing reads.
+TEST(TrustInputsCli, RegionRenderInAHugeDisplayWindowLoads) {
+  TempDir dir;
+  testing::FixturePart part;
+  part.x = 8000, part.y = 4000, part.width = 64, part.height = 64;
+  part.full_width = 16384, part.full_height = 8640;
+  for (const char* c : {"R", "G", "B"}) part.channels.push_back({c, true, [](int x, int) { return 0.01f * static_cast<float>(x % 50); }});
+  testing::write_fixture_exr((dir / "region.exr").string(), {part});
+  ASSERT_LT(fs::file_size(dir / "region.exr"), 64u * 1024);
+  std::string out;
+  EXPECT_EQ(run_cli({"info", (dir / "region.exr").string()}, &out), 0) << out;
+  EXPECT_TRUE(contains(out, "64 x 64")) << out;
+  EXPECT_EQ(run_cli({"denoise", (dir / "region.exr").string(), "-o", (dir / "out.exr").string()}, &out), 0) << out;
+}
+
+// Defect 14: a uint channel (an ID pass) read as colour was scaled by 1/(2^32-1) without a word.
+TEST(TrustInputs, IntegerChannelsAreRefusedByName) {
+  TempDir dir;
+  const fs::path file = dir / "ids.exr";
+  OIIO::ImageSpec spec(8, 8, 3, OIIO::TypeUInt);
+  spec.channelnames = {"R", "G", "B"};
+  std::vector<uint32_t> pixels(8 * 8 * 3, 7);
+  auto out = OIIO::ImageOutput::create(file.string());
+  ASSERT_TRUE(out && out->open(file.string(), spec) && out->write_image(OIIO::TypeUInt, pixels.data()) && out->close());
+  const std::string message = testing::error_message([&] { load_aov_stack({file}); }, ErrorKind::Input);
+  EXPECT_TRUE(contains(message, "channel 'R' is an integer (uint) channel")) << message;
+}
+
+// Defect 14: --map albedo=FILE on a multilayer render took its first layer (the beauty), not its albedo layer.
+TEST(TrustInputs, MappedMultilayerFileGivesItsOwnAov) {
+  LoadOptions o;
+  o.mapping.add_flag("albedo=" + (kRoom / "noisy.exr").string());
+  const AovStack mapped = load_aov_stack({kRoom / "noisy.exr"}, o);
+  const AovStack plain = load_aov_stack({kRoom / "noisy.exr"});
+  ASSERT_TRUE(mapped.albedo && plain.albedo);
+  EXPECT_EQ(mapped.albedo->source.layer, plain.albedo->source.layer);
+  for (size_t i = 0; i < plain.albedo->image.size(); ++i)
+    ASSERT_EQ(mapped.albedo->image.data()[i], plain.albedo->image.data()[i]) << i;
+}
+
+// Defect 14: an albedo that is all NaN was sanitised to 0 and used without a warning.
+TEST(TrustInputs, AGuideWithNoFiniteValueIsSaid) {
+  TempDir dir;
+  testing::FixturePart part;
+  part.width = part.height = 16;
+  for (const char* c : {"R", "G", "B"}) part.channels.push_back(testing::constant_channel(c, 0.5f));
+  for (const char* c : {"albedo.R", "albedo.G", "albedo.B"})
+    part.channels.push_back(testing::constant_channel(c, std::numeric_limits<float>::quiet_NaN()));
+  testing::write_fixture_exr((dir / "nan_albedo.exr").string(), {part});
+  const AovStack s = load_aov_stack({dir / "nan_albedo.exr"});
+  bool said = false;
+  for (const auto& n : s.notes) said = said || contains(n, "albedo AOV has no finite value");
+  EXPECT_TRUE(said);
+}
+
+// Defect 15: --layer Beta did not select a layer whose beauty is Beta.R/G/B (and its passes Beta.albedo.R, ...);
+// an unknown --layer was reported as "no colour channels".
+TEST(TrustInputs, LayerSelectsAPlainLayerAndAnUnknownOneIsNamed) {
+  TempDir dir;
+  testing::FixturePart part;
+  part.width = part.height = 16;
+  for (const char* c : {"R", "G", "B"}) part.channels.push_back(testing::constant_channel(c, 0.25f));
+  for (const char* c : {"Beta.R", "Beta.G", "Beta.B"}) part.channels.push_back(testing::constant_channel(c, 0.75f));
+  for (const char* c : {"Beta.albedo.R", "Beta.albedo.G", "Beta.albedo.B"})
+    part.channels.push_back(testing::constant_channel(c, 0.5f));
+  testing::write_fixture_exr((dir / "layers.exr").string(), {part});
+  LoadOptions o;
+  o.mapping.layer_prefix = "Beta";
+  const AovStack beta = load_aov_stack({dir / "layers.exr"}, o);
+  EXPECT_EQ(beta.color.image.at(3, 3, 0), 0.75f);
+  ASSERT_TRUE(beta.albedo.has_value());
+  EXPECT_EQ(beta.albedo->image.at(3, 3, 1), 0.5f);
+  o.mapping.layer_prefix = "Gamma";
+  const std::string message = testing::error_message([&] { load_aov_stack({dir / "layers.exr"}, o); }, ErrorKind::Input);
+  EXPECT_TRUE(contains(message, "--layer 'Gamma'") && contains(message, "no such layer") && contains(message, "Beta"))
+      << message;
+}
+
+// Defect 23: `residue-cli denoise render.exr -o out.exr` answered "--model is required" although the README
+// names the default model.
+TEST(TrustOptionsCli, TheDefaultModelNeedsNoFlag) {
+  TempDir dir;
+  std::string out;
+  EXPECT_EQ(run_cli({"denoise", (kRoom / "noisy.exr").string(), "-o", (dir / "out.exr").string()}, &out), 0) << out;
+  EXPECT_TRUE(contains(out, std::string("model      ") + nn::kDefaultModel)) << out;
+  EXPECT_EQ(run_cli({"denoise", "--help"}, &out), 0);
+  EXPECT_TRUE(contains(out, std::string("TEXT=") + nn::kDefaultModel)) << "--help names the default: " << out;
+}
+
+// Defects 16 and 21: options that ran as something else or measured nothing with exit 0 are refused, exit 2.
+TEST(TrustOptionsCli, LenientOptionsAreRefused) {
+  TempDir dir;
+  const std::string room = (kRoom / "noisy.exr").string(), out_exr = (dir / "o.exr").string();
+  const std::string shot = (dir / "shot.####.exr").string(), outs = (dir / "out.####.exr").string();
+  fs::copy_file(kRoom / "noisy.exr", dir / "shot.0001.exr");
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"denoise", shot, "-o", outs, "--frames", ""}, "--frames"},
+      {{"denoise", shot, "-o", outs, "--skip-existing", "--force"}, "excludes"},
+      {{"denoise", room, "-o", out_exr, "-m", "bilateral", "--ensemble", "8"}, "bilateral filter has none"},
+      {{"denoise", room, "-o", out_exr, "--compression", "zip:99"}, "1 to 9"},
+      {{"denoise", room, "-o", out_exr, "--compression", "dwaa:-5"}, "positive whole number"},
+      {{"denoise", room, "-o", out_exr, "--compression", "piz:3"}, "takes no level"},
+      {{"evaluate-set", dir.path().string(), "--models", "tiny", "--last", "0"}, "--last"},
+      {{"evaluate-set", dir.path().string(), "--models", "tiny", "--threads", "-3"}, "--threads"},
+      {{"evaluate-set", dir.path().string(), "--models", "tiny", "--blend-tau", "nan"}, "finite number"},
+      {{"eval", room, "--eps", "0"}, "finite number above 0"},
+      {{"farm", "slurm", shot, "-o", outs, "-m", "tiny", "--max-parallel", "-1"}, "--max-parallel"},
+      {{"farm", "slurm", shot, "-o", outs, "-m", "tiny", "--chunk", "0"}, "--chunk"},
+      {{"bench", "--backends", "bogus"}, "--backends"},
+      {{"bench", "--precisions", "fp64"}, "--precisions"},
+      {{"bench", "--tiles", "-1"}, "--tiles"},
+      {{"bench", "--cancel-after", "nan"}, "--cancel-after"},
+      {{"bench", "--models", "100000/8"}, "at most 256 blocks"},
+  };
+  for (const auto& [args, says] : cases) {
+    std::string out;
+    EXPECT_EQ(run_cli(args, &out), 2) << args[0] << " " << says << ": " << out;
+    EXPECT_TRUE(contains(out, says)) << says << ": " << out;
+    EXPECT_LT(out.size(), 2000u) << "a short message (no 309-digit bound): " << out;
+    EXPECT_FALSE(contains(out, "ceiling measured")) << "refused before measuring: " << out;
+  }
+  EXPECT_FALSE(fs::exists(dir / "out.0001.exr"));
+  std::string out;
+  EXPECT_EQ(run_cli({"denoise", room, "-o", (dir / ".exr").string()}, &out), 4) << out;
+  EXPECT_TRUE(contains(out, "is an extension without a name")) << out;
+}
+
+// Defect 17: --skip-existing took a 0-byte or truncated output as done; defect 7: a frame claimed by another
+// process (a requeued farm task beside the first) is that process's, not done twice nor failed.
+TEST_F(TrustSequenceCli, SkipExistingRedoesDamagedFramesAndLeavesClaimedOnes) {
+  fs::copy_file(kRoom / "noisy.exr", dir_ / "shot.0003.exr");
+  std::string out;
+  ASSERT_EQ(run_cli(sequence({"--frames", "1"}), &out), 0) << out;
+  const std::string done = read_text(dir_ / "out.0001.exr");
+  std::ofstream(dir_ / "out.0002.exr", std::ios::binary) << done.substr(0, done.size() / 2);  // cut short
+  std::optional<io::FrameClaim> other = io::FrameClaim::take(dir_ / "out.0003.exr");  // another process's claim
+  ASSERT_TRUE(other.has_value());
+  EXPECT_EQ(run_cli(sequence({"--skip-existing", "--summary", (dir_ / "s.json").string()}), &out), 0) << out;
+  EXPECT_TRUE(contains(out, "frame 1  skipped")) << out;
+  EXPECT_TRUE(contains(out, "re-doing damaged frame")) << out;
+  EXPECT_TRUE(contains(out, "frame 3  skipped: another process is denoising it")) << out;
+  EXPECT_TRUE(io::exr_is_complete(dir_ / "out.0002.exr"));
+  EXPECT_FALSE(fs::exists(dir_ / "out.0003.exr"));
+  EXPECT_EQ(read_text(dir_ / "out.0001.exr"), done);
+  EXPECT_TRUE(contains(read_text(dir_ / "s.json"), "claimed by another process")) << read_text(dir_ / "s.json");
+  other.reset();
+  EXPECT_FALSE(fs::exists(dir_ / ".out.0003.exr.residue-claim")) << "a claim leaves no file";
+  std::ofstream(dir_ / "out.0003.exr");  // 0 bytes
+  EXPECT_FALSE(io::exr_is_complete(dir_ / "out.0003.exr"));
+  EXPECT_EQ(run_cli(sequence({"--skip-existing"}), &out), 0) << out;
+  EXPECT_TRUE(io::exr_is_complete(dir_ / "out.0003.exr")) << out;
+}
+
+// Defect 22: eval on a sequence stopped at the first missing frame while denoise goes on; now both go on, say
+// which frames they left out, and exit 3.
+TEST_F(TrustSequenceCli, EvalGoesOnPastAMissingFrameAsDenoiseDoes) {
+  fs::copy_file(kRoom / "noisy.exr", dir_ / "shot.0004.exr");
+  for (const char* f : {"ref.0001.exr", "ref.0002.exr", "ref.0003.exr", "ref.0004.exr"})
+    fs::copy_file(kRoom / "reference.exr", dir_ / f);
+  std::string out;
+  EXPECT_EQ(run_cli({"eval", (dir_ / "shot.####.exr").string(), "-r", (dir_ / "ref.####.exr").string(), "--frames", "1-4",
+                     "--metrics-out", (dir_ / "m.json").string()}, &out), 3) << out;
+  EXPECT_TRUE(contains(out, "frame 3  not scored")) << out;
+  EXPECT_TRUE(contains(out, "1 of 4 frames not scored")) << out;
+  const std::string json = read_text(dir_ / "m.json");
+  EXPECT_TRUE(contains(json, "\"frames_scored\": 3")) << json;
+  EXPECT_EQ(run_cli({"denoise", (dir_ / "shot.####.exr").string(), "-o", (dir_ / "out.####.exr").string(), "-m", "tiny",
+                     "--frames", "1-4"}, &out), 3) << out;
+  EXPECT_TRUE(fs::exists(dir_ / "out.0004.exr")) << "denoise went on past frame 3: " << out;
 }
 
 // --- extremes: finite output that scales with the input, whatever the tiling ---------------------------------

@@ -187,7 +187,7 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   });
   connect(precision_, &QComboBox::currentIndexChanged, this, &DenoisePanel::fillTable);
   fillTable();
-  selectModel("multiscale");  // the default model (docs/MODELS.md): the best trade measured
+  selectModel(nn::kDefaultModel);
   if (!problems.isEmpty()) status_->setText(problems.join("\n"));
 }
 

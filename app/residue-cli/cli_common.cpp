@@ -61,6 +61,21 @@ AovStack InputOptions::load() const {
   return load_aov_stack(paths, load_options());
 }
 
+CLI::Validator non_empty(const std::string& expected) {
+  return CLI::Validator([expected](std::string& value) { return value.empty() ? "is empty: give " + expected : std::string(); },
+                        "", "NON_EMPTY");
+}
+
+CLI::Validator positive_finite() {
+  return CLI::Validator(
+      [](std::string& value) {
+        double v = 0;
+        return CLI::detail::lexical_cast(value, v) && std::isfinite(v) && v > 0 ? std::string()
+                                                                               : "must be a finite number above 0, not '" + value + "'";
+      },
+      "", "POSITIVE");
+}
+
 int exit_code_for(ErrorKind kind) {
   switch (kind) {
     case ErrorKind::Input:

@@ -44,6 +44,11 @@ struct InputOptions {
   std::vector<std::filesystem::path> files_named() const;
 };
 
+// CLI11 validators for what its own do not refuse: an option given as "" (which would read as not given), and
+// a number that must be finite and > 0 (CLI::PositiveNumber lets NaN through).
+CLI::Validator non_empty(const std::string& expected);
+CLI::Validator positive_finite();
+
 // "x,y,w,h" -> Rect; throws CLI::ValidationError on a malformed one.
 Rect parse_roi(const std::string& text);
 

@@ -7,6 +7,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/io/frame_sequence.h"
+#include "core/nn/model_card.h"
 #include "core/util/error.h"
 #include "denoise_frame.h"
 #include "denoise_sequence.h"
@@ -15,6 +16,9 @@ namespace residue::cli {
 namespace {
 
 int run(const DenoiseCliOptions& o) {
+  if (o.ensemble > 1 && nn::method_of(o.model) == nn::Method::Bilateral)
+    throw Error(ErrorKind::Usage, "--ensemble " + std::to_string(o.ensemble) + ": the self-ensemble averages a network "
+                                  "under flips; the bilateral filter has none (leave --ensemble out)");
   if (is_sequence(o)) return run_sequence(o);
   if (!o.frames.empty() || o.skip_existing || !o.summary.empty())
     throw Error(ErrorKind::Usage, "--frames, --skip-existing and --summary are for frame sequences: give the input as "
@@ -63,7 +67,10 @@ Command add_denoise_command(CLI::App& app) {
   auto o = std::make_shared<DenoiseCliOptions>();
   o->input.add_to(*cmd, true);
   cmd->add_option("-o,--output", o->output, "The denoised EXR to write (for a sequence: a pattern, out.####.exr)")->required();
-  cmd->add_option("-m,--model", o->model, "A model name (see resources/models), a .safetensors file, \"bilateral\" (the baseline filter), or \"oidn\" / \"oidn-cleanaux\" (Open Image Denoise's networks, for comparison)")->required();
+  cmd->add_option("-m,--model", o->model,
+                  "A model name (residue-cli models lists them), a .safetensors file, \"bilateral\" (the baseline "
+                  "filter), or \"oidn\" / \"oidn-cleanaux\" (Open Image Denoise's networks, for comparison)")
+      ->capture_default_str();
   cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)")
       ->check(CLI::IsMember(nn::available_backends()));
   cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")
@@ -94,12 +101,14 @@ Command add_denoise_command(CLI::App& app) {
       ->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_flag("--float", o->float_output, "Write 32-bit float channels (default: half)");
   cmd->add_option("--compression", o->compression, "EXR compression (zip, piz, dwaa, none, ...)")->capture_default_str();
-  cmd->add_flag("-f,--force", o->force, "Replace the output if it exists");
+  auto* force = cmd->add_flag("-f,--force", o->force, "Replace the output if it exists");
   cmd->add_option("--frames", o->frames,
                   "Sequences: the frames to denoise, e.g. 1001-1100, 1001-1100x2 or 1,5,7-20:2 (default: every frame "
-                  "whose input exists)");
+                  "whose input exists)")
+      ->check(non_empty("frames such as 1001-1100"));
   cmd->add_flag("--skip-existing", o->skip_existing,
-                "Sequences: skip frames whose output exists (resume an interrupted run; the default under Slurm)");
+                "Sequences: skip frames whose output exists (resume an interrupted run; the default under Slurm)")
+      ->excludes(force);
   cmd->add_flag("--fail-fast", o->fail_fast, "Sequences: stop at the first frame that fails (default: go on)");
   cmd->add_option("--summary", o->summary,
                   "Sequences: write a JSON summary (each frame's status, time, metrics when a reference exists)");

@@ -123,7 +123,7 @@ Command add_eval_command(CLI::App& app) {
   cmd->add_option("--roi", o->roi, "Score only the rectangle x,y,w,h (pixels of the data window)");
   cmd->add_option("--eps", o->eps, "relMSE denominator offset: (x-r)^2/(r^2+eps)")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(positive_finite());
   cmd->add_option("--ssim-space", o->ssim_space, "Values SSIM and PSNR are computed on")
       ->capture_default_str()
       ->check(CLI::IsMember({"tonemapped", "linear"}));

@@ -286,7 +286,8 @@ Command add_evaluate_set_command(CLI::App& app) {
       ->delimiter(',')
       ->check(CLI::IsMember({1, 2, 4, 8}));
   cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)");
-  cmd->add_option("--last", o->last, "Only the last N scenes by name (the starter set's validation scenes)");
+  cmd->add_option("--last", o->last, "Only the last N scenes by name (the starter set's validation scenes)")
+      ->check(CLI::Range(1, 1 << 30));
   cmd->add_option("--perturb", o->perturb,
                   "Study other renderers' conventions: normals-world, normals-zero, depth-x100, no-variance")
       ->capture_default_str();
@@ -299,13 +300,13 @@ Command add_evaluate_set_command(CLI::App& app) {
                   "on or off: clamp the network's output to its receptive field's brightest input (x2)")
       ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
   cmd->add_option("--blend-tau", o->blend_tau, "The variance blend's tau for every model (tools/fit_blend_tau.py)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_finite());
   cmd->add_option("--energy-correction", o->energy,
                   "on, off, or both (a second column per model, labelled \"raw\", without the correction)")
       ->capture_default_str()->check(CLI::IsMember({"on", "off", "both"}));
   cmd->add_option("--md", o->out_md, "Write the table as Markdown");
   cmd->add_option("--json", o->out_json, "Write every number as JSON");
-  cmd->add_option("--threads", o->threads, "Threads (default: every core)");
+  cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));
   cmd->add_flag("-f,--force", o->force, "Replace output files");
   return {cmd, [o]() { return run(*o); }};
 }

@@ -213,13 +213,14 @@ Command add_farm_command(CLI::App& app) {
   slurm->add_option("-m,--model", o->model, "The model (as for denoise)")->required();
   slurm->add_option("-r,--reference", o->reference, "References, a pattern (ref.####.exr): per-frame metrics");
   slurm->add_option("--frames", o->frames, "Frames, e.g. 1001-1100 (default: every frame whose input exists now)");
-  slurm->add_option("--chunk", o->chunk, "Frames per array task")->capture_default_str()->check(CLI::PositiveNumber);
+  slurm->add_option("--chunk", o->chunk, "Frames per array task")->capture_default_str()->check(CLI::Range(1, 1 << 20));
   slurm->add_option("--retries", o->retries, "Reruns of a chunk that fails (finished frames are skipped)")
       ->capture_default_str()
       ->check(CLI::Range(0, 10));
   slurm->add_option("--job-dir", o->job_dir, "Folder for the scripts, chunk summaries and logs")->capture_default_str();
   slurm->add_option("--partition", o->partition, "Slurm partition (default: the cluster's)");
-  slurm->add_option("--max-parallel", o->max_parallel, "At most this many tasks at once (0: no limit)");
+  slurm->add_option("--max-parallel", o->max_parallel, "At most this many tasks at once (0: no limit)")
+      ->check(CLI::Range(0, 1 << 20));
   slurm->add_option("--cpus-per-task", o->cpus, "Cores per task (the denoise's --threads)")->capture_default_str()->check(CLI::Range(1, 1024));
   slurm->add_flag("--dry-run", o->dry_run, "Write the scripts without submitting them");
   slurm->add_option("--denoise-arg", o->denoise_args, "An argument passed to each denoise (repeat: --denoise-arg=--float)");

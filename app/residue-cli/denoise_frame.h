@@ -21,7 +21,7 @@ namespace residue::cli {
 struct DenoiseCliOptions {
   InputOptions input;
   std::string output;
-  std::string model;
+  std::string model = nn::kDefaultModel;
   std::string backend;
   std::string precision = "fp32";
   int64_t tile = 0;

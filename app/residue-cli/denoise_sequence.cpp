@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/io/atomic_file.h"
+#include "core/io/frame_claim.h"
 #include "core/io/frame_sequence.h"
 #include "core/util/error.h"
 
@@ -22,6 +23,7 @@ struct FrameRecord {
   fs::path input, output;
   std::string status = "pending";  // done, skipped, failed, interrupted, pending (not reached)
   std::string error;
+  std::string note;  // why a frame was skipped or redone
   int exit_code = kOk;
   double seconds = 0, megapixels = 0;
   std::string model;
@@ -47,6 +49,7 @@ nlohmann::ordered_json to_json(const std::vector<FrameRecord>& records, const De
   for (const FrameRecord& r : records) {
     nlohmann::ordered_json j{{"frame", r.frame}, {"input", r.input.string()}, {"output", r.output.string()}, {"status", r.status}};
     if (!r.error.empty()) j["error"] = r.error;
+    if (!r.note.empty()) j["note"] = r.note;
     if (r.status == "done") {
       j["model"] = r.model;
       j["seconds"] = r.seconds;
@@ -123,8 +126,9 @@ int run_sequence(const DenoiseCliOptions& o) {
     r.output = out.path(f);
     std::error_code ec;
     if (fs::exists(fs::symlink_status(r.output, ec)) && !o.force) {
-      if (skip_existing) r.status = "skipped";
-      else existing.push_back(r.output.string());
+      if (!skip_existing) existing.push_back(r.output.string());
+      else if (io::inspect_output(r.output) == io::ExistingOutput::Damaged) r.note = "damaged";  // redone (below)
+      else r.status = "skipped", r.note = "exists";
     }
     records.push_back(std::move(r));
   }
@@ -133,7 +137,7 @@ int run_sequence(const DenoiseCliOptions& o) {
                                        " outputs exist (" + existing.front() + (existing.size() > 1 ? ", ..." : "") +
                                        "); pass --skip-existing to resume, or --force to replace them");
   for (FrameRecord& r : records)
-    if (r.status == "pending")
+    if (r.status == "pending" && r.note.empty())
       for (const auto& removed : io::prepare_exr_output(r.output, w))
         std::fprintf(stderr, "note: removed '%s', a partial output left by an earlier run that was killed\n", removed.c_str());
 
@@ -144,10 +148,42 @@ int run_sequence(const DenoiseCliOptions& o) {
   for (FrameRecord& r : records) {
     ++index;
     if (r.status == "skipped") {
-      std::printf("frame %lld  skipped: %s exists\n", static_cast<long long>(r.frame), display_path(r.output.string()).c_str());
+      const bool foreign = io::inspect_output(r.output) == io::ExistingOutput::Foreign;
+      if (foreign) r.note = "exists, not an OpenEXR file: left alone";
+      std::printf("frame %lld  skipped: %s exists%s\n", static_cast<long long>(r.frame), display_path(r.output.string()).c_str(),
+                  foreign ? " (not an OpenEXR file: left alone)" : "");
       continue;
     }
     if (interrupt.interrupted()) break;
+    // Claimed while it is denoised, so that another process on this sequence moves on to the next frame; a frame
+    // it finished meanwhile counts as skipped.
+    std::optional<io::FrameClaim> claim = io::FrameClaim::take(r.output);
+    if (!claim) {
+      r.status = "skipped", r.note = "claimed by another process";
+      std::printf("frame %lld  skipped: another process is denoising it\n", static_cast<long long>(r.frame));
+      continue;
+    }
+    std::error_code ec;
+    if (fs::exists(fs::symlink_status(r.output, ec)) && !o.force) {
+      if (io::inspect_output(r.output) != io::ExistingOutput::Damaged) {
+        r.status = "skipped", r.note = "finished by another process";
+        std::printf("frame %lld  skipped: %s was finished by another process\n", static_cast<long long>(r.frame),
+                    display_path(r.output.string()).c_str());
+        continue;
+      }
+      if (!skip_existing) {  // appeared since the checks: not ours to replace
+        r.status = "failed", r.exit_code = kOutputError;
+        r.error = "output '" + r.output.string() + "' appeared during the run; pass --force to replace it";
+        std::fprintf(stderr, "frame %lld  failed: %s\n", static_cast<long long>(r.frame), r.error.c_str());
+        if (exit_code == kOk) exit_code = kOutputError;
+        if (o.fail_fast) break;
+        continue;
+      }
+      std::printf("frame %lld  re-doing damaged frame: %s is cut short or empty\n", static_cast<long long>(r.frame),
+                  display_path(r.output.string()).c_str());
+      r.note = "damaged output redone";
+      fs::remove(r.output, ec);
+    }
     LoadOptions load = o.input.load_options();
     if (reference) load.reference = reference->path(r.frame);
     try {

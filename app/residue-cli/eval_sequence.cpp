@@ -48,23 +48,30 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
   nlohmann::ordered_json rows = nlohmann::ordered_json::array();
   double sums[4] = {0, 0, 0, 0};  // noisy relMSE, SSIM; denoised relMSE, SSIM
   if (!o.json) std::printf("%-8s %12s %9s %12s %9s\n", "frame", "noisy relMSE", "SSIM", "denoised", "SSIM");
-  for (int64_t f : frames) {
+  // A frame that cannot be scored (missing, unreadable, another size) is reported and left out, and the
+  // sequence goes on, as `denoise` does; the temporal error pairs only frames that follow each other.
+  int64_t scored = 0;
+  std::vector<std::string> failed;
+  for (int64_t f : frames) try {
     LoadOptions load = o.input.load_options();
     load.reference = ref.path(f);
     const AovStack stack = load_aov_stack({in.path(f)}, load);
     const Image& r = stack.reference->image;
     const metrics::Scores noisy = metrics::compare(stack.color.image, r, m);
-    noisy_t.add(stack.color.image, r);
     nlohmann::ordered_json row{{"frame", f}, {"noisy", scores_json(noisy)}};
     sums[0] += noisy.relmse;
     sums[1] += noisy.ssim;
     std::optional<metrics::Scores> denoised;
+    Image d;
     if (den) {
       LoadOptions lo;
       lo.load_reference = false;
-      const Image d = load_aov_stack({den->path(f)}, lo).color.image;
+      d = load_aov_stack({den->path(f)}, lo).color.image;
       if (d.width() != r.width() || d.height() != r.height())
         throw Error(ErrorKind::Input, "'" + den->path(f).string() + "' is not the size of frame " + std::to_string(f));
+    }
+    noisy_t.add(stack.color.image, r);
+    if (den) {
       denoised = metrics::compare(d, r, m);
       denoised_t.add(d, r);
       row["denoised"] = scores_json(*denoised);
@@ -76,10 +83,18 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
                   denoised ? std::to_string(denoised->relmse).substr(0, 8).c_str() : "-",
                   denoised ? std::to_string(denoised->ssim).substr(0, 7).c_str() : "-");
     rows.push_back(std::move(row));
+    ++scored;
+  } catch (const Error& e) {
+    std::fprintf(stderr, "frame %lld  not scored: %s\n", static_cast<long long>(f), e.what());
+    rows.push_back({{"frame", f}, {"error", e.what()}});
+    failed.push_back(std::to_string(f));
+    noisy_t.gap();
+    denoised_t.gap();
   }
-  const double n = static_cast<double>(frames.size());
+  if (scored == 0) throw Error(ErrorKind::Input, "no frame of '" + in.to_string() + "' could be scored (above)");
+  const double n = static_cast<double>(scored);
   nlohmann::ordered_json doc{{"input", in.to_string()}, {"reference", ref.to_string()}, {"frames", frames.size()},
-                             {"eps", o.eps}};
+                             {"frames_scored", scored}, {"eps", o.eps}};
   doc["mean"] = {{"noisy", {{"relmse", sums[0] / n}, {"ssim", sums[1] / n}}}};
   doc["temporal_relmse"] = {{"noisy", noisy_t.value()}};
   if (den) {
@@ -99,6 +114,9 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
     std::printf("\ntemporal relMSE (flicker): noisy %.6f", noisy_t.value());
     if (den) std::printf(", denoised %.6f (%.1f %% of the noisy input's)", denoised_t.value(), 100.0 * denoised_t.value() / noisy_t.value());
     std::printf("\n  = %s, eps = %g\n", doc["temporal_formula"].get<std::string>().c_str(), o.eps);
+    if (!failed.empty())
+      std::printf("%zu of %zu frames not scored (above); the means are over the other %lld\n", failed.size(),
+                  frames.size(), static_cast<long long>(scored));
   }
   if (!o.metrics_out.empty())
     io::write_atomically(o.metrics_out, o.force, [&](const fs::path& temp) {
@@ -106,7 +124,7 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
       file << text;
       if (!file.flush()) throw Error(ErrorKind::Output, "cannot write '" + o.metrics_out + "'");
     });
-  return kOk;
+  return failed.empty() ? kOk : kInputError;  // as denoise: the run goes on, its exit says a frame failed
 }
 
 }  // namespace residue::cli

@@ -22,6 +22,8 @@ std::atomic<int> g_signal{0};
 std::atomic<int> g_wake_fd{-1};
 
 constexpr char kSignalled = 's', kQuit = 'q';
+// SIGHUP too: a dropped ssh session ends a run like a SIGTERM, its temporary file removed.
+constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
 
 extern "C" void on_signal(int sig) {
   int expected = 0;
@@ -51,13 +53,11 @@ InterruptScope::InterruptScope(std::chrono::milliseconds grace) {
   g_signal = 0;
   g_wake_fd = wake_[1];
   watchdog_ = std::thread(&InterruptScope::watch, this, grace);
-  set_handler(SIGINT, on_signal);
-  set_handler(SIGTERM, on_signal);
+  for (int sig : kSignals) set_handler(sig, on_signal);
 }
 
 InterruptScope::~InterruptScope() {
-  set_handler(SIGINT, SIG_DFL);
-  set_handler(SIGTERM, SIG_DFL);
+  for (int sig : kSignals) set_handler(sig, SIG_DFL);
   g_wake_fd = -1;
   [[maybe_unused]] const ssize_t n = ::write(wake_[1], &kQuit, 1);
   watchdog_.join();

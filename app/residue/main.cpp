@@ -7,7 +7,9 @@
 #include <QIcon>
 #include <QScreen>
 #include <QTabWidget>
+#include <QRegularExpression>
 #include <QTimer>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string_view>
@@ -21,6 +23,32 @@
 #include "ui/session.h"
 
 using residue::ui::MainWindow;
+
+namespace {
+
+// The option values a script passes, checked before the window opens: a value outside what the option takes is
+// refused naming it (exit 2), never read as a fallback (a NaN exposure is a white image, a 0 tile no tile).
+struct CheckedOptions {
+  QStringList errors;
+  void fail(const QString& option, const QString& value, const QString& expected) {
+    errors << QStringLiteral("--%1 %2: expected %3").arg(option, value.isEmpty() ? QStringLiteral("\"\"") : value, expected);
+  }
+  void number(const QCommandLineParser& cli, const QCommandLineOption& o, double lo, double hi, const QString& expected) {
+    if (!cli.isSet(o)) return;
+    bool ok = false;
+    const double v = cli.value(o).toDouble(&ok);
+    if (!ok || !std::isfinite(v) || v < lo || v > hi) fail(o.names().last(), cli.value(o), expected);
+  }
+  void one_of(const QCommandLineParser& cli, const QCommandLineOption& o, const QStringList& values) {
+    if (cli.isSet(o) && !values.contains(cli.value(o))) fail(o.names().last(), cli.value(o), "one of " + values.join(", "));
+  }
+  void matches(const QCommandLineParser& cli, const QCommandLineOption& o, const QString& pattern, const QString& expected) {
+    if (cli.isSet(o) && !QRegularExpression("^(?:" + pattern + ")$").match(cli.value(o)).hasMatch())
+      fail(o.names().last(), cli.value(o), expected);
+  }
+};
+
+}  // namespace
 
 int main(int argc, char** argv) {
   residue::ensure_passive_openmp(argc, argv);
@@ -79,6 +107,34 @@ int main(int argc, char** argv) {
     cli.addOption(*o);
   cli.process(app);
 
+  CheckedOptions checked;
+  checked.number(cli, tile, 64, 1024, "a tile edge of 64 to 1024 pixels");
+  checked.matches(cli, tile, "[0-9]+", "a whole number of pixels, 64 to 1024");
+  checked.number(cli, zoom, 1.0 / 64.0, 256.0, "a zoom of 1/64 to 256 screen pixels per image pixel");
+  checked.number(cli, exposure, -30.0, 30.0, "a finite exposure in stops, -30 to 30");
+  checked.number(cli, cancel_after, 0.0, 3600.0, "a number of seconds, 0 to 3600");
+  checked.matches(cli, size, "[0-9]{1,4}x[0-9]{1,4}", "WxH, each 200 to 8192 pixels");
+  if (cli.isSet(size)) {
+    const QStringList wh = cli.value(size).split('x');
+    if (wh.size() == 2 && (wh[0].toInt() < 200 || wh[0].toInt() > 8192 || wh[1].toInt() < 200 || wh[1].toInt() > 8192))
+      checked.fail("size", cli.value(size), "WxH, each 200 to 8192 pixels");
+  }
+  checked.matches(cli, ab, "[1-9][0-9]*(,[1-9][0-9]*)?", "I or I,J: results counted from 1");
+  checked.matches(cli, when, "loaded|denoised|progress:(0?\\.[0-9]*[1-9][0-9]*|1(\\.0*)?)",
+                  "loaded, denoised or progress:F with 0 < F <= 1");
+  checked.one_of(cli, layout, {"all", "single", "pair", "wipe"});
+  checked.one_of(cli, pane, {"noisy", "denoised", "compare", "reference", "heatmap"});
+  checked.one_of(cli, heatmap, {"pane", "overlay", "off"});
+  checked.one_of(cli, heatmap_of, {"a", "b", "noisy", "a-vs-b"});
+  checked.one_of(cli, precision, {"fp32", "bf16"});
+  checked.one_of(cli, tab, {"results", "denoise", "heatmap", "pixel"});
+  if (cli.value(when).startsWith("progress:") && !cli.isSet(denoise))
+    checked.errors << QStringLiteral("--screenshot-when %1 needs --denoise: no denoise would get there").arg(cli.value(when));
+  if (!checked.errors.isEmpty()) {
+    for (const QString& e : checked.errors) std::fprintf(stderr, "residue: %s\n", qPrintable(e));
+    return 2;
+  }
+
   MainWindow window;
   if (const auto icon = residue::find_resource("icons/hicolor/256x256/apps/residue.png"))
     QApplication::setWindowIcon(QIcon::fromTheme("residue", QIcon(QString::fromStdString(icon->string()))));
@@ -123,6 +179,10 @@ int main(int argc, char** argv) {
     auto* tabs = window.sideTabs();
     for (int i = 0; i < tabs->count(); ++i)
       if (tabs->tabText(i).compare(t, Qt::CaseInsensitive) == 0) tabs->setCurrentIndex(i);
+    if (tabs->tabText(tabs->currentIndex()).compare(t, Qt::CaseInsensitive) != 0) {
+      std::fprintf(stderr, "residue: --tab %s: the side bar has no such tab\n", qPrintable(t));
+      return 2;
+    }
   }
   if (cli.isSet(heatmap_of)) {
     const QString o = cli.value(heatmap_of);
@@ -166,7 +226,13 @@ int main(int argc, char** argv) {
       if (cli.isSet(ab)) {
         const QStringList ij = cli.value(ab).split(',');
         const auto& results = window.session()->results();
-        const auto id = [&](int k) { return k >= 1 && k <= static_cast<int>(results.size()) ? results[static_cast<size_t>(k - 1)].id : -1; };
+        for (const QString& k : ij)
+          if (k.toInt() > static_cast<int>(results.size())) {
+            std::fprintf(stderr, "residue: --ab %s: there are %zu results\n", qPrintable(cli.value(ab)), results.size());
+            QApplication::exit(2);
+            return;
+          }
+        const auto id = [&](int k) { return results[static_cast<size_t>(k - 1)].id; };
         if (ij.size() >= 1) window.session()->setA(id(ij[0].toInt()));
         if (ij.size() >= 2) window.session()->setB(id(ij[1].toInt()));
       }
@@ -178,8 +244,9 @@ int main(int argc, char** argv) {
       QObject::connect(w, &QFutureWatcherBase::finished, &app, [w, export_done] {
         *export_done = true;
         const QString error = w->result();
-        if (!error.isEmpty()) std::fprintf(stderr, "residue: %s\n", qPrintable(error));
-        else std::fprintf(stderr, "residue: exported all\n");
+        if (error.isEmpty()) return void(std::fprintf(stderr, "residue: exported all\n"));
+        std::fprintf(stderr, "residue: --export-all: %s\n", qPrintable(error));
+        QApplication::exit(1);  // a script's export that failed does not end as a success
       });
       w->setFuture(window.exportAll(cli.value(export_all), false));
     }
@@ -310,6 +377,11 @@ int main(int argc, char** argv) {
       if (condition.startsWith("progress:")) {
         // Mid-denoise: the bar and half-finished tiles are the point of this picture.
         ready = window.denoisePanel()->running() && window.denoisePanel()->progressFraction() >= condition.mid(9).toDouble();
+        if (!ready && !window.denoisePanel()->running() && window.session()->denoised() && !window.busy()) {
+          std::fprintf(stderr, "residue: --screenshot-when %s: the denoise ended before it got there\n", qPrintable(condition));
+          QApplication::exit(1);
+          return;
+        }
       } else {
         ready = !finisher->isActive() && *export_done && allDone();
       }

@@ -8,6 +8,7 @@
 #include <set>
 
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
 #include <nlohmann/json.hpp>
 
 #include "core/aov/channel_naming.h"
@@ -120,17 +121,20 @@ std::string expected_text(AovRole role) {
 }
 
 // The plan for a whole single-AOV file: its only layer's channels.
+ReadPlan plan_from_recognition(const RecognisedAov& r, const std::string& file);
+
 ReadPlan whole_file_plan(AovRole role, const OpenedFile& f) {
   ReadPlan p;
   p.role = role;
   p.file = f.path;
-  if (role == AovRole::Color || role == AovRole::Reference) {
-    Recognition r = recognise_channels(f.channels);
-    if (const RecognisedAov* c = r.find(AovRole::Color)) {
-      p.channels = c->channels;
-      p.layer = c->layer;
-      return p;
-    }
+  // A file whose naming says which channels are this AOV (a multilayer render given as --map albedo=FILE has
+  // its "Denoising Albedo" layer): those, not its first channels (the beauty).
+  const Recognition r = recognise_channels(f.channels);
+  const AovRole named = role == AovRole::Reference ? AovRole::Color : role;
+  if (const RecognisedAov* c = r.find(named)) {
+    ReadPlan found = plan_from_recognition(*c, f.path);
+    found.role = role;
+    return found;
   }
   const int want = expected_channels(role);
   const std::vector<ChannelRef> first = [&] {
@@ -424,9 +428,26 @@ AovReader::AovReader(const std::vector<fs::path>& inputs, const LoadOptions& opt
     }
   }
 
+  if (!plans.count(AovRole::Color) && !options.mapping.layer_prefix.empty()) {
+    const std::vector<std::string> layers = layer_names(primary.channels);
+    const auto same = [&](const std::string& l) { return OIIO::Strutil::iequals(l, options.mapping.layer_prefix); };
+    if (std::none_of(layers.begin(), layers.end(), same)) {
+      std::string list;
+      for (const auto& l : layers) list += (list.empty() ? "" : ", ") + l;
+      throw Error(ErrorKind::Input, "--layer '" + options.mapping.layer_prefix + "': '" + primary.path +
+                                        "' has no such layer; its layers: " + (list.empty() ? "(none: every channel is at the root)" : list));
+    }
+  }
   if (!plans.count(AovRole::Color))
     throw Error(ErrorKind::Input, "'" + primary.path + "': no colour (beauty) channels recognised; expected " +
                                       expected_text(AovRole::Color) + "; found channels " + channel_list(primary));
+  // Integer channels (object or material IDs) hold no light: read as float they would be scaled by 1/(2^32-1).
+  for (const auto& [role, plan] : plans)
+    for (const ChannelRef& c : plan.channels)
+      if (c.pixel_type == "uint" || c.pixel_type == "uint32")
+        throw Error(ErrorKind::Input, "'" + plan.file + "': the " + to_string(role) + " channel '" + c.name +
+                                          "' is an integer (uint) channel, such as an ID pass; AOVs are read from "
+                                          "half or float channels (map another with --map " + to_string(role) + "=...)");
   if (options.normal_space && plans.count(AovRole::Normal)) {
     plans[AovRole::Normal].normal_space = *options.normal_space;
     plans[AovRole::Normal].flip_normal_z = false;
@@ -510,7 +531,16 @@ AovStack AovReader::read(const Rect& rect, const std::vector<AovRole>& roles) co
                             (role == AovRole::Reference ? "not scored: metrics exclude them" : "set to 0") + ")");
   }
 
-  for (auto& [role, aov] : loaded) stack.emplace(role) = std::move(aov);
+  for (auto& [role, aov] : loaded) {
+    // A guide with no finite value is read as 0 everywhere (features sanitise it): say so, as the model then
+    // has no guide at all.
+    if ((role == AovRole::Albedo || role == AovRole::Normal) && aov.image.size() > 0 &&
+        aov.non_finite.total() == static_cast<int64_t>(aov.image.size()))
+      stack.notes.push_back(std::string("the ") + to_string(role) + " AOV has no finite value (" +
+                            std::to_string(aov.non_finite.nan) + " NaN, " + std::to_string(aov.non_finite.inf) +
+                            " Inf): it is read as 0, so the model has no " + to_string(role) + " to go by; re-render the pass");
+    stack.emplace(role) = std::move(aov);
+  }
 
   return stack;
 }

@@ -129,6 +129,17 @@ std::vector<ChannelRef> find_layer_channels(const std::vector<ChannelRef>& chann
   return take(idx, s.prefix, s.layer, count);
 }
 
+std::vector<std::string> layer_names(const std::vector<ChannelRef>& channels) {
+  std::vector<std::string> names;
+  for (const auto& c : channels) {
+    const auto dot = c.name.find('.');
+    if (dot == std::string::npos || dot == 0) continue;
+    const std::string name = c.name.substr(0, dot);
+    if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
+  }
+  return names;
+}
+
 Recognition recognise_channels(const std::vector<ChannelRef>& channels, const std::string& layer_prefix) {
   const LayerIndex idx = index_channels(channels);
   // The prefixes present (Cycles view layers), in order of first appearance.
@@ -159,9 +170,12 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
         if (rec.find(rule.role)) continue;
         const int count = expected_channels(rule.role);
         for (const std::string& layer : rule.layers) {
-          // Root-layer beauty is never under a prefix.
+          // Root-layer beauty is never under a prefix; but a layer named like the prefix stands for it
+          // ("Beta.R" beside "Beta.albedo.R": a render's layer whose passes are prefixed by its name).
           const std::string& p = layer.empty() ? std::string() : prefix;
-          std::vector<ChannelRef> found = take(idx, p, layer, count);
+          std::vector<ChannelRef> found;
+          if (layer.empty() && !prefix.empty()) found = take(idx, "", prefix, count);
+          if (found.empty()) found = take(idx, p, layer, count);
           if (found.empty() && rule.role == AovRole::Variance) found = take(idx, p, layer, 1);
           if (found.empty()) {
             if (auto it = idx.find({p, layer}); count == 3 && !layer.empty() && it != idx.end())

@@ -41,6 +41,10 @@ struct Recognition {
 // holds several (e.g. Cycles "ViewLayer"); empty = the first prefix that has a beauty pass.
 Recognition recognise_channels(const std::vector<ChannelRef>& channels, const std::string& layer_prefix = "");
 
+// The layers (or view-layer prefixes) of a file: the first part of each dotted channel name ("ViewLayer" of
+// "ViewLayer.Combined.R", "Beta" of "Beta.R"), in order of first appearance, as stored.
+std::vector<std::string> layer_names(const std::vector<ChannelRef>& channels);
+
 // Finds `count` channels for a layer: e.g. ("diffuse", 3) -> diffuse.red/green/blue. Used for explicit
 // mappings that name a layer rather than channels. Empty when not found.
 std::vector<ChannelRef> find_layer_channels(const std::vector<ChannelRef>& channels, const std::string& layer,

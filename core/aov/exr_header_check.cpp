@@ -95,8 +95,14 @@ ExrDeclaredPixels exr_declared_pixels(const uint8_t* bytes, size_t size) {
     return none;
   });
   auto i32 = [&](size_t at) { return static_cast<double>(static_cast<int32_t>(load_le32(bytes + at))); };
+  // Display windows apart: nothing is allocated by them (a region render's 64x64 data window may sit in a
+  // 16384x8640 display window). The name stands just before the type: "displayWindow\0box2i\0", size, value.
+  static constexpr char kDisplayWindow[] = "displayWindow";  // with its NUL: 14 bytes
+  constexpr size_t kBeforeValue = sizeof(kDisplayWindow) + sizeof("box2i") + 4;
   for_each_typed_value(bytes, size, "box2i", 16, [&](size_t v, uint32_t) {  // xMin, yMin, xMax, yMax
-    out.windows.emplace_back(std::abs(i32(v + 8) - i32(v)) + 1, std::abs(i32(v + 12) - i32(v + 4)) + 1);
+    const bool display = v >= kBeforeValue && std::memcmp(bytes + v - kBeforeValue, kDisplayWindow, sizeof(kDisplayWindow)) == 0;
+    (display ? out.display_windows : out.windows)
+        .emplace_back(std::abs(i32(v + 8) - i32(v)) + 1, std::abs(i32(v + 12) - i32(v + 4)) + 1);
     return none;
   });
   for_each_typed_value(bytes, size, "tiledesc", 8, [&](size_t v, uint32_t) {  // tile width, height, level mode

@@ -24,7 +24,8 @@ namespace residue {
 // puts a walk of the header out of step with OpenEXR's, cannot hide one. Extents are doubles: two 32-bit extents
 // overflow 64 bits.
 struct ExrDeclaredPixels {
-  std::vector<std::pair<double, double>> windows;  // width, height of each data or display window
+  std::vector<std::pair<double, double>> windows;          // width, height of each data window
+  std::vector<std::pair<double, double>> display_windows;  // ... of each display window (nothing is allocated by it)
   std::vector<std::pair<double, double>> tiles;    // width, height of each tile description
   double channels = 0;                             // of the longest channel list
   double pixel_bytes = 0;                          // of the widest: 2 per half channel, 4 per uint or float

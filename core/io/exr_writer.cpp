@@ -24,21 +24,30 @@ constexpr std::array<std::string_view, 10> kCompressions = {"none",  "rle", "zip
 
 std::string quoted(const fs::path& p) { return "'" + p.string() + "'"; }
 
-// Accepts one of kCompressions, optionally with a level ("zip:9", "dwaa:45") as OpenImageIO allows.
+// Accepts one of kCompressions, optionally with a level as OpenEXR takes it: zip and zips 1 to 9, dwaa and
+// dwab a positive number (45 by default); the others have none.
 void check_compression(const std::string& compression) {
   const auto colon = compression.find(':');
-  const std::string_view base = std::string_view(compression).substr(0, colon);
-  bool ok = std::find(kCompressions.begin(), kCompressions.end(), base) != kCompressions.end();
-  if (ok && colon != std::string::npos) {
-    const std::string level = compression.substr(colon + 1);
-    ok = !level.empty() &&
-         std::all_of(level.begin(), level.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+  const std::string base = compression.substr(0, colon);
+  if (std::find(kCompressions.begin(), kCompressions.end(), base) == kCompressions.end()) {
+    std::string allowed;
+    for (auto name : kCompressions) allowed += (allowed.empty() ? "" : ", ") + std::string(name);
+    throw Error(ErrorKind::Usage, "unknown EXR compression '" + base + "'; use one of: " + allowed +
+                                      " (optionally with a level, e.g. zip:9 or dwaa:45)");
   }
-  if (ok) return;
-  std::string allowed;
-  for (auto name : kCompressions) allowed += (allowed.empty() ? "" : ", ") + std::string(name);
-  throw Error(ErrorKind::Usage, "unknown EXR compression '" + compression + "'; use one of: " + allowed +
-                                    " (optionally with a level, e.g. zip:9 or dwaa:45)");
+  if (colon == std::string::npos) return;
+  const std::string level = compression.substr(colon + 1);
+  const bool digits = !level.empty() && level.size() <= 6 &&
+                      std::all_of(level.begin(), level.end(), [](unsigned char c) { return std::isdigit(c) != 0; });
+  const int value = digits ? std::stoi(level) : -1;
+  const std::string where = "EXR compression '" + compression + "': ";
+  if (base == "zip" || base == "zips") {
+    if (value < 1 || value > 9) throw Error(ErrorKind::Usage, where + "the level of " + base + " is 1 to 9, not '" + level + "'");
+  } else if (base == "dwaa" || base == "dwab") {
+    if (value < 1) throw Error(ErrorKind::Usage, where + "the level of " + base + " is a positive whole number (45 by default), not '" + level + "'");
+  } else {
+    throw Error(ErrorKind::Usage, where + base + " takes no level");
+  }
 }
 
 std::vector<std::string> channel_names(int n, const ExrWriteOptions& options) {
@@ -149,6 +158,10 @@ const Image& fit_to_half(const Image& image, const ExrWriteOptions& options, Ima
 
 std::vector<fs::path> prepare_exr_output(const fs::path& path, const ExrWriteOptions& options) {
   check_compression(options.compression);
+  std::string name = path.filename().string();
+  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (name == ".exr")
+    throw Error(ErrorKind::Output, "output " + quoted(path) + " is an extension without a name: give the file a name, e.g. out.exr");
   std::vector<fs::path> removed = prepare_output(path, options.overwrite);
   std::string extension = path.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(), [](unsigned char c) { return std::tolower(c); });

@@ -24,6 +24,8 @@ class TemporalRelMse {
   explicit TemporalRelMse(double eps = 0.01, std::optional<Rect> roi = std::nullopt);
   // The next frame of the sequence and its reference (the sizes of the first frame; Error(Usage) otherwise).
   void add(const Image& frame, const Image& reference);
+  // The next frame added does not follow the last one (a frame between them is missing): no pair across the gap.
+  void gap() { prev_frame_ = Image(), prev_reference_ = Image(); }
   double value() const;  // NaN before two frames
   int64_t pairs() const { return pairs_; }
   int64_t pixels() const { return pixels_; }      // pixel x pair terms that entered

@@ -65,6 +65,10 @@ Model model_from_network(Network network, std::string name = "in-memory");
 // Denoise's networks (its inputs read from the name; clean-aux ones load their prefilters from beside them).
 Model load_model(const std::filesystem::path& path);
 
+// The model a denoise runs when none is named (the CLI, the viewer): the best speed/accuracy trade measured
+// (docs/MODELS.md).
+inline constexpr const char* kDefaultModel = "multiscale";
+
 // `name_or_path`: an existing file, or a model name looked up in $RESIDUE_MODEL_PATH, the source tree's
 // resources/models and <prefix>/share/residue/models. Throws Error(Input) listing where it looked.
 std::filesystem::path find_model(const std::string& name_or_path);

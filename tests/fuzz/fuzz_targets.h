@@ -70,7 +70,7 @@ constexpr int64_t kMaxExrValues = int64_t{1} << 20;
 inline double exr_declared_values(const uint8_t* bytes, size_t size) {
   const ExrDeclaredPixels declared = exr_declared_pixels(bytes, size);
   double largest = 0;
-  for (const auto* extent : {&declared.windows, &declared.tiles})
+  for (const auto* extent : {&declared.windows, &declared.display_windows, &declared.tiles})
     for (const auto& [width, height] : *extent) largest = std::max(largest, width * height);
   return largest * std::max(declared.channels, 1.0);
 }
