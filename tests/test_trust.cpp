@@ -16,6 +16,7 @@
 #include "core/denoise/denoiser.h"
 #include "core/io/atomic_file.h"
 #include "core/io/frame_claim.h"
+#include "core/ipc/live_images.h"
 #include "core/nn/model_file.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
@@ -369,6 +370,29 @@ TEST_F(TrustSequenceCli, EvalGoesOnPastAMissingFrameAsDenoiseDoes) {
   EXPECT_EQ(run_cli({"denoise", (dir_ / "shot.####.exr").string(), "-o", (dir_ / "out.####.exr").string(), "-m", "tiny",
                      "--frames", "1-4"}, &out), 3) << out;
   EXPECT_TRUE(fs::exists(dir_ / "out.0004.exr")) << "denoise went on past frame 3: " << out;
+}
+
+// Defect 11: one 37-byte "create 16384x16384x4" packet allocated 4.3 GB, with no cap across images or clients.
+TEST(TrustIpc, LiveImagesStayWithinTheirMemory) {
+  ipc::LiveImages images(size_t{1} << 20);  // 1 MiB: 65536 RGBA pixels
+  const auto create = [](const std::string& name, int w, int h) {
+    ipc::CreateImage c;
+    c.name = name, c.width = w, c.height = h, c.channel_names = {"R", "G", "B", "A"};
+    return c;
+  };
+  images.apply(create("a", 128, 128));  // 256 KiB
+  images.apply(create("b", 256, 128));  // 512 KiB
+  const std::string message = testing::error_message([&] { images.apply(create("huge", 16384, 16384)); }, ErrorKind::Input);
+  EXPECT_TRUE(contains(message, "'huge' (16384 x 16384, 4 channels) needs 4096 MiB") && contains(message, "1 MiB in all"))
+      << message;
+  EXPECT_EQ(images.find("huge"), nullptr);
+  EXPECT_TRUE(contains(testing::error_message([&] { images.apply(create("c", 128, 256)); }, ErrorKind::Input), "'c'"))
+      << "768 KiB held: 512 more do not fit";
+  images.apply(create("b", 256, 192));  // re-created: its old pixels are freed first (768 + 256 = 1 MiB)
+  EXPECT_EQ(images.bytes(), size_t{1} << 20);
+  EXPECT_TRUE(images.close("a"));
+  images.apply(create("c", 128, 128));
+  EXPECT_EQ(images.size(), 2u);
 }
 
 // --- extremes: finite output that scales with the input, whatever the tiling ---------------------------------

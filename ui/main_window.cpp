@@ -13,6 +13,7 @@
 #include <QLabel>
 #include <QMenuBar>
 #include <QMessageBox>
+#include <cstdio>
 #include <QSettings>
 #include <QStandardItemModel>
 #include <QScreen>
@@ -196,6 +197,7 @@ void MainWindow::openFiles(const QStringList& files, const LoadOptions& options)
   for (const auto& f : files) inputs.emplace_back(f.toStdString());
   last_error_.clear();
   mapping_retry_ = false;
+  load_from_renderer_ = false;
   session_->open(inputs, options);
   addRecent(files);
 }
@@ -267,6 +269,10 @@ void MainWindow::watchInputs() {
 void MainWindow::onLoadFailed(const QString& message, int kind, const QStringList& inputs) {
   last_error_ = message;
   statusBar()->showMessage(tr("Could not load: %1").arg(message), 15000);
+  if (load_from_renderer_) {
+    std::fprintf(stderr, "residue: a renderer's open request failed: %s\n", qPrintable(message));
+    return;
+  }
   if (auto_reloading_) {  // a file caught half-written: the next change reloads it again
     auto_reloading_ = false;
     watchInputs();
@@ -624,9 +630,9 @@ void MainWindow::updateStatus() {
   }
 }
 
-QString MainWindow::listenForRenderers(quint16 port) {
+QString MainWindow::listenForRenderers(quint16 port, size_t max_bytes) {
   if (!tev_) {
-    tev_ = new TevServer(this);
+    tev_ = new TevServer(this, max_bytes > 0 ? max_bytes : TevServer::default_memory());
     live_timer_ = new QTimer(this);
     live_timer_->setSingleShot(true);
     live_timer_->setInterval(150);  // a renderer sends many tiles a second; show them a few times a second
@@ -658,6 +664,7 @@ QString MainWindow::listenForRenderers(quint16 port) {
         statusBar()->showMessage(tr("Opening %1 (channel selector \"%2\" ignored: AOVs are recognised by name)")
                                      .arg(path, channels), 10000);
       openFiles({path});
+      load_from_renderer_ = true;  // a failure goes to the status bar: a client's requests never stack dialogs
     });
     connect(tev_, &TevServer::reloadRequested, this, [this] { session_->reload(); });
     connect(tev_, &TevServer::protocolError, this, [this](const QString& message) {

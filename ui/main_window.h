@@ -62,7 +62,7 @@ class MainWindow : public QMainWindow {
   // Renderers streaming over tev's protocol (ui/tev_server.h): listens on the loopback interface. Returns an
   // error message (the port is taken, ...) or an empty string. A streamed image is shown as the render, once
   // its updates pause for a moment.
-  QString listenForRenderers(quint16 port);
+  QString listenForRenderers(quint16 port, size_t max_bytes = 0);
   TevServer* tevServer() const { return tev_; }
 
   // View state.
@@ -168,6 +168,7 @@ class MainWindow : public QMainWindow {
   std::optional<Source> pending_pane_;  // to show in single layout once the panes include it
   std::optional<QPoint> hover_;
   bool interactive_ = true;
+  bool load_from_renderer_ = false;  // the load in flight was asked for over tev's protocol: no dialogs
   QString last_error_;
   bool mapping_retry_ = false;
 

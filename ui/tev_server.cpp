@@ -1,13 +1,19 @@
 #include "ui/tev_server.h"
 
 #include <QTcpSocket>
+#include <unistd.h>
 #include <variant>
 
 #include "core/util/error.h"
 
 namespace residue::ui {
 
-TevServer::TevServer(QObject* parent) : QObject(parent) {
+size_t TevServer::default_memory() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? static_cast<size_t>(pages) * static_cast<size_t>(page) / 4 : size_t{4} << 30;
+}
+
+TevServer::TevServer(QObject* parent, size_t max_bytes) : QObject(parent), images_(max_bytes) {
   connect(&server_, &QTcpServer::newConnection, this, &TevServer::accept);
 }
 

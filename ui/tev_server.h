@@ -21,7 +21,10 @@ namespace residue::ui {
 class TevServer : public QObject {
   Q_OBJECT
  public:
-  explicit TevServer(QObject* parent = nullptr);
+  // `max_bytes`: the streamed images' memory, all clients together (ipc::LiveImages); by default a quarter of
+  // this machine's RAM.
+  explicit TevServer(QObject* parent = nullptr, size_t max_bytes = default_memory());
+  static size_t default_memory();
   ~TevServer() override;
   // Starts listening; false when it cannot (the port is taken: tev or another viewer), with errorString().
   bool listen(quint16 port = ipc::kTevDefaultPort, const QHostAddress& address = QHostAddress::LocalHost);

@@ -101,9 +101,11 @@ int main(int argc, char** argv) {
   const QCommandLineOption ipc_port("ipc-port", "Listen for renderers streaming over tev's protocol on this port of "
                                     "127.0.0.1 (default 14158, tev's).", "port", "14158");
   const QCommandLineOption no_ipc("no-ipc", "Do not listen for renderers.");
+  const QCommandLineOption ipc_memory("ipc-memory", "Memory the streamed images may hold, all renderers together, in "
+                                      "MiB (default: a quarter of this machine's RAM).", "MiB");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
                         &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
-                        &ipc_port, &no_ipc})
+                        &ipc_port, &no_ipc, &ipc_memory})
     cli.addOption(*o);
   cli.process(app);
 
@@ -113,6 +115,7 @@ int main(int argc, char** argv) {
   checked.number(cli, zoom, 1.0 / 64.0, 256.0, "a zoom of 1/64 to 256 screen pixels per image pixel");
   checked.number(cli, exposure, -30.0, 30.0, "a finite exposure in stops, -30 to 30");
   checked.number(cli, cancel_after, 0.0, 3600.0, "a number of seconds, 0 to 3600");
+  checked.number(cli, ipc_memory, 16, 1 << 24, "a whole number of MiB, 16 or more");
   checked.matches(cli, size, "[0-9]{1,4}x[0-9]{1,4}", "WxH, each 200 to 8192 pixels");
   if (cli.isSet(size)) {
     const QStringList wh = cli.value(size).split('x');
@@ -151,7 +154,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "residue: --ipc-port %s: expected a port number 1 to 65535\n", qPrintable(cli.value(ipc_port)));
       return 2;
     }
-    const QString error = window.listenForRenderers(static_cast<quint16>(port));
+    const size_t memory = cli.isSet(ipc_memory) ? static_cast<size_t>(cli.value(ipc_memory).toDouble()) << 20 : 0;
+    const QString error = window.listenForRenderers(static_cast<quint16>(port), memory);
     if (!error.isEmpty()) std::fprintf(stderr, "residue: %s\n", qPrintable(error));  // the viewer works without it
   }
 

@@ -8,7 +8,33 @@
 
 namespace residue::ipc {
 
+namespace {
+
+size_t image_bytes(int64_t width, int64_t height, size_t channels) {
+  return static_cast<size_t>(width) * static_cast<size_t>(height) * channels * sizeof(float);
+}
+
+std::string mib(size_t bytes) { return std::to_string((bytes + (size_t{1} << 20) - 1) >> 20) + " MiB"; }
+
+}  // namespace
+
+size_t LiveImages::bytes() const {
+  size_t total = 0;
+  for (const auto& [name, image] : images_) total += image.pixels.size() * sizeof(float);
+  return total;
+}
+
 void LiveImages::apply(const CreateImage& packet) {
+  const size_t wanted = image_bytes(packet.width, packet.height, packet.channel_names.size());
+  const auto old = images_.find(packet.name);
+  const size_t freed = old == images_.end() ? 0 : old->second.pixels.size() * sizeof(float);
+  const size_t held = bytes() - freed;
+  if (max_bytes_ > 0 && wanted > max_bytes_ - std::min(held, max_bytes_))
+    throw Error(ErrorKind::Input, "tev IPC image '" + packet.name + "' (" + std::to_string(packet.width) + " x " +
+                                      std::to_string(packet.height) + ", " + std::to_string(packet.channel_names.size()) +
+                                      " channels) needs " + mib(wanted) + "; the streamed images may hold " +
+                                      mib(max_bytes_) + " in all and hold " + mib(held) +
+                                      " (close some, or raise the viewer's --ipc-memory)");
   LiveImage& image = images_[packet.name];
   image.channel_names = packet.channel_names;
   image.pixels = Image(packet.width, packet.height, static_cast<int>(packet.channel_names.size()));

@@ -24,7 +24,10 @@ struct LiveImage {
 
 class LiveImages {
  public:
-  // Creates (or re-creates, as tev does) an image.
+  // `max_bytes`: what all live images may hold together, whatever the number of clients (0: no cap).
+  explicit LiveImages(size_t max_bytes = 0) : max_bytes_(max_bytes) {}
+  // Creates (or re-creates, as tev does) an image. Throws Error(Input) naming it, its size and the cap, and
+  // keeps what was there, when it would take the images past max_bytes.
   void apply(const CreateImage& packet);
   // Writes a rectangle into an existing image and returns the part of it inside the image (empty when none).
   // Throws Error(Input) naming the image or the channel when either does not exist.
@@ -33,9 +36,12 @@ class LiveImages {
 
   const LiveImage* find(const std::string& name) const;
   size_t size() const { return images_.size(); }
+  size_t bytes() const;  // held by all live images now
+  size_t max_bytes() const { return max_bytes_; }
 
  private:
   std::map<std::string, LiveImage> images_;
+  size_t max_bytes_ = 0;
 };
 
 // The AOV stack of a live image: its channels recognised by name (root R,G,B is the colour). Throws Error(Input)

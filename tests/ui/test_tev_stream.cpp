@@ -5,7 +5,10 @@
 #include <QProcess>
 #include <QSignalSpy>
 #include <QTemporaryDir>
+#include <QDialog>
+#include <QStatusBar>
 #include <QTcpSocket>
+#include <QTimer>
 #include <QtTest>
 #include <filesystem>
 
@@ -196,6 +199,36 @@ class TevStreamTest : public QObject {
     create.u8(1).str("after").i32(2).i32(2).i32(3).str("R").str("G").str("B");
     QVERIFY(send(client, create.done()));
     QVERIFY(QTest::qWaitFor([&] { return w.tevServer()->images().find("after") != nullptr; }, 10000));
+  }
+
+  // A client's failing "open image" requests (20 of them) never stack modal dialogs: each is said in the status
+  // bar; a "create" beyond the streamed images' memory is refused naming the image, and the viewer goes on.
+  void failingRequestsAreReportedNotStackedAsDialogs() {
+    MainWindow w;
+    w.setInteractive(true);  // as a user runs it: dialogs would open
+    w.show();
+    QCOMPARE(w.listenForRenderers(0, size_t{64} << 20), QString());
+    int dialogs = 0;
+    QTimer closer;
+    connect(&closer, &QTimer::timeout, [&] {
+      for (QWidget* top : QApplication::topLevelWidgets())
+        if (auto* box = qobject_cast<QDialog*>(top); box && box->isVisible()) ++dialogs, box->reject();
+    });
+    closer.start(20);
+    QTcpSocket client;
+    client.connectToHost(QHostAddress::LocalHost, w.tevServer()->port());
+    QVERIFY(client.waitForConnected(5000));
+    for (int i = 0; i < 20; ++i)
+      QVERIFY(send(client, TevPacket(7).u8(1).str("/no/such/render" + std::to_string(i) + ".exr").str("").done()));
+    QVERIFY(QTest::qWaitFor([&] { return w.statusBar()->currentMessage().contains("render19.exr"); }, 10000));
+    QSignalSpy errors(w.tevServer(), &TevServer::protocolError);
+    TevPacket huge(4);
+    huge.u8(1).str("huge").i32(16384).i32(16384).i32(4).str("R").str("G").str("B").str("A");
+    QVERIFY(send(client, huge.done()));
+    QVERIFY(QTest::qWaitFor([&] { return errors.count() == 1; }, 10000));
+    QVERIFY2(errors.at(0).at(0).toString().contains("'huge'"), qPrintable(errors.at(0).at(0).toString()));
+    QVERIFY(w.tevServer()->images().find("huge") == nullptr);
+    QCOMPARE(dialogs, 0);
   }
 
   // `residue --help` on a machine without a display (no DISPLAY, no QT_QPA_PLATFORM) prints the options.
