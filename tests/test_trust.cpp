@@ -395,6 +395,36 @@ TEST(TrustIpc, LiveImagesStayWithinTheirMemory) {
   EXPECT_EQ(images.size(), 2u);
 }
 
+// Defect 12: farm slurm wrote free text into #SBATCH lines, merged an earlier submission's chunk summaries,
+// accepted an unknown model or frames with no input, and called a --job-dir naming a file an internal error.
+TEST_F(TrustSequenceCli, FarmSubmissionsAreCheckedBeforeAnyScriptIsWritten) {
+  const std::string shot = (dir_ / "shot.####.exr").string(), outs = (dir_ / "out.####.exr").string();
+  const auto farm = [&](const std::vector<std::string>& extra, std::string& out) {
+    std::vector<std::string> args = {"farm", "slurm", shot, "-o", outs, "--dry-run"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return run_cli(args, &out);
+  };
+  std::string out;
+  EXPECT_EQ(farm({"-m", "nosuch", "--job-dir", (dir_ / "j1").string()}, out), 3) << out;
+  EXPECT_TRUE(contains(out, "no model \"nosuch\"")) << out;
+  EXPECT_FALSE(fs::exists(dir_ / "j1")) << "nothing written for a job that cannot run";
+  EXPECT_EQ(farm({"-m", "tiny", "--partition", "gpu\n#SBATCH --mem=1T"}, out), 2) << out;
+  EXPECT_TRUE(contains(out, "a Slurm partition name")) << out;
+  EXPECT_EQ(farm({"-m", "tiny", "--frames", "5000-5010"}, out), 3) << out;
+  EXPECT_TRUE(contains(out, "none of the 11 frames")) << out;
+  std::ofstream(dir_ / "afile");
+  EXPECT_EQ(farm({"-m", "tiny", "--job-dir", (dir_ / "afile").string()}, out), 4) << out;
+  EXPECT_TRUE(contains(out, "is a file, not a folder")) << out;
+  const fs::path job = dir_ / "job%x";
+  ASSERT_EQ(farm({"-m", "tiny", "--job-dir", job.string()}, out), 0) << out;
+  EXPECT_TRUE(contains(read_text(job / "denoise.sbatch"), "#SBATCH --output=" + (dir_ / "job%%x").string() + "/logs/chunk_%a.log"))
+      << "a literal % is written %% for Slurm: " << read_text(job / "denoise.sbatch");
+  std::ofstream(job / "chunk_7.json") << "{\"frames\": []}";
+  ASSERT_EQ(farm({"-m", "tiny", "--job-dir", job.string(), "--chunk", "1"}, out), 0) << out;
+  EXPECT_TRUE(contains(out, "removed 1 summaries of an earlier submission")) << out;
+  EXPECT_FALSE(fs::exists(job / "chunk_7.json"));
+}
+
 // --- extremes: finite output that scales with the input, whatever the tiling ---------------------------------
 
 AovStack room() { return load_aov_stack({kRoom / "noisy.exr"}); }

@@ -12,6 +12,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <fstream>
 #include <memory>
@@ -21,8 +23,12 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "core/aov/aov_loader.h"
+#include "core/features/features.h"
 #include "core/io/atomic_file.h"
 #include "core/io/frame_sequence.h"
+#include "core/nn/model_card.h"
+#include "core/nn/model_file.h"
 #include "core/util/error.h"
 
 namespace residue::cli {
@@ -86,14 +92,63 @@ std::string run_command(const std::string& command) {
   return out;
 }
 
+// What goes into an #SBATCH line verbatim is checked: a newline would start another directive.
+void check_job_options(const FarmOptions& o) {
+  const auto control = [](const std::string& s) {
+    return std::any_of(s.begin(), s.end(), [](unsigned char c) { return c < 0x20 || c == 0x7f; });
+  };
+  if (!o.partition.empty() &&
+      !std::all_of(o.partition.begin(), o.partition.end(), [](unsigned char c) { return std::isalnum(c) || c == '_' || c == '-' || c == '.' || c == ','; }))
+    throw Error(ErrorKind::Usage, "--partition '" + o.partition + "': a Slurm partition name (letters, digits, _ - . and "
+                                  "commas between several)");
+  if (control(o.job_dir)) throw Error(ErrorKind::Usage, "--job-dir: a folder name without newlines or control characters");
+}
+
+// Slurm expands %-patterns in --output file names: a literal % is written %%.
+std::string slurm_file_name(const std::string& path) {
+  std::string s;
+  for (char c : path) s += c == '%' ? std::string("%%") : std::string(1, c);
+  return s;
+}
+
+// The model must resolve for the frames' AOVs now, not fail on every task once the array runs.
+void check_model(const FarmOptions& o, const fs::path& first_frame) {
+  if (nn::method_of(o.model) == nn::Method::Bilateral) return;
+  const AovReader reader({first_frame}, LoadOptions{});
+  (void)nn::find_model_for(o.model, feature_set_for(reader.layout()));
+}
+
 int run_slurm(const FarmOptions& o) {
+  check_job_options(o);
   const auto in = io::FramePattern::parse(o.input);
   const auto out = io::FramePattern::parse(o.output);
   if (!in || !out) throw Error(ErrorKind::Usage, "farm: give the input and -o as frame patterns (shot.####.exr)");
   const std::vector<int64_t> frames = o.frames.empty() ? io::find_frames(*in) : io::parse_frame_spec(o.frames);
   if (frames.empty()) throw Error(ErrorKind::Input, "no frame of '" + in->to_string() + "' exists (give --frames)");
+  std::vector<int64_t> present;
+  for (int64_t f : frames)
+    if (std::error_code ec; fs::is_regular_file(in->path(f), ec)) present.push_back(f);
+  if (present.empty())
+    throw Error(ErrorKind::Input, "none of the " + std::to_string(frames.size()) + " frames asked for exists (" +
+                                      in->path(frames.front()).string() + ", ...)");
+  if (present.size() < frames.size())
+    std::fprintf(stderr, "note: %zu of the %zu frames have no input yet (%s, ...); their tasks will report them\n",
+                 frames.size() - present.size(), frames.size(), in->path(frames.front()).c_str());
+  check_model(o, in->path(present.front()));
   const fs::path dir = fs::absolute(o.job_dir);
+  if (std::error_code ec; fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    throw Error(ErrorKind::Output, "--job-dir '" + dir.string() + "' is a file, not a folder");
   fs::create_directories(dir / "logs");
+  // An earlier submission's chunk summaries would be merged by the gather with this one's (its chunking may
+  // differ): they go; the frames it finished stay and are skipped.
+  int stale = 0;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if ((name.rfind("chunk_", 0) == 0 && it->path().extension() == ".json") || name == "summary.json")
+      stale += fs::remove(it->path(), ec) ? 1 : 0;
+  }
+  if (stale > 0) std::printf("note       removed %d summaries of an earlier submission in %s\n", stale, dir.c_str());
 
   std::string chunks;
   int64_t tasks = 0;
@@ -113,7 +168,7 @@ int run_slurm(const FarmOptions& o) {
        << "#SBATCH --job-name=residue-denoise\n"
        << "#SBATCH --array=0-" << tasks - 1 << (o.max_parallel > 0 ? "%" + std::to_string(o.max_parallel) : "") << "\n"
        << "#SBATCH --cpus-per-task=" << o.cpus << "\n"
-       << "#SBATCH --output=" << (dir / "logs/chunk_%a.log").string() << "\n"
+       << "#SBATCH --output=" << slurm_file_name((dir / "logs").string()) << "/chunk_%a.log\n"
        << (o.partition.empty() ? "" : "#SBATCH --partition=" + o.partition + "\n")
        << "set -u\n"
        << "frames=$(sed -n \"$((SLURM_ARRAY_TASK_ID + 1))p\" " << quote((dir / "chunks.txt").string()) << ")\n"
@@ -132,7 +187,7 @@ int run_slurm(const FarmOptions& o) {
          << "# Written by residue-cli farm slurm: runs after the array (whatever its tasks' results).\n"
          << "#SBATCH --job-name=residue-gather\n"
          << "#SBATCH --cpus-per-task=1\n"
-         << "#SBATCH --output=" << (dir / "logs/gather.log").string() << "\n"
+         << "#SBATCH --output=" << slurm_file_name((dir / "logs/gather.log").string()) << "\n"
          << (o.partition.empty() ? "" : "#SBATCH --partition=" + o.partition + "\n")
          << quote(self_path()) << " farm gather " << quote(dir.string()) << "\n";
   write_text(dir / "gather.sbatch", gather.str(), true);
