@@ -59,6 +59,10 @@ TEST(FuzzCorpus, ChannelMappingSeedsAndCrashes) {
 
 TEST(FuzzCorpus, TevIpcSeedsAndCrashes) { EXPECT_GE(replay("fuzz_tev_ipc", residue::fuzz::tev_ipc_one), 10); }
 
+TEST(FuzzCorpus, LiveImagesSeedsAndCrashes) {
+  EXPECT_GE(replay("fuzz_live_images", residue::fuzz::live_images_one), 10);
+}
+
 // The seeds are real: each model seed loads, so the fuzzers start from inputs that reach the deep code.
 TEST(FuzzCorpus, ModelSeedsAreValid) {
   for (const auto& e : fs::directory_iterator(corpus_dir("fuzz_safetensors"))) {

@@ -14,7 +14,7 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 
 seconds=${1:-60}
-harnesses=${FUZZ_HARNESSES:-"fuzz_exr_loader fuzz_safetensors fuzz_tza fuzz_channel_mapping fuzz_tev_ipc"}
+harnesses=${FUZZ_HARNESSES:-"fuzz_exr_loader fuzz_safetensors fuzz_tza fuzz_channel_mapping fuzz_tev_ipc fuzz_live_images"}
 bin=build/fuzz/tests/fuzz
 logs=build/fuzz/logs
 artifacts=build/fuzz/artifacts

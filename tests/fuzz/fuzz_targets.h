@@ -14,6 +14,7 @@
 #include <exception>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -21,11 +22,13 @@
 #include "core/aov/aov_loader.h"
 #include "core/aov/channel_mapping.h"
 #include "core/aov/exr_header_check.h"
+#include "core/ipc/live_images.h"
 #include "core/ipc/tev_protocol.h"
 #include "core/nn/model_file.h"
 #include "core/nn/oidn_network.h"
 #include "core/nn/safetensors.h"
 #include "core/nn/tza.h"
+#include "tests/support/tev_packet.h"
 
 namespace residue::fuzz {
 
@@ -195,5 +198,139 @@ inline void tev_ipc_one(const uint8_t* data, size_t size) {
     // a length field out of range: the server closes the connection
   }
 }
+
+// fuzz_live_images: the state behind the viewer's IPC server, not only its parser. The bytes are a script of
+// operations by up to three clients on four image names: create (any size up to 96x96, or now and then one far
+// beyond the images' memory cap), update a rectangle (partly outside the image, of channels it may not have),
+// close, corrupt the next packet, and "show" (turn an image into an AOV stack, as the window does, and read
+// it where the canvas would). Each packet goes through the client's byte stream, the decoder and the live
+// images, as in TevServer; a client whose packet is refused is disconnected (its stream reset) and the others
+// go on. Checked on every step: what was last written to a pixel is what the stack shows, the live images never
+// hold more than their cap, and an image that was refused or closed is not there.
+class LiveImagesScript {
+ public:
+  LiveImagesScript(const uint8_t* data, size_t size) : data_(data), size_(size) {}
+
+  void run() {
+    while (pos_ < size_) {
+      const uint8_t op = next();
+      const size_t client = next() % kClients;
+      const std::string name = std::string("img") + static_cast<char>('0' + next() % 4);
+      switch (op % 6) {
+        case 0: create(client, name); break;
+        case 1:
+        case 2: update(client, name); break;
+        case 3: send(client, testing::TevPacket(2).str(name).done()); break;
+        case 4: corrupt_next_ = true; break;
+        case 5: show(name); break;
+      }
+    }
+    for (const char* n : {"img0", "img1", "img2", "img3"}) show(n);
+  }
+
+ private:
+  static constexpr size_t kClients = 3;
+  static constexpr size_t kCap = 96 * 96 * 4 * 4 * 2;  // two full-size RGBA images
+
+  uint8_t next() { return pos_ < size_ ? data_[pos_++] : 0; }
+
+  void create(size_t client, const std::string& name) {
+    const bool huge = next() == 255;
+    const int32_t w = huge ? 16384 : 1 + next() % 96, h = huge ? 16384 : 1 + next() % 96;
+    static const std::vector<std::vector<std::string>> kLayouts = {
+        {"R", "G", "B"}, {"R", "G", "B", "A"}, {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B"}, {"Y"}, {"N.X", "N.Y", "N.Z"}};
+    const auto& channels = kLayouts[next() % kLayouts.size()];
+    testing::TevPacket p(4);
+    p.u8(1).str(name).i32(w).i32(h).i32(static_cast<int32_t>(channels.size()));
+    for (const auto& c : channels) p.str(c);
+    send(client, p.done());
+  }
+
+  void update(size_t client, const std::string& name) {
+    static const std::vector<std::string> kChannels = {"R", "G", "B", "A", "albedo.G", "Z"};
+    const std::string channel = kChannels[next() % kChannels.size()];
+    const int32_t x = next() % 100, y = next() % 100, w = 1 + next() % 40, h = 1 + next() % 40;
+    const float base = static_cast<float>(next());
+    testing::TevPacket p(3);
+    p.u8(0).str(name).str(channel).i32(x).i32(y).i32(w).i32(h);
+    for (int32_t i = 0; i < w * h; ++i) p.f32(base + static_cast<float>(i));
+    send(client, p.done());
+  }
+
+  // One packet over one client's connection, handled as TevServer does.
+  void send(size_t client, std::vector<uint8_t> bytes) {
+    if (corrupt_next_ && bytes.size() > 5) bytes[5 + next() % (bytes.size() - 5)] ^= static_cast<uint8_t>(1 + next() % 255);
+    corrupt_next_ = false;
+    try {
+      streams_[client].feed({bytes.data(), bytes.size()});
+      while (auto packet = streams_[client].next()) apply(ipc::parse_tev_packet(*packet, limits()));
+    } catch (const std::exception&) {
+      streams_[client] = ipc::TevPacketStream(limits());  // the server drops this client; it reconnects
+    }
+    if (images_.bytes() > kCap) std::abort();
+  }
+
+  void apply(const ipc::TevPacket& packet) {
+    if (const auto* create = std::get_if<ipc::CreateImage>(&packet)) {
+      images_.apply(*create);  // throws when over the cap: then the shadow keeps what was there
+      shadow_[create->name] = {create->width, create->height, create->channel_names,
+                               std::vector<float>(static_cast<size_t>(create->width) * create->height *
+                                                      create->channel_names.size(), 0.0f)};
+    } else if (const auto* u = std::get_if<ipc::UpdateImage>(&packet)) {
+      const Rect r = images_.apply(*u);
+      Shadow& s = shadow_.at(u->name);
+      for (size_t k = 0; k < u->channel_names.size(); ++k) {
+        const auto c = static_cast<size_t>(std::find(s.channels.begin(), s.channels.end(), u->channel_names[k]) - s.channels.begin());
+        for (int64_t y = r.y; y < r.y + r.height; ++y)
+          for (int64_t x = r.x; x < r.x + r.width; ++x)
+            s.values[(static_cast<size_t>(y) * s.width + x) * s.channels.size() + c] =
+                u->planes[k][static_cast<size_t>((y - u->y) * u->width + (x - u->x))];
+      }
+    } else if (const auto* closed = std::get_if<ipc::CloseImage>(&packet)) {
+      images_.close(closed->name);
+      shadow_.erase(closed->name);
+    }
+  }
+
+  // What the window does with an image it shows: an AOV stack, read where the canvas reads its values.
+  void show(const std::string& name) {
+    const ipc::LiveImage* live = images_.find(name);
+    if ((live == nullptr) != (shadow_.count(name) == 0)) std::abort();
+    if (!live) return;
+    try {
+      const AovStack stack = ipc::live_aov_stack(name, *live);
+      const Shadow& s = shadow_.at(name);
+      if (stack.width() != s.width || stack.height() != s.height) std::abort();
+      const size_t r = static_cast<size_t>(std::find(s.channels.begin(), s.channels.end(), "R") - s.channels.begin());
+      for (int64_t y : {int64_t{0}, int64_t{s.height} - 1})
+        for (int64_t x : {int64_t{0}, int64_t{s.width} - 1})
+          if (r < s.channels.size() &&
+              stack.color.image.at(x, y, 0) != s.values[(static_cast<size_t>(y) * s.width + x) * s.channels.size() + r])
+            std::abort();
+    } catch (const Error&) {
+      // no colour among its channels: the window says so and keeps what it showed
+    }
+  }
+
+  static ipc::TevLimits limits() {
+    ipc::TevLimits l;
+    l.max_packet_bytes = 1u << 20;
+    return l;
+  }
+
+  struct Shadow {
+    int32_t width = 0, height = 0;
+    std::vector<std::string> channels;
+    std::vector<float> values;
+  };
+  const uint8_t* data_;
+  size_t size_, pos_ = 0;
+  bool corrupt_next_ = false;
+  ipc::LiveImages images_{kCap};
+  std::vector<ipc::TevPacketStream> streams_ = std::vector<ipc::TevPacketStream>(kClients, ipc::TevPacketStream(limits()));
+  std::map<std::string, Shadow> shadow_;
+};
+
+inline void live_images_one(const uint8_t* data, size_t size) { LiveImagesScript(data, size).run(); }
 
 }  // namespace residue::fuzz
