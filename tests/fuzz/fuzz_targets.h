@@ -28,6 +28,7 @@
 #include "core/nn/oidn_network.h"
 #include "core/nn/safetensors.h"
 #include "core/nn/tza.h"
+#include "core/util/error.h"
 #include "tests/support/tev_packet.h"
 
 namespace residue::fuzz {
