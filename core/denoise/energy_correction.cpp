@@ -26,10 +26,11 @@ Lerp lerp_at(int64_t pixel, int64_t blocks) {
 
 float luminance(const float* p) { return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2]; }
 
-// Each value a block sums is kept within FLT_MAX / (pixels in a block), so that a block of fireflies near the
-// float range (legal in a float EXR) sums to a finite value instead of Inf, whose ratio would be NaN.
-constexpr float kMaxSummand = FLT_MAX / static_cast<float>(EnergyCorrection::kBlock * EnergyCorrection::kBlock);
-float summand(float v) { return std::clamp(v, -kMaxSummand, kMaxSummand); }
+// A block sums its values divided by its pixel count (a power of two: exact), so that a block of values near
+// the float range (legal in a float EXR) sums to a finite value instead of Inf, whose ratio would be NaN. Noisy
+// and output sums are scaled alike, so the ratios are the same bits as unscaled sums would give.
+constexpr float kPerPixel = 1.0f / static_cast<float>(EnergyCorrection::kBlock * EnergyCorrection::kBlock);
+static_assert(EnergyCorrection::kBlock == 8, "kPerPixel must stay a power of two");
 
 }  // namespace
 
@@ -55,11 +56,11 @@ void EnergyCorrection::accumulate(const Image& noisy, int64_t noisy_y0, const Im
         const float* n = noisy.data() + noisy.offset(x, y - noisy_y0);
         if (!std::isfinite(d[0]) || !std::isfinite(d[1]) || !std::isfinite(d[2])) continue;
         Sums& s = block((x - region_.x) / kBlock, by);
-        for (int c = 0; c < 3; ++c) s.output[c] += summand(d[c]);
+        for (int c = 0; c < 3; ++c) s.output[c] += d[c] * kPerPixel;
         s.output_count += 1;
         if (!std::isfinite(n[0]) || !std::isfinite(n[1]) || !std::isfinite(n[2])) continue;
-        const float limit = std::min(kFireflyClamp * std::max(luminance(d), 1e-6f), kMaxSummand);
-        for (int c = 0; c < 3; ++c) s.noisy[c] += std::clamp(n[c], -limit, limit);
+        const float limit = kFireflyClamp * std::max(luminance(d), 1e-6f);  // may be Inf: n is finite
+        for (int c = 0; c < 3; ++c) s.noisy[c] += std::clamp(n[c], -limit, limit) * kPerPixel;
         s.noisy_count += 1;
       }
   });
