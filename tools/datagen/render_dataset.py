@@ -28,13 +28,14 @@ import hashlib
 import json
 import os
 import shutil
-import signal
 import subprocess
 import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 MAKE_SCENE = os.path.join(HERE, "make_scene.py")
+sys.path.insert(0, HERE)
+from blender_process import run_logged  # noqa: E402
 SEEDS = {"noisy_a": 1001, "noisy_b": 1002, "reference": 1007, "pseudo": 1009}
 REPO = os.path.dirname(os.path.dirname(HERE))
 DEFAULT_CLI = os.path.join(REPO, "build", "release", "app", "residue-cli", "residue-cli")
@@ -253,22 +254,7 @@ def run_blender(args, seed, renders, outdir, names, log_mode="w", scene=None):
     else:
         res, flags = scene["resolution"][0], scene_flags(scene)
     cmd = make_scene_command(args.blender, args.threads, seed, renders, outdir, res, names + flags)
-    logdir = os.path.join(args.out, "logs")
-    os.makedirs(logdir, exist_ok=True)
-    with open(os.path.join(logdir, f"s{seed}.log"), log_mode) as logf:
-        logf.write(" ".join(cmd) + "\n\n")
-        logf.flush()
-        proc = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, start_new_session=True)
-        try:
-            return proc.wait(timeout=args.timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-            return None
-        except KeyboardInterrupt:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-            raise
+    return run_logged(cmd, os.path.join(args.out, "logs", f"s{seed}.log"), args.timeout, " ".join(cmd) + "\n\n", log_mode)
 
 
 def restore_scene_low_band(args, seed):

@@ -33,13 +33,13 @@ import json
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import shots  # noqa: E402
+from blender_process import run_logged  # noqa: E402
 
 MAKE_SCENE = os.path.join(HERE, "make_scene.py")
 SEED_BASE = {"noisy": 10000, "reference": 20000}
@@ -166,22 +166,8 @@ def run_blender(args, seed, todo, outdir):
            "--scene-seed", str(seed), "--shot", args.shot, "--frames", str(args.frames),
            "--frame-renders", frame_renders(args, seed), "--names", ",".join(NAMES), "--render-frames", ranges(todo),
            "--outdir", outdir, "--res", str(args.res), "--threads", str(args.threads)]
-    logdir = os.path.join(args.out, "logs")
-    os.makedirs(logdir, exist_ok=True)
-    with open(os.path.join(logdir, f"s{seed}.log"), "a") as logf:
-        logf.write(f"\n== {datetime.datetime.now().isoformat(timespec='seconds')} " + " ".join(cmd) + "\n\n")
-        logf.flush()
-        proc = subprocess.Popen(cmd, stdout=logf, stderr=subprocess.STDOUT, start_new_session=True)
-        try:
-            return proc.wait(timeout=args.timeout * len(todo) + 300)
-        except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-            return None
-        except BaseException:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-            raise
+    header = f"\n== {datetime.datetime.now().isoformat(timespec='seconds')} " + " ".join(cmd) + "\n\n"
+    return run_logged(cmd, os.path.join(args.out, "logs", f"s{seed}.log"), args.timeout * len(todo) + 300, header)
 
 
 def render_shot(args, seed):
