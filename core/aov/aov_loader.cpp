@@ -16,6 +16,7 @@
 #include "core/aov/exr_header_check.h"
 #include "core/aov/file_sets.h"
 #include "core/util/error.h"
+#include "core/temporal/reprojection.h"
 #include "core/util/input_file.h"
 
 namespace residue {
@@ -33,6 +34,7 @@ struct ReadPlan {
   DepthKind depth_kind = DepthKind::Unknown;
   bool depth_from_position = false;
   bool samples_variance = false;  // divide by the header's samplesPerPixel (PassRule)
+  bool cycles_vector = false;     // Cycles' Vector pass: turned into Residue's motion convention (PassRule)
   double scale = 1.0;             // the values are read times this
   double depth_background = kDepthBackgroundThreshold;
 };
@@ -116,6 +118,7 @@ std::string expected_text(AovRole role) {
     case AovRole::Depth: return "1 channel, e.g. depth.Z, Z or Denoising Depth.Z";
     case AovRole::Variance: return "1 or 3 channels";
     case AovRole::Reference: return "3 channels (R,G,B)";
+    case AovRole::Motion: return "4 channels, e.g. Vector.X/Y/Z/W (Cycles' Vector pass)";
   }
   return "";
 }
@@ -166,6 +169,7 @@ ReadPlan plan_from_recognition(const RecognisedAov& r, const std::string& file) 
   p.depth_kind = r.depth_kind;
   p.depth_from_position = r.depth_from_position;
   p.samples_variance = r.samples_variance;
+  p.cycles_vector = r.cycles_vector;
   return p;
 }
 
@@ -525,6 +529,7 @@ AovStack AovReader::read(const Rect& rect, const std::vector<AovRole>& roles) co
       for (int64_t y = 0; y < aov.image.height(); ++y)
         for (float& v : aov.image.row(y)) v = static_cast<float>(v * plan.scale);
     stack.depth_background_pixels += normalise_aov(role, plan.flip_normal_z, plan.depth_background, aov);
+    if (role == AovRole::Motion && plan.cycles_vector) aov.image = motion_from_cycles_vector(aov.image);
     if (aov.uncovered_pixels > 0)
       stack.notes.push_back(std::string("the ") + to_string(role) + " AOV does not cover " +
                             std::to_string(aov.uncovered_pixels) + " pixels of the colour's data window (" +

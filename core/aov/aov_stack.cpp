@@ -19,6 +19,7 @@ const char* to_string(AovRole role) {
     case AovRole::Depth: return "depth";
     case AovRole::Variance: return "variance";
     case AovRole::Reference: return "reference";
+    case AovRole::Motion: return "motion";
   }
   return "?";
 }
@@ -31,7 +32,13 @@ std::optional<AovRole> aov_role_from_string(const std::string& name) {
   return std::nullopt;
 }
 
-int expected_channels(AovRole role) { return role == AovRole::Depth ? 1 : 3; }
+int expected_channels(AovRole role) {
+  switch (role) {
+    case AovRole::Depth: return 1;
+    case AovRole::Motion: return 4;
+    default: return 3;
+  }
+}
 
 const char* to_string(NormalSpace space) {
   switch (space) {
@@ -79,6 +86,7 @@ std::optional<Aov>* optional_slot(AovStack& s, AovRole role) {
     case AovRole::Depth: return &s.depth;
     case AovRole::Variance: return &s.variance;
     case AovRole::Reference: return &s.reference;
+    case AovRole::Motion: return &s.motion;
   }
   return nullptr;
 }

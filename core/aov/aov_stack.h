@@ -22,12 +22,15 @@
 
 namespace residue {
 
-enum class AovRole { Color, Albedo, Normal, Depth, Variance, Reference };
-inline constexpr std::array<AovRole, 6> kAllAovRoles{AovRole::Color,  AovRole::Albedo,   AovRole::Normal,
-                                                     AovRole::Depth,  AovRole::Variance, AovRole::Reference};
+// Motion: per pixel, where its surface was in the previous frame and will be in the next (core/temporal/
+// reprojection.h has the convention: 4 channels, pixels, y down the rows), for temporal denoising.
+enum class AovRole { Color, Albedo, Normal, Depth, Variance, Reference, Motion };
+inline constexpr std::array<AovRole, 7> kAllAovRoles{AovRole::Color,    AovRole::Albedo,    AovRole::Normal,
+                                                     AovRole::Depth,    AovRole::Variance,  AovRole::Reference,
+                                                     AovRole::Motion};
 const char* to_string(AovRole role);  // "color", "albedo", ...
 std::optional<AovRole> aov_role_from_string(const std::string& name);
-// Channels an AOV of this role holds in the stack (variance: 3, or 1 when the renderer stores one).
+// Channels an AOV of this role holds in the stack (variance: 3, or 1 when the renderer stores one; motion 4).
 int expected_channels(AovRole role);
 
 enum class NormalSpace { Camera, World, Unknown };
@@ -56,7 +59,7 @@ struct Aov {
 struct AovStack {
   std::string convention;  // how the inputs were recognised: "Blender Cycles", "Tungsten file set", ...
   Aov color;
-  std::optional<Aov> albedo, normal, depth, variance, reference;
+  std::optional<Aov> albedo, normal, depth, variance, reference, motion;
   // Another model's denoised colour, which a post-correction model refines (set by the denoiser, never loaded).
   std::optional<Aov> prior;
 

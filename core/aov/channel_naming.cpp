@@ -1,6 +1,7 @@
 #include "core/aov/channel_naming.h"
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <map>
 #include <tuple>
@@ -79,6 +80,12 @@ std::vector<ChannelRef> take(const LayerIndex& idx, const std::string& prefix, c
       if (comps.count(t[0]) && comps.count(t[1]) && comps.count(t[2]))
         return {comps.at(t[0]), comps.at(t[1]), comps.at(t[2])};
     }
+    return {};
+  }
+  if (count == 4) {
+    for (const auto& q : {std::array<const char*, 4>{"x", "y", "z", "w"}, std::array<const char*, 4>{"r", "g", "b", "a"}})
+      if (comps.count(q[0]) && comps.count(q[1]) && comps.count(q[2]) && comps.count(q[3]))
+        return {comps.at(q[0]), comps.at(q[1]), comps.at(q[2]), comps.at(q[3])};
     return {};
   }
   for (const auto& s : kSingles)
@@ -191,6 +198,7 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
           aov.depth_kind = rule.depth_kind;
           aov.depth_from_position = rule.depth_from_position;
           aov.samples_variance = rule.samples_variance;
+          aov.cycles_vector = rule.cycles_vector;
           rec.aovs.push_back(std::move(aov));
           if (!rule.note.empty()) rec.notes.push_back(rule.note);
           break;

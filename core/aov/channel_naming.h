@@ -28,6 +28,7 @@ struct RecognisedAov {
   DepthKind depth_kind = DepthKind::Unknown;
   bool depth_from_position = false;  // the z of a camera-space position pass (PassRule)
   bool samples_variance = false;     // the samples' variance, not the estimate's (PassRule)
+  bool cycles_vector = false;        // Cycles' Vector pass (PassRule)
 };
 
 struct Recognition {

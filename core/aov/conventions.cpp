@@ -103,6 +103,7 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Depth, {"depth"}, {}, false, DepthKind::Planar},
            {AovRole::Variance, {"denoising variance"}},
            {AovRole::Reference, {"reference"}},
+           {AovRole::Motion, {"vector"}, NormalSpace::Unknown, false, DepthKind::Unknown, "", false, false, true},
        }},
       {"RenderMan",
        {"ci"},

@@ -42,6 +42,8 @@ struct PassRule {
   // The pass is the variance of the samples (pbrt-v4's Variance), not of the pixel's estimate: read divided by the
   // header's samplesPerPixel, and left out when the header does not say it.
   bool samples_variance = false;
+  // The motion is Cycles' Vector pass (its own convention), turned into Residue's (core/temporal/reprojection.h).
+  bool cycles_vector = false;
 };
 
 // A renderer that writes its AOVs as named layers of one file.
