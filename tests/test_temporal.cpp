@@ -68,6 +68,19 @@ TEST(Temporal, ZeroWhenTheSequenceChangesAsItsReferencesDo) {
   EXPECT_FALSE(testing::error_message([&] { flicker.add(Image(8, 8, 3), Image(8, 8, 3)); }, ErrorKind::Usage).empty());
 }
 
+// A highlight that moves: one pixel bright (r = 4) at t-1 and dark (r = 0) at t, the output off by 0.5 at t-1
+// and exact at t. The error changes by 0.5 there: the r_t form divides by 0 + eps (25), the symmetric form by
+// (16 + 0) / 2 + eps (about 0.031): the pixel the highlight has just left no longer dominates (issue 51).
+TEST(Temporal, TheSymmetricFormIsNotDominatedByAHighlightThatLeft) {
+  Image r0(1, 1, 3), r1(1, 1, 3), x0(1, 1, 3), x1(1, 1, 3);
+  for (int c = 0; c < 3; ++c) r0.at(0, 0, c) = 4.0f, x0.at(0, 0, c) = 4.5f, r1.at(0, 0, c) = 0.0f, x1.at(0, 0, c) = 0.0f;
+  metrics::TemporalRelMse m(0.01);
+  m.add(x0, r0);
+  m.add(x1, r1);
+  EXPECT_NEAR(m.value(), 0.25 / 0.01, 1e-9);
+  EXPECT_NEAR(m.value_symmetric(), 0.25 / (8.0 + 0.01), 1e-12);
+}
+
 TEST(TemporalCli, EvalScoresASequenceAndItsFlicker) {
   testing::TempDir dir;
   // A static shot: one reference; the noisy frames carry frame-dependent noise, the "denoised" ones are the

@@ -97,13 +97,17 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
                              {"frames_scored", scored}, {"eps", o.eps}};
   doc["mean"] = {{"noisy", {{"relmse", sums[0] / n}, {"ssim", sums[1] / n}}}};
   doc["temporal_relmse"] = {{"noisy", noisy_t.value()}};
+  doc["temporal_relmse_symmetric"] = {{"noisy", noisy_t.value_symmetric()}};
   if (den) {
     doc["denoised"] = den->to_string();
     doc["mean"]["denoised"] = {{"relmse", sums[2] / n}, {"ssim", sums[3] / n}};
     doc["temporal_relmse"]["denoised"] = denoised_t.value();
+    doc["temporal_relmse_symmetric"]["denoised"] = denoised_t.value_symmetric();
     doc["flicker_ratio"] = denoised_t.value() / noisy_t.value();
   }
   doc["temporal_formula"] = "mean over frame pairs, pixels and RGB of ((x_t - x_{t-1}) - (r_t - r_{t-1}))^2 / (r_t^2 + eps)";
+  doc["temporal_symmetric_formula"] =
+      "the same divided by (r_t^2 + r_{t-1}^2) / 2 + eps (not dominated by pixels a highlight has just left)";
   doc["per_frame"] = std::move(rows);
   const std::string text = doc.dump(1) + "\n";
   if (o.json) {
@@ -113,6 +117,8 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
     if (den) std::printf(" %12.6f %9.5f", sums[2] / n, sums[3] / n);
     std::printf("\ntemporal relMSE (flicker): noisy %.6f", noisy_t.value());
     if (den) std::printf(", denoised %.6f (%.1f %% of the noisy input's)", denoised_t.value(), 100.0 * denoised_t.value() / noisy_t.value());
+    std::printf("\ntemporal relMSE, symmetric: noisy %.6f", noisy_t.value_symmetric());
+    if (den) std::printf(", denoised %.6f", denoised_t.value_symmetric());
     std::printf("\n  = %s, eps = %g\n", doc["temporal_formula"].get<std::string>().c_str(), o.eps);
     if (!failed.empty())
       std::printf("%zu of %zu frames not scored (above); the means are over the other %lld\n", failed.size(),

@@ -25,7 +25,7 @@ void TemporalRelMse::add(const Image& frame, const Image& reference) {
     if (!frame.bounds().contains(r)) throw Error(ErrorKind::Usage, "temporal relMSE: the ROI is not inside the frames");
     for (int64_t y = r.y; y < r.y + r.height; ++y)
       for (int64_t x = r.x; x < r.x + r.width; ++x) {
-        double term = 0;
+        double term = 0, symmetric = 0;
         bool finite = true;
         for (int c = 0; c < 3; ++c) {
           const double xt = frame.at(x, y, c), xp = prev_frame_.at(x, y, c);
@@ -33,12 +33,14 @@ void TemporalRelMse::add(const Image& frame, const Image& reference) {
           finite = finite && std::isfinite(xt) && std::isfinite(xp) && std::isfinite(rt) && std::isfinite(rp);
           const double d = (xt - xp) - (rt - rp);
           term += d * d / (rt * rt + eps_);
+          symmetric += d * d / (0.5 * (rt * rt + rp * rp) + eps_);
         }
         if (!finite) {
           ++excluded_;
           continue;
         }
         sum_ += term / 3.0;
+        sum_symmetric_ += symmetric / 3.0;
         ++pixels_;
       }
     ++pairs_;
@@ -49,6 +51,10 @@ void TemporalRelMse::add(const Image& frame, const Image& reference) {
 
 double TemporalRelMse::value() const {
   return pixels_ > 0 ? sum_ / static_cast<double>(pixels_) : std::numeric_limits<double>::quiet_NaN();
+}
+
+double TemporalRelMse::value_symmetric() const {
+  return pixels_ > 0 ? sum_symmetric_ / static_cast<double>(pixels_) : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace residue::metrics
