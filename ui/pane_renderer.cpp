@@ -58,6 +58,22 @@ Image data_aov_for_display(const Image& aov, AovRole role, int step) {
         d[i] = std::isfinite(d[i]) ? std::clamp(1.0f - (d[i] - lo) * scale, 0.0f, 1.0f) : d[i];
       break;
     }
+    case AovRole::Motion: {
+      // The motion to the previous frame as colour: red right, green down, mid-grey still, scaled so that the
+      // 99th percentile of the displacement's length reaches the edge of the range.
+      std::vector<float> lengths;
+      for (int64_t y = 0; y < aov.height(); y += step)
+        for (int64_t x = 0; x < aov.width(); x += step) lengths.push_back(std::hypot(aov.at(x, y, 0), aov.at(x, y, 1)));
+      std::nth_element(lengths.begin(), lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() * 99 / 100), lengths.end());
+      const float hi = lengths.empty() ? 0.0f : lengths[lengths.size() * 99 / 100];
+      const float scale = hi > 0 ? 0.5f / hi : 0.0f;
+      for (size_t i = 0; i + 2 < n; i += 3) {
+        d[i] = std::clamp(0.5f + d[i] * scale, 0.0f, 1.0f);
+        d[i + 1] = std::clamp(0.5f + d[i + 1] * scale, 0.0f, 1.0f);
+        d[i + 2] = 0.5f;
+      }
+      break;
+    }
     case AovRole::Variance: {
       // Variance spans decades and is mostly tiny: the standard deviation over its 99th percentile.
       for (size_t i = 0; i < n; ++i) d[i] = std::sqrt(std::max(0.0f, d[i]));
@@ -88,7 +104,8 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step) {
           if (!in.noisy) break;
           pane.values = std::shared_ptr<const Image>(in.stack, in.noisy);
           pane.channel_count = std::min(3, in.noisy->channels());
-          if (in.aov == AovRole::Normal || in.aov == AovRole::Depth || in.aov == AovRole::Variance) {
+          if (in.aov == AovRole::Normal || in.aov == AovRole::Depth || in.aov == AovRole::Variance ||
+              in.aov == AovRole::Motion) {
             const Image data = data_aov_for_display(*in.noisy, in.aov, step);
             pane.display = in.display->render(data, 0, pane.channel_count, data.bounds(), in.settings, Encoding::Data);
           } else {

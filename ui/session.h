@@ -24,7 +24,7 @@ const char* to_string(Source s);
 // The AOVs a user can page through with [ and ].
 // The AOVs a pane can show (the reference is a source of its own), and their names in the UI.
 inline constexpr AovRole kViewableAovs[] = {AovRole::Color, AovRole::Albedo, AovRole::Normal, AovRole::Depth,
-                                            AovRole::Variance};
+                                            AovRole::Variance, AovRole::Motion};
 QString display_name(AovRole role);
 
 class Session : public QObject {

@@ -79,6 +79,8 @@ int main(int argc, char** argv) {
   const QCommandLineOption ab("ab", "Once every denoise is done, show results I and J (1-based, as keys 1-9) as A "
                               "and B.", "I,J");
   const QCommandLineOption tab("tab", "The side bar's tab: results, denoise, heatmap or pixel.", "tab");
+  const QCommandLineOption aov("aov", "The AOV the noisy pane shows: color, albedo, normal, depth, variance or motion.",
+                               "aov");
   const QCommandLineOption heatmap_of("heatmap-of", "What the heatmap maps: a, b, noisy or a-vs-b.", "what");
   const QCommandLineOption export_all("export-all", "Once everything is done, export all into DIR (ask nothing: "
                                       "fails rather than replace files).", "dir");
@@ -105,7 +107,7 @@ int main(int argc, char** argv) {
                                       "MiB (default: a quarter of this machine's RAM).", "MiB");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
                         &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
-                        &ipc_port, &no_ipc, &ipc_memory})
+                        &ipc_port, &no_ipc, &ipc_memory, &aov})
     cli.addOption(*o);
   cli.process(app);
 
@@ -131,6 +133,7 @@ int main(int argc, char** argv) {
   checked.one_of(cli, heatmap_of, {"a", "b", "noisy", "a-vs-b"});
   checked.one_of(cli, precision, {"fp32", "bf16"});
   checked.one_of(cli, tab, {"results", "denoise", "heatmap", "pixel"});
+  checked.one_of(cli, aov, {"color", "albedo", "normal", "depth", "variance", "motion"});
   if (cli.value(when).startsWith("progress:") && !cli.isSet(denoise))
     checked.errors << QStringLiteral("--screenshot-when %1 needs --denoise: no denoise would get there").arg(cli.value(when));
   if (!checked.errors.isEmpty()) {
@@ -278,6 +281,7 @@ int main(int argc, char** argv) {
       window.setLayout(residue::ui::ImageCanvas::Layout::Pair);
     }
     if (cli.isSet(zoom)) window.canvas()->setView(cli.value(zoom).toDouble(), window.canvas()->center());
+    if (cli.isSet(aov)) window.setAov(*residue::aov_role_from_string(cli.value(aov).toStdString()));
     if (!cli.values(add).isEmpty()) window.addResultFiles(cli.values(add));
     if (cli.isSet(denoise)) {
       window.denoisePanel()->selectModel(pending_models.takeFirst());

@@ -437,6 +437,14 @@ class TestResults : public QObject {
     QVERIFY(std::abs(d.at(49, 0, 0) - 0.5f) < 0.05f);  // the miss does not squeeze the rest into one grey
     const Image s = data_aov_for_display(var, AovRole::Variance);
     QVERIFY(std::abs(s.at(49, 0, 0) - 0.5f) < 0.02f);
+    // Motion (to the previous frame) as colour: red right, green down, grey still, blue constant.
+    Image motion(100, 1, 4);
+    for (int i = 0; i < 100; ++i) motion.at(i, 0, 0) = i == 0 ? -2.0f : i < 50 ? 2.0f : 0.0f, motion.at(i, 0, 1) = i == 1 ? 2.0f : 0.0f;
+    const Image m = data_aov_for_display(motion, AovRole::Motion);
+    QCOMPARE(m.channels(), 3);
+    QVERIFY(m.at(0, 0, 0) < 0.2f && m.at(10, 0, 0) > 0.8f && std::abs(m.at(60, 0, 0) - 0.5f) < 1e-6f);
+    QVERIFY(m.at(1, 0, 1) > 0.8f && std::abs(m.at(60, 0, 1) - 0.5f) < 1e-6f);
+    QCOMPARE(m.at(10, 0, 2), 0.5f);
   }
 };
 
