@@ -33,6 +33,7 @@ QStringList PixelInspector::lines(const Session& session, QPoint pixel, const Im
   add("normal", session.image(Source::Noisy, AovRole::Normal), 3);
   add("depth", session.image(Source::Noisy, AovRole::Depth), 1);
   add("variance", session.image(Source::Noisy, AovRole::Variance), 3);
+  add("motion (to previous, to next; px)", session.image(Source::Noisy, AovRole::Motion), 4);
   add(heatmap_name.isEmpty() ? QStringLiteral("heatmap") : heatmap_name, heatmap, 1);
   return out;
 }
