@@ -88,13 +88,17 @@ int64_t tile_for(int64_t tile, const nn::Model& model, nn::Precision precision, 
   return std::min(interactive_tile(model.graph, s_per_mp), size);
 }
 
-// Every model x backend x precision x tile of the options as denoise options (eigen runs fp32 only), in order.
-// Every model is loaded first, so that a bad one is reported before anything is measured.
-template <typename RunOne>
-void for_each_config(const BenchOptions& o, int threads, RunOne&& run_one) {
-  const std::vector<std::string> backends = o.backends.empty() ? nn::available_backends() : o.backends;
+// Every model of --models, loaded before anything is measured, so that a bad one is reported at once.
+std::vector<nn::Model> bench_models(const BenchOptions& o) {
   std::vector<nn::Model> models;
   for (const auto& model_text : o.models) models.push_back(bench_model(model_text));
+  return models;
+}
+
+// Every model x backend x precision x tile of the options as denoise options (eigen runs fp32 only), in order.
+template <typename RunOne>
+void for_each_config(const BenchOptions& o, const std::vector<nn::Model>& models, int threads, RunOne&& run_one) {
+  const std::vector<std::string> backends = o.backends.empty() ? nn::available_backends() : o.backends;
   for (size_t m = 0; m < models.size(); ++m) {
     const std::string& model_text = o.models[m];
     const nn::Model& model = models[m];
@@ -135,7 +139,8 @@ int run_cancel(const BenchOptions& o) {
                 static_cast<long long>(o.size), static_cast<long long>(o.size));
     std::printf("| model | backend | precision | tile | tiles done | time to stop (s) |\n|---|---|---|---|---|---|\n");
   }
-  for_each_config(o, o.threads, [&](const std::string& model_text, const nn::Model& model, const std::string& precision,
+  const std::vector<nn::Model> models = bench_models(o);
+  for_each_config(o, models, o.threads, [&](const std::string& model_text, const nn::Model& model, const std::string& precision,
                                     bool auto_tile, const DenoiseOptions& d) {
     const auto [stop, progress] = time_to_stop(stack, model, d, o.cancel_after);
     rows.push_back({{"model", model_text}, {"backend", d.backend}, {"precision", precision}, {"tile", d.tile},
@@ -155,7 +160,7 @@ int run_cancel(const BenchOptions& o) {
 
 int run(const BenchOptions& o) {
   if (o.cancel_after > 0) return run_cancel(o);
-  for (const auto& model_text : o.models) bench_model(model_text);  // a bad model before the ceiling's seconds
+  const std::vector<nn::Model> models = bench_models(o);  // a bad model before the ceiling's seconds
   const int threads = o.threads > 0 ? o.threads : tbb::this_task_arena::max_concurrency();
   const CpuPeak peak = measure_fp32_peak(threads);
   const AovStack stack = synthetic_stack(o.size);
@@ -170,7 +175,7 @@ int run(const BenchOptions& o) {
                 "implementation |\n");
     std::printf("|---|---|---|---|---|---|---|---|---|\n");
   }
-  for_each_config(o, threads, [&](const std::string& model_text, const nn::Model& model, const std::string& precision,
+  for_each_config(o, models, threads, [&](const std::string& model_text, const nn::Model& model, const std::string& precision,
                                   bool, const DenoiseOptions& d) {
     // The first run is cold, as a one-off `residue-cli denoise` is: oneDNN's primitives are created and its
     // weights reordered, and the arena is faulted in. The timed runs after it reuse the backend, as the tiles

@@ -8,6 +8,7 @@
 #include "core/denoise/bilateral.h"
 #include "core/denoise/strength.h"
 #include "core/features/features.h"
+#include "core/io/atomic_file.h"
 #include "core/io/provenance.h"
 #include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
@@ -58,11 +59,8 @@ std::vector<std::string> input_files(const AovStack& layout) {
 // Every check on the output, before any work: the output may not be one of the files read (even with --force:
 // the render's AOVs would be lost), then prepare_exr_output()'s (name, compression, folder, overwrite).
 void check_output(const std::string& output, const AovStack& layout, const io::ExrWriteOptions& w) {
-  std::error_code ec;
-  for (const std::string& f : input_files(layout))
-    if (std::filesystem::equivalent(output, f, ec))
-      throw Error(ErrorKind::Output, "output '" + output + "' is the input '" + f +
-                                         "': writing the denoised colour there would lose the render; choose another name");
+  const std::vector<std::string> read = input_files(layout);
+  io::refuse_input_as_output(output, {read.begin(), read.end()}, "output", "the render");
   for (const auto& removed : io::prepare_exr_output(output, w))
     std::fprintf(stderr, "note: removed '%s', a partial output left by an earlier run that was killed\n",
                  removed.c_str());

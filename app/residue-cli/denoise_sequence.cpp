@@ -127,8 +127,10 @@ int run_sequence(const DenoiseCliOptions& o) {
     std::error_code ec;
     if (fs::exists(fs::symlink_status(r.output, ec)) && !o.force) {
       if (!skip_existing) existing.push_back(r.output.string());
-      else if (io::inspect_output(r.output) == io::ExistingOutput::Damaged) r.note = "damaged";  // redone (below)
-      else r.status = "skipped", r.note = "exists";
+      else if (const io::ExistingOutput e = io::inspect_output(r.output); e == io::ExistingOutput::Damaged)
+        r.note = "damaged";  // redone (below)
+      else
+        r.status = "skipped", r.note = e == io::ExistingOutput::Foreign ? "exists, not an OpenEXR file: left alone" : "exists";
     }
     records.push_back(std::move(r));
   }
@@ -148,8 +150,7 @@ int run_sequence(const DenoiseCliOptions& o) {
   for (FrameRecord& r : records) {
     ++index;
     if (r.status == "skipped") {
-      const bool foreign = io::inspect_output(r.output) == io::ExistingOutput::Foreign;
-      if (foreign) r.note = "exists, not an OpenEXR file: left alone";
+      const bool foreign = r.note != "exists";
       std::printf("frame %lld  skipped: %s exists%s\n", static_cast<long long>(r.frame), display_path(r.output.string()).c_str(),
                   foreign ? " (not an OpenEXR file: left alone)" : "");
       continue;

@@ -6,7 +6,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <climits>
 #include <csignal>
 #include <cerrno>
@@ -16,6 +15,8 @@
 #include <random>
 #include <set>
 #include <string>
+
+#include <OpenImageIO/strutil.h>
 
 #include "core/util/error.h"
 
@@ -84,10 +85,6 @@ int64_t free_bytes(const fs::path& folder) {
   return static_cast<int64_t>(st.f_bavail) * static_cast<int64_t>(st.f_frsize);
 }
 
-std::string lower(std::string s) {
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return s;
-}
 
 // The temporary files of writes in progress in this process (removed by remove_temp_files_in_progress()).
 std::mutex g_temps_mutex;
@@ -241,16 +238,15 @@ std::vector<fs::path> prepare_output(const fs::path& destination, bool overwrite
 
 void require_extension(const fs::path& destination, const std::vector<std::string>& extensions,
                        const std::string& option) {
-  const std::string extension = lower(destination.extension().string());
   for (const std::string& e : extensions)
-    if (extension == e && destination.stem() != "") return;
+    if (OIIO::Strutil::iequals(destination.extension().string(), e) && destination.stem() != "") return;
   std::string list;
   for (const std::string& e : extensions) list += (list.empty() ? "" : " or ") + e;
   throw Error(ErrorKind::Usage, option + " " + quoted(destination) + ": give it a name ending in " + list);
 }
 
 void refuse_input_as_output(const fs::path& destination, const std::vector<fs::path>& inputs,
-                            const std::string& option) {
+                            const std::string& option, const std::string& lost) {
   std::error_code ec;
   const fs::path absolute = fs::weakly_canonical(fs::absolute(destination, ec), ec);
   for (const fs::path& input : inputs) {
@@ -259,7 +255,7 @@ void refuse_input_as_output(const fs::path& destination, const std::vector<fs::p
                       (!absolute.empty() && absolute == fs::weakly_canonical(fs::absolute(input, e2), e2));
     if (same)
       throw Error(ErrorKind::Output, option + " " + quoted(destination) + " is the input " + quoted(input) +
-                                         ", which this run reads: writing there would lose it (even with --force); "
+                                         ", which this run reads: writing there would lose " + lost + " (even with --force); "
                                          "choose another name");
   }
 }

@@ -23,8 +23,10 @@ void require_extension(const std::filesystem::path& destination, const std::vect
 
 // Refuses an output that is one of the files the run reads (the same file by inode, or the same path once
 // made absolute), even with --force: replacing it would lose the user's data. Throws Error(Output) naming both.
+// `lost` names what would be lost ("the render"; default "it").
 void refuse_input_as_output(const std::filesystem::path& destination,
-                            const std::vector<std::filesystem::path>& inputs, const std::string& option);
+                            const std::vector<std::filesystem::path>& inputs, const std::string& option,
+                            const std::string& lost = "it");
 
 // Calls write(temp_path) to produce the file, then moves it to `destination` (prepare_output() runs first).
 // The temporary file is created empty (mode 0666 less the umask) beside the destination, hidden, names the

@@ -158,9 +158,7 @@ const Image& fit_to_half(const Image& image, const ExrWriteOptions& options, Ima
 
 std::vector<fs::path> prepare_exr_output(const fs::path& path, const ExrWriteOptions& options) {
   check_compression(options.compression);
-  std::string name = path.filename().string();
-  std::transform(name.begin(), name.end(), name.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (name == ".exr")
+  if (OIIO::Strutil::iequals(path.filename().string(), ".exr"))
     throw Error(ErrorKind::Output, "output " + quoted(path) + " is an extension without a name: give the file a name, e.g. out.exr");
   std::vector<fs::path> removed = prepare_output(path, options.overwrite);
   std::string extension = path.extension().string();
