@@ -3,10 +3,9 @@
 #include <QCoreApplication>
 #include <algorithm>
 #include <QTimer>
-#include <QtConcurrent/QtConcurrentRun>
 
-#include "core/denoise/bilateral.h"
 #include "core/denoise/denoiser.h"
+#include "core/denoise/method_registry.h"
 #include "core/features/features.h"
 #include "core/nn/model_alias.h"
 #include "core/util/error.h"
@@ -29,15 +28,6 @@ DenoiseController::DenoiseController(Session* session, std::vector<nn::ModelCard
   poll_ = new QTimer(this);
   poll_->setInterval(50);
   connect(poll_, &QTimer::timeout, this, &DenoiseController::poll);
-  bilateral_ = new QFutureWatcher<std::shared_ptr<Image>>(this);
-  connect(bilateral_, &QFutureWatcherBase::finished, this, [this] {
-    bilateral_running_ = false;
-    auto img = bilateral_->result();
-    if (!img) return finish(false, tr("the bilateral filter failed"), tr("failed"));
-    const Rect r = request_.roi.value_or(img->bounds());
-    session_->setResultTile(result_id_, r, crop(*img, r));
-    finish(true, {});
-  });
   // A new render drops every result: a run for the old one is stopped.
   connect(session_, &Session::loaded, this, &DenoiseController::cancel);
 }
@@ -45,18 +35,17 @@ DenoiseController::DenoiseController(Session* session, std::vector<nn::ModelCard
 DenoiseController::~DenoiseController() {
   if (job_) job_->cancel();
   job_.reset();
-  bilateral_->waitForFinished();
 }
 
 QString DenoiseController::key(const Request& r) {
-  if (nn::method_of(r.model.toStdString()) == nn::Method::Bilateral) return r.model;
+  if (is_model_free_method(r.model.toStdString())) return r.model;  // a filter: no precision, no post-steps
   return QString("%1 %2 %3%4%5%6")
       .arg(r.model, precisionName(r.precision), r.backend, r.energy_correction ? "" : " raw",
            r.variance_blend ? "" : " noblend", r.ensemble > 0 ? QString(" x%1").arg(r.ensemble) : QString());
 }
 
 QString DenoiseController::name(const Request& r) {
-  if (nn::method_of(r.model.toStdString()) == nn::Method::Bilateral) return r.model;
+  if (is_model_free_method(r.model.toStdString())) return r.model;
   QString n = QString("%1 %2").arg(r.model, precisionName(r.precision));
   if (!r.backend.isEmpty()) n += " " + r.backend;
   if (!r.energy_correction) n += " raw";
@@ -87,11 +76,12 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   request_ = req;
   request_.roi = rect;
 
-  std::shared_ptr<const nn::Model> net;
+  std::shared_ptr<const Method> method;
   QString variant, substitute;
-  const nn::Method method = nn::method_of(req.model.toStdString());
-  if (method != nn::Method::Bilateral) {
-    try {
+  try {
+    if (is_model_free_method(req.model.toStdString())) {
+      method = make_method(std::string_view(req.model.toStdString()));
+    } else {
       std::filesystem::path path;
       try {
         path = nn::find_model_for(req.model.toStdString(), feature_set_for(*stack));
@@ -112,15 +102,12 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
         if (substitute.isEmpty()) throw;
       }
       variant = QString::fromStdString(path.stem().string());
-      // Keyed by name and file: an alias runs its model's file with its own settings.
       const QString name = substitute.isEmpty() ? req.model : substitute;
-      auto& slot = loaded_[name + '|' + QString::fromStdString(path.string())];
-      if (!slot) slot = std::make_shared<const nn::Model>(nn::load_model_for(name.toStdString(), feature_set_for(*stack)));
-      net = slot;
-    } catch (const std::exception& e) {
-      emit finished(false, QString::fromStdString(e.what()));
-      return false;
+      method = make_method(loaded_.load(name.toStdString(), feature_set_for(*stack)));
     }
+  } catch (const std::exception& e) {
+    emit finished(false, QString::fromStdString(e.what()));
+    return false;
   }
   if (!substitute.isEmpty()) {
     Request instead = req;
@@ -146,8 +133,9 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
     result_id_ = session_->addResult(std::move(r));
   }
 
-  if (method == nn::Method::Bilateral) {
-    description_ = tr("cross-bilateral filter");
+  const nn::Model* net = method->model();
+  if (!net) {
+    description_ = QString::fromStdString(method->architecture());
   } else {
     description_ = QString("%1 (%2, %3)").arg(variant, QString::fromStdString(net->architecture()),
                                               precisionName(req.precision));
@@ -157,8 +145,8 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
     // The blend as it will run: OIDN's networks never use it, and a model with tau 0 keeps its whole output.
     DenoiseOptions blend;
     blend.variance_blend = req.variance_blend;
-    if (stack->variance && method == nn::Method::Residue)
-      description_ += variance_blend_tau(blend, *net) > 0 ? tr(", variance blend") : tr(", no variance blend");
+    if (stack->variance && net->method == nn::Method::Residue)
+      description_ += method->variance_blend_tau(blend) > 0 ? tr(", variance blend") : tr(", no variance blend");
     if (asked != req.model) description_ += tr(", instead of %1, which has no variant for this render's AOVs").arg(asked);
     else if (variant != req.model) description_ += tr(" — picked for the AOVs this render has");
   }
@@ -171,19 +159,6 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   clock_.start();
   emit started(description_);
 
-  if (method == nn::Method::Bilateral) {
-    bilateral_running_ = true;
-    bilateral_->setFuture(QtConcurrent::run([stack, rect]() {
-      try {
-        return std::make_shared<Image>(cross_bilateral(*stack, {}, rect));
-      } catch (const std::exception&) {
-        return std::shared_ptr<Image>();
-      }
-    }));
-    poll_->start();
-    return true;
-  }
-
   DenoiseOptions options;
   options.precision = req.precision;
   options.backend = req.backend.toStdString();
@@ -191,7 +166,7 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   options.tile = req.tile;
   options.ensemble = req.ensemble;
   // A tile runs the network once per member of the self-ensemble.
-  if (options.tile <= 0)
+  if (options.tile <= 0 && net)
     options.tile = interactive_tile(net->graph, expectedSecondsPerMp(req.model, req.precision) *
                                                     (req.ensemble > 0 ? req.ensemble : net->ensemble));
   options.energy_correction = req.energy_correction;
@@ -199,7 +174,7 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   // Tiles arrive on the worker thread and are handed to the GUI thread; poll() delivers the queued ones before
   // it ends a job, so none of an old job lands in a new one.
   const int id = result_id_;
-  job_ = std::make_unique<DenoiseJob>(stack, net, options, [this, id](const Rect& r, const Image& pixels) {
+  job_ = std::make_unique<DenoiseJob>(stack, method, options, [this, id](const Rect& r, const Image& pixels) {
     QMetaObject::invokeMethod(
         this, [this, id, r, pixels] { if (job_) session_->setResultTile(id, r, pixels); }, Qt::QueuedConnection);
   });
@@ -215,8 +190,8 @@ DenoiseController::Progress DenoiseController::progress() const {
   const auto jp = job_->progress();
   p.done = jp.done;
   p.total = jp.total;
-  if (p.done > 0 && p.done < p.total)
-    p.left = p.elapsed / static_cast<double>(p.done) * static_cast<double>(p.total - p.done);
+  p.fraction = jp.fraction();
+  if (p.fraction > 0 && p.fraction < 1) p.left = p.elapsed / p.fraction * (1.0 - p.fraction);
   return p;
 }
 

@@ -6,13 +6,13 @@
 #pragma once
 
 #include <QElapsedTimer>
-#include <QFutureWatcher>
 #include <QObject>
 #include <map>
 #include <memory>
 #include <optional>
 
 #include "core/denoise/denoise_job.h"
+#include "core/nn/model_cache.h"
 #include "core/nn/model_card.h"
 
 class QTimer;
@@ -35,7 +35,8 @@ class DenoiseController : public QObject {
     std::optional<Rect> roi;  // denoise only this region
   };
   struct Progress {
-    int64_t done = 0, total = 0;  // tiles
+    int64_t done = 0, total = 0;  // tiles of the pass running
+    double fraction = 0;          // of the work of every pass (a prefilter's included)
     double elapsed = 0, left = -1;  // seconds; left < 0: not known yet
   };
 
@@ -50,8 +51,8 @@ class DenoiseController : public QObject {
   // cheapest model that has one runs instead (and its description says so). Returns false when nothing started
   // (one is running, no render is open, no model fits); finished() tells the outcome either way.
   bool start(const Request& r);
-  void cancel();  // the job stops within one network layer; its finished tiles stay in the result
-  bool running() const { return job_ != nullptr || bilateral_running_; }
+  void cancel();  // the job stops within one network layer (a filter: one tile); its finished tiles stay
+  bool running() const { return job_ != nullptr; }
   int runningResult() const { return running() ? result_id_ : -1; }
   // True while a run that started from the noisy colour is in flight: its unfinished tiles are the noisy colour.
   bool runningFromNoisy() const { return running() && from_noisy_; }
@@ -76,7 +77,7 @@ class DenoiseController : public QObject {
 
   Session* session_;
   std::vector<nn::ModelCard> models_;
-  std::map<QString, std::shared_ptr<const nn::Model>> loaded_;
+  nn::ModelCache loaded_;
   std::map<QString, double> measured_s_per_mp_;
   Request request_;
   QString description_;
@@ -85,8 +86,6 @@ class DenoiseController : public QObject {
   QElapsedTimer clock_;
   QTimer* poll_ = nullptr;
   std::unique_ptr<DenoiseJob> job_;
-  bool bilateral_running_ = false;
-  QFutureWatcher<std::shared_ptr<Image>>* bilateral_ = nullptr;
 };
 
 }  // namespace residue::ui

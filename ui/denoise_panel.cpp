@@ -281,13 +281,11 @@ double DenoisePanel::expectedSecondsPerMp(const QString& model) const {
 
 double DenoisePanel::progressFraction() const {
   const auto p = controller_->progress();
-  return p.total > 0 ? static_cast<double>(p.done) / static_cast<double>(p.total) : 0.0;
+  return p.fraction;
 }
 
 void DenoisePanel::cancel() {
   controller_->cancel();
-  if (controller_->running() && controller_->progress().total == 0)
-    status_->setText(tr("The bilateral filter finishes on its own (it takes a moment)."));
 }
 
 void DenoisePanel::showProgress() {
@@ -295,8 +293,8 @@ void DenoisePanel::showProgress() {
   const auto p = controller_->progress();
   QString text = controller_->runningDescription();
   if (p.total > 0) {
-    progress_->setRange(0, static_cast<int>(p.total));
-    progress_->setValue(static_cast<int>(p.done));
+    progress_->setRange(0, 1000);
+    progress_->setValue(static_cast<int>(p.fraction * 1000.0));
     text += tr("\ntile %1 of %2, %3 elapsed").arg(p.done).arg(p.total).arg(duration(p.elapsed));
     if (p.left >= 0) text += tr(", about %1 left").arg(duration(p.left));
   } else {

@@ -7,6 +7,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/io/frame_sequence.h"
+#include "core/denoise/method_registry.h"
 #include "core/nn/model_card.h"
 #include "core/util/error.h"
 #include "denoise_frame.h"
@@ -16,9 +17,9 @@ namespace residue::cli {
 namespace {
 
 int run(const DenoiseCliOptions& o) {
-  if (o.ensemble > 1 && nn::method_of(o.model) == nn::Method::Bilateral)
+  if (o.ensemble > 1 && is_model_free_method(o.model))
     throw Error(ErrorKind::Usage, "--ensemble " + std::to_string(o.ensemble) + ": the self-ensemble averages a network "
-                                  "under flips; the bilateral filter has none (leave --ensemble out)");
+                                  "under flips; the " + o.model + " filter has none (leave --ensemble out)");
   if (is_sequence(o)) return run_sequence(o);
   if (!o.frames.empty() || o.skip_existing || !o.summary.empty())
     throw Error(ErrorKind::Usage, "--frames, --skip-existing and --summary are for frame sequences: give the input as "

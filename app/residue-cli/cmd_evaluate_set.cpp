@@ -14,7 +14,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/aov/dataset.h"
-#include "core/denoise/bilateral.h"
+#include "core/denoise/method_registry.h"
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
@@ -143,13 +143,13 @@ int run(const EvalSetOptions& o) {
     std::string label, model, precision;
     bool energy_correction = true;
     int ensemble = 0;
-    bool network() const { return !model.empty() && model != "bilateral"; }  // not the input or the baseline
+    bool network() const { return !model.empty() && !is_model_free_method(model); }  // not the input or a filter
   };
   std::vector<Column> columns = {{"noisy", "", ""}};
   for (const auto& m : o.models) {
     // A file is labelled by its stem, a model name by itself.
     const std::string label = std::filesystem::is_regular_file(m) ? std::filesystem::path(m).stem().string() : m;
-    if (nn::method_of(m) == nn::Method::Bilateral) {  // no network, no precision
+    if (is_model_free_method(m)) {  // a filter (the baseline): no network, no precision
       columns.push_back({label, m, "fp32"});
       continue;
     }
@@ -165,6 +165,7 @@ int run(const EvalSetOptions& o) {
   std::vector<std::vector<Cell>> results(scenes.size(), std::vector<Cell>(columns.size()));
   nlohmann::json json_scenes = nlohmann::json::array();
   double megapixels_total = 0;
+  nn::ModelCache models;
   for (size_t si = 0; si < scenes.size(); ++si) {
     AovStack stack = load_dataset_scene(scenes[si]);
     perturb_inputs(stack, o.perturb, static_cast<unsigned>(si) + 1);
@@ -177,14 +178,10 @@ int run(const EvalSetOptions& o) {
       std::string model_file;
       if (columns[ci].model.empty()) {
         out = stack.color.image;
-      } else if (nn::method_of(columns[ci].model) == nn::Method::Bilateral) {  // the baseline every model must beat
-        const auto t0 = std::chrono::steady_clock::now();
-        out = cross_bilateral(stack);
-        cell.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
       } else {
-        const auto path = nn::find_model_for(columns[ci].model, feature_set_for(stack));
-        const nn::Model model = nn::load_model_for(columns[ci].model, feature_set_for(stack));
-        model_file = path.string();
+        // Each model file is loaded once for every scene (a scene's AOVs may pick another variant).
+        const std::unique_ptr<Method> method = resolve_method(columns[ci].model, feature_set_for(stack), models);
+        if (method->model()) model_file = method->model()->path;
         DenoiseOptions d;
         d.backend = o.backend;
         d.precision = columns[ci].precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
@@ -195,7 +192,7 @@ int run(const EvalSetOptions& o) {
         d.blend_tau = o.blend_tau;
         d.ensemble = columns[ci].ensemble;
         DenoiseStats st;
-        out = denoise(stack, model, d, {}, &st);
+        out = denoise(stack, *method, d, {}, &st);
         cell.seconds = st.seconds;
         cell.guarded = st.guarded_values;
         cell.energy_corrected = st.energy_corrected;  // what ran: OIDN's networks take no post-steps

@@ -23,6 +23,7 @@
 
 #include "cli_common.h"
 #include "commands.h"
+#include "core/denoise/method_registry.h"
 #include "core/aov/aov_loader.h"
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
@@ -113,7 +114,7 @@ std::string slurm_file_name(const std::string& path) {
 
 // The model must resolve for the frames' AOVs now, not fail on every task once the array runs.
 void check_model(const FarmOptions& o, const fs::path& first_frame) {
-  if (nn::method_of(o.model) == nn::Method::Bilateral) return;
+  if (is_model_free_method(o.model)) return;
   const AovReader reader({first_frame}, LoadOptions{});
   (void)nn::find_model_for(o.model, feature_set_for(reader.layout()));
 }

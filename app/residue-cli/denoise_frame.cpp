@@ -5,8 +5,7 @@
 #include <chrono>
 #include <cstdio>
 
-#include "core/denoise/bilateral.h"
-#include "core/denoise/strength.h"
+#include "core/denoise/method_registry.h"
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
 #include "core/io/provenance.h"
@@ -126,57 +125,32 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     return !context.interrupt.interrupted();
   };
   DenoiseStats& stats = result.stats;
-  result.model = o.model;
-  result.architecture = "cross-bilateral filter";
+  // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color);
+  // each file is loaded once per process.
+  const std::unique_ptr<Method> method = resolve_method(o.model, feature_set_for(layout), context.models);
+  result.model = method->name();
+  result.architecture = method->architecture();
+  io::record(w.residue_attributes, {.model = result.model, .architecture = result.architecture});
   // Renders that fit in --max-memory are denoised in memory; larger ones band by band from and to the files
   // (then the header cannot carry the time, which is known only at the end).
-  const bool bilateral = nn::method_of(o.model) == nn::Method::Bilateral;
-  result.streamed = !bilateral && whole_image_bytes(layout) > d.max_memory;
-  if (bilateral) {  // the baseline, also a fast preview
-    const AovStack stack = reader.read(whole);
-    const auto t0 = std::chrono::steady_clock::now();
-    const Image out = with_strength(stack.color.image, cross_bilateral(stack, {}, d.roi), d.strength);
-    throw_if_cancelled(d.cancel);
-    stats.strength = d.strength;
-    stats.seconds = seconds_since(t0);
-    stats.backend = "cross-bilateral (core)";
-    stats.tiles = 1;
-    stats.tile_size = std::max(stack.width(), stack.height());
-    io::record(w.residue_attributes, {.model = result.model,
-                                      .architecture = result.architecture,
-                                      .backend = stats.backend,
-                                      .seconds = static_cast<float>(stats.seconds),
-                                      .strength = stats.strength});
-    stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
+  result.streamed = method->streams() && whole_image_bytes(layout) > d.max_memory;
+  if (result.streamed) {  // the header, written first, says which post-steps run (core decides, as below)
+    stats = denoise_to_exr(reader, *method, d, output, w, on_tile);
   } else {
-    // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color);
-    // each file is loaded once per process.
-    const std::filesystem::path file = nn::find_model_for(o.model, feature_set_for(layout));
-    auto it = context.models.find(file);
-    if (it == context.models.end())
-      it = context.models.emplace(file, nn::load_model_for(o.model, feature_set_for(layout))).first;
-    const nn::Model& model = it->second;
-    result.model = model.name;
-    result.architecture = model.architecture();
-    io::record(w.residue_attributes, {.model = result.model, .architecture = result.architecture});
-    if (result.streamed) {  // the header, written first, says which post-steps run (core decides, as below)
-      stats = denoise_to_exr(reader, model, d, output, w, on_tile);
-    } else {
-      auto t0 = std::chrono::steady_clock::now();
-      const AovStack stack = reader.read(whole);
-      result.read_s = seconds_since(t0);
-      const Image out = denoise(stack, model, d, on_tile, &stats);
-      throw_if_cancelled(d.cancel);
-      io::record(w.residue_attributes, {.backend = stats.backend,
-                                        .seconds = static_cast<float>(stats.seconds),
-                                        .energy_correction = stats.energy_corrected,
-                                        .variance_blend = stats.variance_blended,
-                                        .strength = stats.strength,
-                                        .ensemble = stats.ensemble});
-      t0 = std::chrono::steady_clock::now();
-      stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
-      result.write_s = seconds_since(t0);
-    }
+    auto t0 = std::chrono::steady_clock::now();
+    const AovStack stack = reader.read(whole);
+    result.read_s = seconds_since(t0);
+    const Image out = denoise(stack, *method, d, on_tile, &stats);
+    throw_if_cancelled(d.cancel);
+    io::record(w.residue_attributes, {.backend = stats.backend,
+                                      .seconds = static_cast<float>(stats.seconds),
+                                      .energy_correction = stats.energy_corrected,
+                                      .variance_blend = stats.variance_blended,
+                                      .strength = stats.strength,
+                                      .ensemble = stats.ensemble});
+    t0 = std::chrono::steady_clock::now();
+    stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
+    result.write_s = seconds_since(t0);
   }
   result.megapixels = static_cast<double>(d.roi ? d.roi->area() : whole.area()) / 1e6;
 

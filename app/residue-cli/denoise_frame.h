@@ -12,6 +12,7 @@
 
 #include "cli_common.h"
 #include "core/denoise/denoiser.h"
+#include "core/nn/model_cache.h"
 #include "core/io/exr_writer.h"
 #include "core/io/metrics_report.h"
 #include "interrupt.h"
@@ -51,8 +52,8 @@ struct FrameContext {
   const DenoiseCliOptions& options;
   const InterruptScope& interrupt;
   bool show_progress = true;  // a progress bar (single renders) or nothing (sequences print a line per frame)
+  nn::ModelCache models;  // before the backends, which are keyed by the models: they go first
   BackendCache backends;
-  std::map<std::filesystem::path, nn::Model> models;
 };
 
 struct FrameResult {

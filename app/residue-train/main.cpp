@@ -131,7 +131,7 @@ void save_checkpoint(const fs::path& dir, train::ResidueNet& net, torch::optim::
 // A network that reaches past the patch sees, at every training pixel, the zero padding of both opposite sides of
 // the patch; on a whole image a pixel near one border sees that border alone, a case it never trained on. A
 // 4-level network (reach 120 px) trained on 64-px patches painted stripes down the right and bottom edges of 14
-// of the 64 starter scenes; on 128-px patches, none (docs/MODELS.md, lever 2b). So the patch must exceed the
+// of the 64 starter scenes; on 128-px patches, none (docs/research/MODELS_HISTORY.md, lever 2b). So the patch must exceed the
 // reach; below twice the reach no pixel is free of every border, which whole images have in their interior.
 void check_patch_covers_reach(const nn::Architecture& arch, int patch) {
   const int reach = arch.halo(), a = arch.alignment();
@@ -148,7 +148,7 @@ void check_patch_covers_reach(const nn::Architecture& arch, int patch) {
 }
 
 // --export-training-set: the scenes exactly as this trainer sees them (feature planes, targets, patch weights),
-// for tools/torch_train.py, which trains the same network with PyTorch where a GPU is lent (MODELS.md, lever 7).
+// for tools/torch_train.py, which trains the same network with PyTorch where a GPU is lent (docs/research/MODELS_HISTORY.md, lever 7).
 // The validation scenes go in whole, as inference sees them; the architecture and options in the metadata.
 int export_training_set(const Options& o, const nn::Architecture& arch, const train::TrainingSet& set,
                         const std::vector<fs::path>& val_scenes, const nn::Model* prior) {

@@ -117,7 +117,7 @@ void freeze_batch_norm(ResidueNet& net);
 
 // Stores every convolution's weights channels-last (NHWC), the layout oneDNN computes in; inputs must be given
 // channels-last too (to_channels_last). Each convolution then skips two reorders forward and three backward: 1.19x
-// a training step (MODELS.md, "Training speed"). Layout only: values, outputs and the exported file are unchanged.
+// a training step (docs/research/MODELS_HISTORY.md, "Training speed"). Layout only: values, outputs and the exported file are unchanged.
 void use_channels_last(ResidueNet& net);
 torch::Tensor to_channels_last(const torch::Tensor& batch);
 

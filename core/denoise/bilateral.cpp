@@ -12,8 +12,12 @@ float finite_or_zero(float v) { return std::isfinite(v) ? std::max(v, 0.0f) : 0.
 }  // namespace
 
 Image cross_bilateral(const AovStack& s, const BilateralOptions& o, std::optional<Rect> roi) {
-  const Rect region = roi.value_or(Rect{0, 0, s.width(), s.height()});
   Image out = s.color.image;
+  cross_bilateral_rect(s, o, roi.value_or(Rect{0, 0, s.width(), s.height()}), out);
+  return out;
+}
+
+void cross_bilateral_rect(const AovStack& s, const BilateralOptions& o, const Rect& region, Image& out) {
   const int r = o.radius;
   std::vector<float> spatial(static_cast<size_t>((2 * r + 1) * (2 * r + 1)));
   for (int dy = -r; dy <= r; ++dy)
@@ -62,7 +66,6 @@ Image cross_bilateral(const AovStack& s, const BilateralOptions& o, std::optiona
       for (int c = 0; c < 3; ++c) out.at(x, y, c) = static_cast<float>(std::min(sum[c] / wsum, 3.0e38));
     }
   });
-  return out;
 }
 
 }  // namespace residue

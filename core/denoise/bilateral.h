@@ -21,4 +21,8 @@ struct BilateralOptions {
 // The filtered colour, the stack's size; outside `roi` (when given) the noisy colour stays.
 Image cross_bilateral(const AovStack& stack, const BilateralOptions& options = {}, std::optional<Rect> roi = {});
 
+// The filtered colour of the pixels of `rect` into `out` (the stack's size): each pixel depends on the stack
+// only, so a region filtered piece by piece equals the region filtered at once.
+void cross_bilateral_rect(const AovStack& stack, const BilateralOptions& options, const Rect& rect, Image& out);
+
 }  // namespace residue

@@ -1,29 +1,38 @@
 #include "core/denoise/denoise_job.h"
 
+#include "core/denoise/method_registry.h"
+
 namespace residue {
+
+DenoiseJob::DenoiseJob(std::shared_ptr<const AovStack> stack, std::shared_ptr<const Method> method,
+                       DenoiseOptions options, TileReady on_tile)
+    : worker_(&DenoiseJob::work, this, std::move(stack), std::move(method), std::move(options), std::move(on_tile)) {}
 
 DenoiseJob::DenoiseJob(std::shared_ptr<const AovStack> stack, std::shared_ptr<const nn::Model> model,
                        DenoiseOptions options, TileReady on_tile)
-    : worker_(&DenoiseJob::work, this, std::move(stack), std::move(model), std::move(options), std::move(on_tile)) {}
+    : DenoiseJob(std::move(stack), std::shared_ptr<const Method>(make_method(std::move(model))), std::move(options),
+                 std::move(on_tile)) {}
 
 DenoiseJob::~DenoiseJob() {
   cancel();
   if (worker_.joinable()) worker_.join();
 }
 
-void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<const nn::Model> model,
+void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<const Method> method,
                       DenoiseOptions options, TileReady on_tile) {
   Status end = Status::Done;
   options.cancel = &cancel_;
   try {
     DenoiseStats stats;
     Image out = denoise(
-        *stack, *model, options,
+        *stack, *method, options,
         [&](const TileEvent& e, const Image& pixels) {
           done_ = e.done;
           total_ = e.total;
+          work_done_ = e.work_done;
+          work_total_ = e.work_total;
           if (e.skipped) ++skipped_;
-          if (on_tile) on_tile(e.rect, pixels);
+          if (on_tile && e.result) on_tile(e.rect, pixels);
           return !cancel_.requested();
         },
         &stats);
@@ -49,7 +58,9 @@ void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<con
   ended_.notify_all();
 }
 
-DenoiseJob::Progress DenoiseJob::progress() const { return {done_.load(), total_.load(), skipped_.load()}; }
+DenoiseJob::Progress DenoiseJob::progress() const {
+  return {done_.load(), total_.load(), skipped_.load(), work_done_.load(), work_total_.load()};
+}
 
 DenoiseJob::Status DenoiseJob::status() const { return status_.load(); }
 

@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "core/denoise/denoiser.h"
+#include "core/denoise/method.h"
 #include "core/util/error.h"
 
 namespace residue {
@@ -22,16 +23,24 @@ class DenoiseJob {
   enum class Status { Running, Done, Cancelled, Failed };
 
   struct Progress {
-    int64_t done = 0;
+    int64_t done = 0;   // tiles of the pass running
     int64_t total = 0;
     int64_t skipped = 0;
+    int64_t work_done = 0, work_total = 0;  // every pass: the fraction to show
+    double fraction() const {
+      return work_total > 0 ? static_cast<double>(work_done) / static_cast<double>(work_total) : 0.0;
+    }
   };
 
-  // Called on the worker thread after each tile with the tile's rectangle and its denoised pixels (a copy
-  // the receiver may keep). Keep it short: the next tile waits for it.
+  // Called on the worker thread after each tile of the result with the tile's rectangle and its denoised pixels
+  // (a copy the receiver may keep); a prefilter's or prior's tiles only move the progress. Keep it short: the
+  // next tile waits for it.
   using TileReady = std::function<void(const Rect& rect, const Image& pixels)>;
 
-  // Starts at once. The stack and model are shared so the caller may drop its references.
+  // Starts at once. The stack and method are shared so the caller may drop its references.
+  DenoiseJob(std::shared_ptr<const AovStack> stack, std::shared_ptr<const Method> method, DenoiseOptions options,
+             TileReady on_tile = {});
+  // The method that runs `model` (method_registry.h).
   DenoiseJob(std::shared_ptr<const AovStack> stack, std::shared_ptr<const nn::Model> model, DenoiseOptions options,
              TileReady on_tile = {});
   ~DenoiseJob();  // cancels and waits
@@ -53,11 +62,11 @@ class DenoiseJob {
   std::optional<ErrorKind> error_kind() const { return error_kind_; }
 
  private:
-  void work(std::shared_ptr<const AovStack> stack, std::shared_ptr<const nn::Model> model, DenoiseOptions options,
+  void work(std::shared_ptr<const AovStack> stack, std::shared_ptr<const Method> method, DenoiseOptions options,
             TileReady on_tile);
 
   CancelToken cancel_;
-  std::atomic<int64_t> done_{0}, total_{0}, skipped_{0};
+  std::atomic<int64_t> done_{0}, total_{0}, skipped_{0}, work_done_{0}, work_total_{0};
   std::atomic<Status> status_{Status::Running};
   mutable std::mutex mutex_;
   std::condition_variable ended_;

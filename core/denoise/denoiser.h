@@ -1,11 +1,12 @@
-// Tiled inference: the whole denoise of one AOV stack, on the calling thread.
+// Running a denoise: the options, the progress events, the statistics, and the entry points that run a method
+// (method.h) on a stack in memory or band by band from the files to an EXR, on the calling thread.
 //
-// The image (or the ROI) is cut into square tiles; each tile is extended by a halo equal to the network's
-// receptive field (one pixel per 3x3 conv), run through the backend, and only its centre is kept, so tiled
-// output equals untiled output; the guard bounds it by the brightest input within that halo. Tiles run one
-// after another, each using every allowed thread; where the render has a variance AOV each tile is blended
-// back towards its clean input pixels. Then, unless turned off, the energy correction rescales the region to
-// the noisy input's local mean, and a strength below 1 blends the result back towards the noisy colour.
+// The image (or the ROI) is cut into square tiles (engine/tiling.h); each tile is extended by a halo equal to the
+// network's receptive field, run through the backend, and only its centre is kept, so tiled output equals
+// untiled output; the guard bounds it by the brightest input within that halo. Tiles run one after another,
+// each using every allowed thread; where the render has a variance AOV each tile is blended back towards its
+// clean input pixels. Then, unless turned off, the energy correction rescales the region to the noisy input's
+// local mean, and a strength below 1 blends the result back towards the noisy colour.
 #pragma once
 
 #include <cstddef>
@@ -19,12 +20,15 @@
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/aov_stack.h"
+#include "core/denoise/engine/tiling.h"
 #include "core/io/exr_writer.h"
 #include "core/nn/backend.h"
 #include "core/nn/model_file.h"
 #include "core/util/cancel.h"
 
 namespace residue {
+
+class Method;
 
 // Backends kept from one denoise to the next (the frames of a sequence, a viewer's runs): each keeps the tile
 // sizes it planned (oneDNN's primitives), so only the first frame pays for them. Keyed by the model object: keep
@@ -61,8 +65,11 @@ struct DenoiseOptions {
 struct TileEvent {
   Rect rect;          // the tile's pixels in the output
   bool skipped = false;
-  int64_t done = 0;   // tiles finished so far, this one included
-  int64_t total = 0;
+  int64_t done = 0;   // tiles of this pass finished so far, this one included
+  int64_t total = 0;  // tiles of this pass
+  // Work of the whole denoise, every pass (a prefilter's, a prior's) included: the fraction to show.
+  int64_t work_done = 0, work_total = 0;
+  bool result = true;  // the pixels are the denoise's result (false: a prefilter's albedo, a prior's colour)
 };
 
 struct DenoiseStats {
@@ -84,8 +91,11 @@ struct DenoiseStats {
 // band of tiles); return false to cancel (stops after that tile; a CancelToken in the options stops sooner).
 using TileCallback = std::function<bool(const TileEvent&, const Image& output)>;
 
-// The denoised colour, the stack's size. Throws Error (Input when the stack lacks the model's AOVs, Usage for
-// bad options), or Cancelled.
+// The denoised colour, the stack's size: `method` run with `options` (threads, timing, progress). Throws Error
+// (Input when the stack lacks the method's AOVs, Usage for bad options), or Cancelled.
+Image denoise(const AovStack& stack, const Method& method, const DenoiseOptions& options,
+              const TileCallback& on_tile = {}, DenoiseStats* stats = nullptr);
+// The same with the method that runs `model` (method_registry.h).
 Image denoise(const AovStack& stack, const nn::Model& model, const DenoiseOptions& options,
               const TileCallback& on_tile = {}, DenoiseStats* stats = nullptr);
 
@@ -98,22 +108,11 @@ float variance_blend_tau(const DenoiseOptions& options, const nn::Model& model);
 // written band by band, so memory stays within options.max_memory whatever the image size (a 16K x 16K render
 // in 4 GiB). `exr` says how to write (its data/display windows and metadata are taken from the reader when
 // unset). Cancelling leaves no file. Both run the same tile engine (bands of tiles pulled from a source: the
-// stack in memory, or the files), so the output equals denoise()'s (tiles on the image's grid; tiled output
-// equals untiled).
+// stack in memory, or the files), so the output equals denoise()'s. Error(Usage) for a method that needs the
+// whole image first (Method::streams()).
+DenoiseStats denoise_to_exr(const AovReader& reader, const Method& method, const DenoiseOptions& options,
+                            const std::filesystem::path& output, io::ExrWriteOptions exr, const TileCallback& on_tile = {});
 DenoiseStats denoise_to_exr(const AovReader& reader, const nn::Model& model, const DenoiseOptions& options,
                             const std::filesystem::path& output, io::ExrWriteOptions exr, const TileCallback& on_tile = {});
-
-// Tile rectangles covering `region`, row by row.
-std::vector<Rect> make_tiles(const Rect& region, int64_t tile);
-
-// The tile edge (a multiple of the graph's alignment) that keeps one tile's memory within `budget` bytes, or 0
-// when even 16 px does not fit.
-int64_t tile_for_memory(const nn::Backend& backend, const nn::Graph& graph, size_t budget, int ensemble = 1);
-
-// The tile edge for interactive use (the viewer): tiles that take about `target_seconds` each at
-// `seconds_per_mp` (the model's measured speed, halo included in the work), so that progress shows often and
-// one layer of a tile (where a oneDNN run can be cancelled) is over well within a second; but never below 8
-// halos (the recomputed halo then costs at most 56 % more than the tile itself) nor above 1024 px.
-int64_t interactive_tile(const nn::Graph& graph, double seconds_per_mp, double target_seconds = 0.5);
 
 }  // namespace residue

@@ -1,7 +1,7 @@
 // Energy correction: puts back the brightness that networks trained with L1 on log colour take away.
 //
 // L1 on log colour estimates the median of the log; in very noisy dark regions that lies below the mean, and
-// a 4-spp interior loses 7-8 % of its energy (docs/MODELS.md, "Studies"). The noisy input is an unbiased
+// a 4-spp interior loses 7-8 % of its energy (docs/research/MODELS_HISTORY.md, "Studies"). The noisy input is an unbiased
 // estimate of the image, and over a wide window its noise averages out, so the output is rescaled per channel
 // by blur(noisy) / blur(output):
 //

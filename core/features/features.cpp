@@ -31,15 +31,20 @@ float exposed(float linear, float exposure) {
   return std::isinf(v) && std::isfinite(linear) ? FLT_MAX : v;
 }
 
-int64_t depth_sample_stride(int64_t pixel_count) { return std::max<int64_t>(1, pixel_count / (int64_t{1} << 20)); }
+DepthScaleSampler::DepthScaleSampler(int64_t pixel_count)
+    : stride_(std::max<int64_t>(1, pixel_count / (int64_t{1} << 20))) {}
 
-double depth_scale_from_samples(std::vector<float>& samples) {
+void DepthScaleSampler::add(const float* depth, int64_t count, int64_t first) {
+  for (int64_t i = (stride_ - first % stride_) % stride_; i < count; i += stride_) samples_.push_back(depth[i]);
+}
+
+double DepthScaleSampler::scale() {
   // The median of the hits, rounded to 1/8 octave: robust to outliers, and one odd pixel almost never moves
   // it, so bad pixels stay local (their receptive field).
-  std::erase_if(samples, [](float v) { return !(std::isfinite(v) && v > 0); });
-  if (samples.empty()) return 1.0;
-  auto mid = samples.begin() + static_cast<std::ptrdiff_t>(samples.size() / 2);
-  std::nth_element(samples.begin(), mid, samples.end());
+  std::erase_if(samples_, [](float v) { return !(std::isfinite(v) && v > 0); });
+  if (samples_.empty()) return 1.0;
+  auto mid = samples_.begin() + static_cast<std::ptrdiff_t>(samples_.size() / 2);
+  std::nth_element(samples_.begin(), mid, samples_.end());
   return std::exp2(std::round(std::log2(static_cast<double>(*mid)) * 8.0) / 8.0);
 }
 
@@ -47,10 +52,9 @@ FeatureStats compute_feature_stats(const AovStack& stack) {
   FeatureStats s;
   if (stack.depth) {
     const Image& d = stack.depth->image;
-    const int64_t stride = depth_sample_stride(d.pixel_count());
-    std::vector<float> hits;
-    for (int64_t i = 0; i < d.pixel_count(); i += stride) hits.push_back(d.data()[i]);
-    s.depth_scale = depth_scale_from_samples(hits);
+    DepthScaleSampler sampler(d.pixel_count());
+    sampler.add(d.data(), d.pixel_count(), 0);
+    s.depth_scale = sampler.scale();
   }
   if (stack.normal && stack.normal_space == NormalSpace::World && stack.world_to_camera) {
     s.rotate_normals = true;

@@ -48,10 +48,19 @@ struct FeatureStats {
 
 FeatureStats compute_feature_stats(const AovStack& stack);
 
-// The depth scale is the median of a sample of the depth plane: every stride-th pixel in row-major order,
-// at most ~1M of them. Exposed so a band-by-band reader can draw exactly the same sample.
-int64_t depth_sample_stride(int64_t pixel_count);
-double depth_scale_from_samples(std::vector<float>& samples);  // drops non-hits; 1 when none
+// The depth scale is the median of a sample of the depth plane: every stride-th pixel in row-major order
+// (at most about 2^20 of them), so a whole stack and the same render read band by band get the same scale.
+class DepthScaleSampler {
+ public:
+  explicit DepthScaleSampler(int64_t pixel_count);
+  // The depth of consecutive pixels, the first being pixel `first` of the image (row-major).
+  void add(const float* depth, int64_t count, int64_t first);
+  double scale();  // the median of the hits, rounded to 1/8 octave; 1 when none
+
+ private:
+  int64_t stride_;
+  std::vector<float> samples_;
+};
 
 // The richest feature set the stack can feed without inventing data. The sets nest: full+variance needs
 // everything full needs plus variance; full > color+albedo+normal > color.
