@@ -2,7 +2,7 @@
 # Issue 16, lever 5 at full scale: the shipped multiscale fine-tuned with the relMSE term on every training scene we
 # have (residue-v1's 300 training seeds with pseudo-referenced interiors, the pseudo-referenced noisy interiors,
 # the photographed and plain sets, the starter set), averaged 0.6 / 0.4 with its start (the recipe that won in
-# sessions 7 and 9: MODELS.md levers 1b and 5), then scored by tools/goal_check.py x1 and x8 beside the start.
+# 2026-11-26 and 2026-11-27: docs/research/MODELS_HISTORY.md levers 1b and 5), then scored by tools/goal_check.py x1 and x8 beside the start.
 #   tools/finetune_full.sh WORKDIR
 # Writes start/run/soup.safetensors, goal_{start,run,soup}_x{1,8}.{txt,json} and bands.{md,json} (error_bands.py).
 # Data: tools/render_training_data.sh renders every folder it trains on (tools/training_data.sh), each with the
@@ -18,7 +18,7 @@
 # a fixed subset for an A/B) and EXTRA_SETS (residue-pseudo residue-photo residue-photo-plain, the other training
 # folders; empty for none); TEACHER (empty; a model name or file, e.g. start.safetensors: distilled targets,
 # residue-train --teacher) with TEACHER_WEIGHT (0.5) and TEACHER_ENSEMBLE (8). Resumable: the run continues from
-# its checkpoint folder, finished files and tables are kept. A run spans sessions, so its settings are written to
+# its checkpoint folder, finished files and tables are kept. A run spans several starts, so its settings are written to
 # WORKDIR/settings.env when it starts and read from there when it resumes: `tools/finetune_full.sh WORKDIR` alone
 # resumes it, and a setting given that differs from the recorded one is refused rather than silently changing the
 # schedule, the loss or the shape half-way. So is data that changed: the folders and their scene counts are
@@ -94,7 +94,7 @@ for m in start run soup; do
     echo "== $m x$e"; sed -n 2,5p goal_${m}_x$e.txt
   done
 done
-# Where the error moved: interiors' low frequencies (48 px) are where OIDN leads (MODELS.md lever 2).
+# Where the error moved: interiors' low frequencies (48 px) are where OIDN leads (docs/research/MODELS_HISTORY.md lever 2).
 [ -f bands.md ] || /usr/bin/python3 "$repo/tools/error_bands.py" "$repo/.cache/datasets/residue-v1" --widths 16,48 \
   --models "$work/start.safetensors,$work/run.safetensors,$work/soup.safetensors,oidn" --work "$work/bands" \
   --json bands.json > bands.md

@@ -1,10 +1,10 @@
 #!/usr/bin/python3
 """Fits the exposure key a model runs at on a data set's validation scenes and writes it into the model file
 ("residue.autoexposure", "residue.exposure_key", read by core/nn/model_file.cpp). An autoexposed model scales each
-render so that its log-average luminance lands on the key before the log (MODELS.md, lever 3b). The key it was
+render so that its log-average luminance lands on the key before the log (docs/research/MODELS_HISTORY.md, lever 3b). The key it was
 trained at need not be the one it denoises best at (`multiscale`, trained at 1, measured 0.8 % lower relMSE at
 1.4), and a model trained without autoexposure may denoise better with it (`base`: 3 % lower relMSE at 0.6, the
-Cornell box 1.8x lower): lever 3d, issue 16, session 21. The candidate `off` is the model without autoexposure (the
+Cornell box 1.8x lower): lever 3d, issue 16, 2026-11-28. The candidate `off` is the model without autoexposure (the
 default candidates include it for a model trained so). For every candidate this runs `residue-cli evaluate-set
 --split validation` on a copy of the model so set, and keeps, among the candidates whose mean SSIM is within
 --max-ssim-loss of the sweep's best and whose mean relMSE is within --relmse-tolerance of the lowest, the one with

@@ -10,7 +10,7 @@ reference_b.####.exr) the study measures it, relMSE(r_b, r) = 2 s2 and temporal(
 the scores with that floor subtracted as well.
 
     /usr/bin/python3 tools/flicker_study.py --shots /work/datasets/anim/static,/work/datasets/anim/move \\
-        --models bilateral,tiny,small,base,paper,oidn --out docs/models/flicker
+        --models bilateral,tiny,small,base,paper,oidn --out docs/research/models/flicker
 """
 import argparse
 import json

@@ -1,5 +1,5 @@
 #!/bin/bash
-# Stages a training run for a lent GPU machine (docs/MODELS.md, lever 7): the device tool sends the working tree
+# Stages a training run for a lent GPU machine (docs/research/MODELS_HISTORY.md, lever 7): the device tool sends the working tree
 # (tracked files and untracked ones git does not ignore, at most 64 MiB with the carried paths) and keeps a machine
 # only 30 s after a call, and a fresh one is bare. So the data go as residue-train's own export, packed at fp16 into
 # two halves that each fit a call, and the large tracked folders (weights, figures: 111 of the tree's 113 MB) leave the
@@ -17,7 +17,7 @@
 set -euo pipefail
 repo=$(cd "$(dirname "$0")/.." && pwd)
 cd "$repo"
-large=(resources/models docs/models docs/images resources/examples)
+large=(resources/models docs/research/models docs/images resources/examples)
 marker="# gpu_stage.sh slim"
 case "${1:-}" in
   pack)

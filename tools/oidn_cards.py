@@ -4,7 +4,7 @@ networks beside Residue's models (the .tza files carry no metadata of ours). Val
 over the same 36 scenes the shipped models' cards use (30 validation scenes of residue-v1 + the last 6 starter
 scenes), from evaluate-set JSON; benchmark: seconds per megapixel from `residue-cli bench --json` output.
 
-  /usr/bin/python3 tools/oidn_cards.py docs/models/eval_project_val_oidn.json docs/models/eval_starter_val_oidn.json \\
+  /usr/bin/python3 tools/oidn_cards.py docs/research/models/eval_project_val_oidn.json docs/research/models/eval_starter_val_oidn.json \\
       --bench-json docs/benchmarks/2026-11-26-amd-epyc-f26m2/oidn_cards.json
 
 --bench FAMILY=SOURCE:FP32:BF16:MACHINE records a measurement written down elsewhere (PERFORMANCE.md's tile-512

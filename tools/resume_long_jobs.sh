@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
-# Issue 16's queue of long jobs, run one after another in the background and resumed across sessions. Every step
-# is resumable and passes quickly once done, so running this at the start of a session (on the same machine: the
-# data and checkpoints live in .cache) picks up where the last session was cut off. One job at a time: training
-# beside the renderer runs 5-6x slower (docs/MODELS.md, "Training speed"). The queue (GOAL_JOURNAL.md, sessions 18-21):
+# Issue 16's queue of long jobs, run one after another in the background and resumed where they stopped. Every step
+# is resumable and passes quickly once done, so running this after a restart (on the same machine: the
+# data and checkpoints live in .cache) picks up where the last run was cut off. One job at a time: training
+# beside the renderer runs 5-6x slower (docs/research/MODELS_HISTORY.md, "Training speed"). The queue (GOAL_JOURNAL.md, 2026-11-28):
 #   1. residue-v1's 30 validation scenes (tools/goal_check.py and every model card score on them)
 #   2. a test set: 10 of those validation scenes with fireflies kept (no indirect clamp, caustics), as an unclamped
-#      path tracer leaves them (.cache/datasets/residue-v1-fireflies, about 30 min; session 22; scored by
-#      tools/compare_conditions.py against the same scenes as rendered for training, MODELS.md lever 3e)
+#      path tracer leaves them (.cache/datasets/residue-v1-fireflies, about 30 min; 2026-11-29; scored by
+#      tools/compare_conditions.py against the same scenes as rendered for training, docs/research/MODELS_HISTORY.md lever 3e)
 #   3. the next lever's data: residue-v1-pseudo's 150 interiors with rendered 512-spp references, then its 39
-#      open-air scenes (.cache/datasets/residue-v1-true; on the idle Intel Xeon of sessions 20-23 about 2.5 minutes
+#      open-air scenes (.cache/datasets/residue-v1-true; on the idle Intel Xeon of 2026-11-28 to 2026-11-29 about 2.5 minutes
 #      an interior, about 7 hours in all; beside a training run 5-10x that)
 #   4. residue-v1-pseudo (its 39 open-air scenes have rendered references too; its interiors pseudo-references)
 #   5. the other training sets tools/finetune_full.sh trains on (residue-photo, residue-pseudo, residue-photo-plain;
@@ -17,7 +17,7 @@
 #   6. issue 51's shots for a temporal denoiser: /work/datasets/residue-shots-v1, 48 shots of 16 frames (seeds
 #      8000-8047, validation 8007/8018/8029/8040 first; tools/datagen/README.md, "Shots and motion vectors"); started
 #      on its own on 2026-12-01, so this step resumes it, or waits for that run (--wait) and passes
-# Done and so out of the queue: lever 2c's long run (session 19: a tie with the shipped network, not adopted;
+# Done and so out of the queue: lever 2c's long run (2026-11-28: a tie with the shipped network, not adopted;
 # `GROW=1 ARCH=2,2,2,2,1/24,40,56,80,112 PATCH=256 BATCH=1 STEPS=14000 PRECISION=bf16 EXTRA_SETS=
 # tools/finetune_full.sh .cache/train/lever2c-14k`). A fine-tune added back here goes through
 # tools/finetune_full.sh, which records its settings in its folder and scores itself with tools/goal_check.py.

@@ -6,7 +6,7 @@ For each scene of a data set in the starter layout (sNNN/noisy_a.exr, sNNN/refer
 (the project's metrics). Writes a JSON with the mean and per-scene numbers, and a Markdown table.
 
     /usr/bin/python3 tools/strength_curve.py --data ../shared/datasets/cycles-starter --model small \\
-        --cli build/release/app/residue-cli/residue-cli --out docs/models/strength_curve_starter_small
+        --cli build/release/app/residue-cli/residue-cli --out docs/research/models/strength_curve_starter_small
 """
 import argparse
 import json

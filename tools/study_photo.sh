@@ -10,7 +10,7 @@
 #   $R --out $PHOTO --seeds 2001,2012,2023,2034,2045,2056 --photos /usr/share/wallpapers $H    # 6 validation scenes
 #   $R --out $PHOTO --seeds 2000,2002-2011,2013-2017 --photos /usr/share/wallpapers $H --ref-spp 256   # 16 training
 #   $R --out $PLAIN --seeds 2000,2002-2011,2013-2017 $H --ref-spp 256
-# (training references at 256 spp, half residue-v1's, to fit a session: a noisier target adds zero-mean noise only)
+# (training references at 256 spp, half residue-v1's, to fit a few hours: a noisier target adds zero-mean noise only)
 # Lever 5: the shipped multiscale fine-tuned on the starter set plus PLAIN (the control) or plus PHOTO, same start,
 # seed and steps. Lever 4: a flat 8/32 trained from scratch on the starter set plus PHOTO, with and without
 # --demodulate. The two runs of a pair train side by side, one thread each. All are scored with the shipped

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""residue-train's network, loss and patch sampler in PyTorch, to train where a GPU is lent (MODELS.md, lever 7).
+"""residue-train's network, loss and patch sampler in PyTorch, to train where a GPU is lent (docs/research/MODELS_HISTORY.md, lever 7).
 
 residue-train is libtorch C++ against Debian's CPU build; the lent GPU machines have Python's PyTorch with CUDA and
 no Debian libraries. So the data travel as exactly what residue-train trains on (`residue-train

@@ -11,7 +11,7 @@
 # inputs, the variants' control, and is what ships as base; paper-ft is paper fine-tuned 1500 more steps the same
 # way, and ships as paper; also known: base-dilated (dilations 1,2,4,8) and ms, issue 16's multi-scale network at
 # OIDN's cost: 4 levels 24-80 wide, autoexposed at key 1, 2 x 128-px patches, L1 + SSIM, shipped as multiscale with
-# its variants ms-albedo-normal and ms-color; docs/MODELS.md 2b-3c, GOAL_JOURNAL.md session 4;
+# its variants ms-albedo-normal and ms-color; docs/research/MODELS_HISTORY.md 2b-3c, GOAL_JOURNAL.md 2026-11-26;
 # and post, lever 6's correction of OIDN's output, 4/32, its output conv starting at zero),
 # ZOO_THREADS (2),
 # ZOO_STEPS_<NAME> to override a model's steps (e.g. ZOO_STEPS_paper=2000), ZOO_BF16=1 to train with CPU autocast

@@ -17,7 +17,7 @@ training_data() {
 }
 
 # training_data_summary: one line per folder of `data`: the folder and its scene counts (index.json's "counts", or
-# the number of scene folders where it has none), so that a run resumed in a later session can tell whether the
+# the number of scene folders where it has none), so that a run resumed after a restart can tell whether the
 # data it trains on is still what it started with.
 training_data_summary() {
   /usr/bin/python3 - "${data[@]}" <<'PY'

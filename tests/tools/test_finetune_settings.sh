@@ -1,5 +1,5 @@
 #!/bin/bash
-# tools/finetune_full.sh keeps a run's settings and data across sessions: resuming with a setting that differs from
+# tools/finetune_full.sh keeps a run's settings and data from one start to the next: resuming with a setting that differs from
 # the one recorded in WORKDIR/settings.env is refused before anything runs, and the record is left as it was; the
 # data folders' scene counts are recorded in WORKDIR/data.txt when it starts, and a resumed run whose folders hold
 # other counts is refused. The script runs from a copy in a tree without a model or a trainer, so that a broken
@@ -37,7 +37,7 @@ $tree/.cache/datasets/residue-v1-pseudo train=2
 $top/shared/datasets/cycles-starter scenes=3"
 [ "$(cat "$data_work/data.txt" 2>/dev/null)" = "$expected" ] ||
   { echo "FAIL: data.txt is not the folders and their counts: $(cat "$data_work/data.txt" 2>&1); $out"; fail=1; }
-index residue-v1-pseudo train 3  # the set rendered further between two sessions
+index residue-v1-pseudo train 3  # the set rendered further between two starts
 out=$("$repo/tools/finetune_full.sh" "$data_work" 2>&1); rc=$?
 [ "$rc" = 2 ] && grep -q "training data changed" <<< "$out" && grep -q "residue-v1-pseudo train=2" <<< "$out" &&
   grep -q "residue-v1-pseudo train=3" <<< "$out" ||

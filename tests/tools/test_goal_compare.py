@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""tools/goal_compare.py on a real goal_check.py file (docs/models): a file against itself wins nowhere; against a
+"""tools/goal_compare.py on a real goal_check.py file (docs/research/models): a file against itself wins nowhere; against a
 copy with one scene's relMSE lowered and two others' SSIM raised it counts exactly those; the means and Cornell
 values are the files' own; files scored on different scenes are refused, by the function and by the command.
 
@@ -13,7 +13,7 @@ sys.path.insert(0, os.path.join(repo, "tools"))
 from checks import check, finish  # noqa: E402
 from goal_compare import compare  # noqa: E402
 
-a = json.load(open(os.path.join(repo, "docs", "models", "goal_s13_full_soup_x1.json")))
+a = json.load(open(os.path.join(repo, "docs", "research", "models", "goal_s13_full_soup_x1.json")))
 n = len(a["scenes"])
 same = compare(a, a)
 check(same["scenes"] == n == 30 and same["relmse_lower"] == 0 and same["ssim_higher"] == 0, f"against itself: {same}")

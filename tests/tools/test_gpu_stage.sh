@@ -8,9 +8,9 @@ top=$(mktemp -d)
 trap 'rm -rf "$top"' EXIT
 mkdir "$top/repo" && cd "$top/repo" || exit 1
 git init -q . && git config user.email t@t && git config user.name t
-mkdir -p tools resources/models docs/models docs/images resources/examples core
+mkdir -p tools resources/models docs/research/models docs/images resources/examples core
 cp "$1/tools/gpu_stage.sh" tools/
-for f in resources/models/m.safetensors docs/models/w.csv docs/images/i.png resources/examples/e.exr core/a.cpp; do
+for f in resources/models/m.safetensors docs/research/models/w.csv docs/images/i.png resources/examples/e.exr core/a.cpp; do
   echo "$f" > "$f"
 done
 git add -A && git commit -qm start

@@ -121,7 +121,7 @@ with tempfile.TemporaryDirectory() as tmp:
     check(mae.get("autoexposure") == "1" and mae.get("exposure_key") == ms_key and e != 1.0 and err < 1e-4,
           f"the target is log(1 + reference x exposure {e}) (largest difference {err}); key {mae.get('exposure_key')}")
 
-    # `tiny` as trained, without autoexposure (the shipped file runs autoexposed since lever 3d, session 21).
+    # `tiny` as trained, without autoexposure (the shipped file runs autoexposed since lever 3d, 2026-11-28).
     tiny_raw = os.path.join(tmp, "tiny_raw.safetensors")
     fit_exposure_key.write_with_key(*safetensors_meta.read_header(os.path.join(repo, "resources", "models",
                                                                                "tiny.safetensors")), tiny_raw, None)
@@ -220,7 +220,7 @@ with tempfile.TemporaryDirectory() as tmp:
 
         val = os.path.join(starter, scenes[2])
         for model, planes_file in ((tiny_raw, export),
-                                   (os.path.join(repo, "docs", "models", "weights",
+                                   (os.path.join(repo, "docs", "research", "models", "weights",
                                                  "study_ms_wide_p128_20k.safetensors"), export),
                                    (trained, export),
                                    (multiscale, export_ae)):

@@ -129,7 +129,7 @@ def restore_low_band(pseudo, raw, width, eps=None):
     """The pseudo-reference with its W x W box-mean band taken from the raw render it was denoised from.
 
     The denoiser's output is far closer to the truth than its input in fine detail but carries its own blotches
-    at 16-48 px, which a network trained on it learns (docs/models/GOAL_JOURNAL.md, session 13); the raw render's box
+    at 16-48 px, which a network trained on it learns (docs/research/models/GOAL_JOURNAL.md, 2026-11-27); the raw render's box
     means there are nearly noise-free (128 spp over a 16 x 16 box is about 32000 spp) and unbiased. The
     difference is taken relative to the pseudo-reference, (raw - pseudo) / sqrt(pseudo^2 + eps), before the box
     mean, so a bright light's noise does not spill into dark neighbours; a constant relative offset comes back
@@ -384,14 +384,14 @@ def main():
                         "(validation scenes keep true references)")
     p.add_argument("--pseudo-ref-spp", type=int, default=128)
     p.add_argument("--pseudo-ref-for", choices=["interiors", "all"], default="interiors",
-                   help="which training scenes get one: measured (pseudo_reference_check.py, docs/models/"
+                   help="which training scenes get one: measured (pseudo_reference_check.py, docs/research/models/"
                         "pseudo_reference_check_*.md), a 128-spp pseudo-reference is 1.2-6.5x closer to the truth "
                         "than a 512-spp render in all 6 interiors, farther in 5 of 6 open-air scenes (where a "
                         "512-spp render is also cheaper)")
     p.add_argument("--pseudo-ref-ensemble", type=int, default=8, choices=[1, 2, 4, 8])
     p.add_argument("--pseudo-ref-low-band", type=int, default=16, metavar="PX",
                    help="the pseudo-reference's PX x PX box-mean band comes from the raw render instead (0: off); "
-                        "measured closer to the truth in total and 2-5x in the 48-px band (MODELS.md, lever 5)")
+                        "measured closer to the truth in total and 2-5x in the 48-px band (docs/research/MODELS_HISTORY.md, lever 5)")
     p.add_argument("--restore-low-band", action="store_true",
                    help="render nothing new: give the --seeds scenes' pseudo-references made without "
                         "--pseudo-ref-low-band their low band (each one's raw input rendered again)")
