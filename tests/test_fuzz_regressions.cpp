@@ -65,11 +65,14 @@ TEST(FuzzCorpus, LiveImagesSeedsAndCrashes) {
 
 // The seeds are real: each model seed loads, so the fuzzers start from inputs that reach the deep code.
 TEST(FuzzCorpus, ModelSeedsAreValid) {
+  int seeds = 0;
   for (const auto& e : fs::directory_iterator(corpus_dir("fuzz_safetensors"))) {
     if (e.path().filename().string().rfind("crash-", 0) == 0) continue;
     SCOPED_TRACE(e.path().string());
     EXPECT_NO_THROW((void)residue::nn::load_model(e.path()));
+    ++seeds;
   }
+  EXPECT_GE(seeds, 3) << "an empty or missing corpus checks nothing";
   for (const std::string name : {"rt_hdr_alb_nrm_div16.tza", "rt_hdr_div16_f32.tza", "rt_hdr_calb_cnrm_large_div32.tza"}) {
     SCOPED_TRACE(name);
     const auto file = residue::nn::read_tza(corpus_dir("fuzz_tza") / name);
@@ -180,12 +183,15 @@ TEST(FuzzRegressions, ExrWindowLargerThanTheFileCanHoldIsRefusedBeforeOpening) {
     EXPECT_NE(what.find("a window of 33554438 x 6 pixels of 48 bytes, more than a file of 3108 bytes can hold"),
               std::string::npos) << what;
   }
+  int seeds = 0;
   for (const auto& e : fs::directory_iterator(corpus_dir("fuzz_exr_loader"))) {
     const std::string name = e.path().filename().string();
     if (name.rfind("crash-", 0) == 0 || name.rfind("slow-", 0) == 0) continue;  // the fuzzers' findings
     const auto bytes = read_bytes(e.path());
     EXPECT_FALSE(residue::exr_header_problem(bytes.data(), bytes.size(), bytes.size())) << e.path();
+    ++seeds;
   }
+  EXPECT_GE(seeds, 5) << "an empty or missing corpus checks nothing";
   // The bundled render with its data window's xMax raised: 256 MiB of pixels pass whatever the file's size, more
   // than 65536x the file's bytes does not.
   auto room = read_bytes(fs::path(RESIDUE_SOURCE_RESOURCES) / "examples" / "room" / "noisy.exr");

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <stdexcept>
 
 namespace residue {
@@ -19,10 +20,17 @@ class CancelToken {
   // Safe in a signal handler: a lock-free atomic store.
   void request() noexcept { flag_.store(true, std::memory_order_relaxed); }
   void reset() noexcept { flag_.store(false, std::memory_order_relaxed); }
-  bool requested() const noexcept { return flag_.load(std::memory_order_relaxed); }
+  bool requested() const noexcept {
+    checks_.fetch_add(1, std::memory_order_relaxed);
+    return flag_.load(std::memory_order_relaxed);
+  }
+  // How often the work has looked at the token so far: lets a test wait until the work is inside a step (a
+  // tile's layers) before it cancels, instead of sleeping and hoping.
+  int64_t checks() const noexcept { return checks_.load(std::memory_order_relaxed); }
 
  private:
   std::atomic<bool> flag_{false};
+  mutable std::atomic<int64_t> checks_{0};
   static_assert(std::atomic<bool>::is_always_lock_free);
 };
 

@@ -1,9 +1,10 @@
 // ui/latest_task: only the newest request's result is delivered, busy() lasts until it is, supersede()
 // answers at once, jobs learn they are superseded, and destruction waits for every job still running.
+// Jobs wait on gates the test opens, and the test waits on what the jobs and the pool report: no fixed sleeps.
 #include <QtTest>
 
+#include <QThreadPool>
 #include <atomic>
-#include <chrono>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -12,43 +13,72 @@
 
 using residue::ui::LatestTask;
 
+namespace {
+
+// A job's gate: closed until the test opens it.
+struct Gate {
+  std::atomic<bool> open{false};
+  void release() {
+    open = true;
+    open.notify_all();
+  }
+  void wait() const { open.wait(false); }
+};
+
+// Every job of the pool has ended, and what the ends posted to this thread (the deliveries) has been handled.
+void settle() {
+  QThreadPool::globalInstance()->waitForDone();
+  QCoreApplication::sendPostedEvents();
+  QCoreApplication::processEvents();
+}
+
+}  // namespace
+
 class TestLatestTask : public QObject {
   Q_OBJECT
  private slots:
+  void initTestCase() {
+    // Jobs here block on gates: enough pool threads that every one of them runs at once, whatever the cores.
+    QThreadPool::globalInstance()->setMaxThreadCount(8);
+  }
+
   void onlyTheNewestIsDelivered() {
     QObject owner;
     std::vector<int> delivered;
     LatestTask<int> task(&owner, [&](int&& v) { delivered.push_back(v); });
     QVERIFY(!task.busy());
-    // Older requests take longer: they finish after the newest and must still be dropped.
+    Gate gates[4];
     for (int i = 0; i < 4; ++i)
-      task.start([i](const LatestTask<int>::Token&) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(200 - 50 * i));
+      task.start([i, &gates](const LatestTask<int>::Token&) {
+        gates[i].wait();
         return i;
       });
     QVERIFY(task.busy());
-    QTRY_VERIFY_WITH_TIMEOUT(!task.busy(), 5000);
+    // The newest finishes first; the older ones after it, and must still be dropped.
+    gates[3].release();
+    QTRY_VERIFY_WITH_TIMEOUT(!task.busy(), 10000);
     QCOMPARE(delivered, std::vector<int>{3});
-    // Nothing more arrives later from the superseded jobs.
-    QTest::qWait(300);
+    for (int i = 0; i < 3; ++i) gates[i].release();
+    settle();
     QCOMPARE(delivered, std::vector<int>{3});
   }
 
   void jobsLearnTheyAreSuperseded() {
     QObject owner;
     int delivered = 0;
-    std::atomic<bool> saw_superseded{false};
+    std::atomic<bool> started{false}, saw_superseded{false};
     LatestTask<int> task(&owner, [&](int&&) { ++delivered; });
     task.start([&](const LatestTask<int>::Token& t) {
-      for (int i = 0; i < 200 && !t.superseded(); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      saw_superseded = t.superseded();
+      started = true;
+      while (!t.superseded()) std::this_thread::yield();  // works until it is no longer wanted
+      saw_superseded = true;
       return 0;
     });
-    std::this_thread::sleep_for(std::chrono::milliseconds(30));
+    QTRY_VERIFY_WITH_TIMEOUT(started.load(), 10000);
     task.supersede();  // e.g. the reference was closed: the panel answers at once
     QVERIFY(!task.busy());
-    QTRY_VERIFY_WITH_TIMEOUT(saw_superseded.load(), 5000);
-    QTest::qWait(100);
+    settle();
+    QVERIFY(saw_superseded.load());
     QCOMPARE(delivered, 0);
   }
 
@@ -56,32 +86,51 @@ class TestLatestTask : public QObject {
     QObject owner;
     LatestTask<int> task(&owner, [](int&&) {});
     std::atomic<int> generation{-1};
+    Gate gate;
     task.start([&](const LatestTask<int>::Token& t) {
       generation = t.generation();
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      gate.wait();
       return 1;
     });
-    QTRY_VERIFY(generation.load() >= 0);
+    QTRY_VERIFY_WITH_TIMEOUT(generation.load() >= 0, 10000);
     QVERIFY(task.pending(generation));
-    QTRY_VERIFY_WITH_TIMEOUT(!task.busy(), 5000);
+    gate.release();
+    QTRY_VERIFY_WITH_TIMEOUT(!task.busy(), 10000);
     QVERIFY(!task.pending(generation));
   }
 
   void destructionWaitsForEveryRunningJob() {
     auto alive = std::make_shared<std::atomic<int>>(0);
+    Gate gate;
+    std::atomic<bool> destroying{false};
+    // Opens the jobs' gate only once the task is being destroyed: a destructor that did not wait would return
+    // while they are still held.
+    std::thread opener([&] {
+      destroying.wait(false);
+      gate.release();
+    });
     {
       QObject owner;
       LatestTask<int> task(&owner, [](int&&) {});
       for (int i = 0; i < 3; ++i)
-        task.start([alive](const LatestTask<int>::Token&) {
+        task.start([alive, &gate](const LatestTask<int>::Token&) {
           ++*alive;
-          std::this_thread::sleep_for(std::chrono::milliseconds(150));
+          gate.wait();
           --*alive;
           return 0;
         });
-      QTRY_VERIFY(alive->load() > 0);
+      QTRY_VERIFY_WITH_TIMEOUT(alive->load() == 3, 10000);
+      // Destroyed before the task (declared after it): marks the start of the task's destruction.
+      struct Mark {
+        std::atomic<bool>& flag;
+        ~Mark() {
+          flag = true;
+          flag.notify_all();
+        }
+      } mark{destroying};
     }
     QCOMPARE(alive->load(), 0);
+    opener.join();
   }
 };
 
