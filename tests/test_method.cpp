@@ -11,6 +11,7 @@
 #include "core/denoise/bilateral.h"
 #include "core/denoise/denoise_job.h"
 #include "core/denoise/method_registry.h"
+#include "core/denoise/provenance_of.h"
 #include "core/nn/model_file.h"
 #include "support/test_support.h"
 
@@ -164,6 +165,27 @@ TEST(Method, PrefilteredRunReportsOneWorkAmountOverEveryPass) {
   // The prefilters cover the whole image, the colour only the region: most of the work is theirs.
   EXPECT_LT(first_result->work_done, total);
   EXPECT_GT(std::prev(first_result)->work_done, total / 2);
+}
+
+// One provenance for every writer: what ran, by name, with its backend, post-steps and time.
+TEST(Method, ProvenanceSaysWhatRan) {
+  const AovStack stack = testing::random_stack(40, 40, 5);
+  const std::unique_ptr<Method> filter = make_method(std::string_view("bilateral"));
+  DenoiseOptions o;
+  o.strength = 0.75f;
+  DenoiseStats stats;
+  denoise(stack, *filter, o, {}, &stats);
+  const io::Provenance p = provenance_of(*filter, stats);
+  EXPECT_EQ(p.model, "bilateral");
+  EXPECT_EQ(p.architecture, "cross-bilateral filter");
+  EXPECT_EQ(p.backend, "cross-bilateral (core)");
+  EXPECT_EQ(p.strength, 0.75f);
+  EXPECT_EQ(p.energy_correction, false) << "the filter has no post-steps";
+  ASSERT_TRUE(p.seconds.has_value());
+  EXPECT_GT(*p.seconds, 0.0f);
+  // A streamed EXR's header is written before the time is known: no time rather than a zero.
+  stats.seconds = 0;
+  EXPECT_FALSE(run_provenance(stats).seconds.has_value());
 }
 
 }  // namespace

@@ -35,7 +35,7 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
     for (const auto& r : in.results) {
       if (!r.image) continue;
       out.push_back({at(file_stem(r.name) + ".exr"), [&in, r](const std::filesystem::path& p, bool overwrite) {
-                       write_result_exr(p, *r.image, *in.stack, r.name, r.description, overwrite);
+                       write_result_exr(p, *r.image, *in.stack, r, overwrite);
                      }});
     }
   }
@@ -114,8 +114,7 @@ void write_png(const std::filesystem::path& path, const QImage& image, bool over
 }
 
 void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,
-                      const QString& name, const QString& description, bool overwrite, bool half,
-                      const std::string& compression, float strength) {
+                      const Result& result, bool overwrite, bool half, const std::string& compression, float strength) {
   io::ExrWriteOptions o;
   o.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
   o.compression = compression;
@@ -123,11 +122,13 @@ void write_result_exr(const std::filesystem::path& path, const Image& image, con
   o.data_window = stack.data_window;
   o.display_width = stack.display_width;
   o.display_height = stack.display_height;
-  io::record(o.residue_attributes, {.model = description.toStdString(),
-                                    .source = stack.color.source.file,
-                                    .result = name.toStdString(),
-                                    .written_by = "residue viewer",
-                                    .strength = strength});
+  io::Provenance p = result.provenance;
+  if (!p.model) p.model = result.description.toStdString();  // an added file: its path
+  p.source = stack.color.source.file;
+  p.result = result.name.toStdString();
+  p.written_by = "residue viewer";
+  p.strength = strength;  // the viewer's blend towards the noisy colour, applied on export
+  io::record(o.residue_attributes, p);
   o.overwrite = overwrite;
   io::write_exr(path, image, o);
 }

@@ -49,10 +49,11 @@ std::vector<std::filesystem::path> planned_files(const ExportAllInputs& in, cons
 // an empty string.
 QString export_all(const ExportAllInputs& in, const std::filesystem::path& folder, bool overwrite);
 
-// Writes one result as an EXR with what made it (residue:model, residue:source, residue:result, ...).
+// Writes one result as an EXR with what made it: a run's provenance as the CLI writes it (residue:model, its
+// architecture, backend, post-steps, time), and residue:source, residue:result; an added file names itself.
 void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,
-                      const QString& name, const QString& description, bool overwrite, bool half = true,
-                      const std::string& compression = "zip", float strength = 1.0f);
+                      const Result& result, bool overwrite, bool half = true, const std::string& compression = "zip",
+                      float strength = 1.0f);
 
 // Writes `image` as a PNG atomically (atomic_file.h); `what` names it in the error ("heatmap PNG").
 void write_png(const std::filesystem::path& path, const QImage& image, bool overwrite, const std::string& what);

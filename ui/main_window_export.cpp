@@ -51,14 +51,16 @@ QFuture<QString> MainWindow::exportDenoisedExr(const QString& path, bool overwri
                                                const QString& compression) {
   const auto denoised = session_->denoisedShared();
   const auto stack = session_->stack();
-  const QString name = session_->resultName(session_->a());
-  const QString description = session_->denoisedDescription();
+  const Result* shown = session_->result(session_->a());
+  Result result = shown ? *shown : Result{};
+  result.name = session_->resultName(session_->a());  // as shown: at its strength
+  result.description = session_->denoisedDescription();
   const float strength = session_->strength();
   return QtConcurrent::run([=]() -> QString {
     if (!denoised || !stack) return tr("Nothing to export: no denoised image.");
     try {
-      write_result_exr(path.toStdString(), *denoised, *stack, name, description, overwrite, half,
-                       compression.toStdString(), strength);
+      write_result_exr(path.toStdString(), *denoised, *stack, result, overwrite, half, compression.toStdString(),
+                       strength);
       return {};
     } catch (const std::exception& e) {
       return errorText(e);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/image/image.h"
+#include "core/io/provenance.h"
 
 namespace residue::ui {
 
@@ -23,6 +24,7 @@ struct Result {
   double seconds = 0;            // how long the run took (0 for files)
   double flop = 0;               // network work of the run, when known (for time comparisons)
   QString state;                 // "" when done; "running"; "cancelled after 3 of 12 tiles"
+  io::Provenance provenance;     // runs: what ran (method, architecture, backend, post-steps, time); files: none
   bool fromFile() const { return key.isEmpty(); }
 };
 

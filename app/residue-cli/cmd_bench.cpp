@@ -108,7 +108,7 @@ void for_each_config(const BenchOptions& o, const std::vector<nn::Model>& models
         for (int64_t tile : o.tiles) {
           DenoiseOptions d;
           d.backend = backend;
-          d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+          d.precision = nn::parse_precision(precision);
           d.tile = tile_for(tile, model, d.precision, o.size);
           d.threads = threads;
           d.skip_empty_tiles = false;
@@ -241,7 +241,7 @@ Command add_bench_command(CLI::App& app) {
   cmd->add_option("--precisions", o->precisions, "fp32, bf16")
       ->capture_default_str()
       ->delimiter(',')
-      ->check(CLI::IsMember({"fp32", "bf16"}));
+      ->check(CLI::IsMember(nn::precision_names()));
   cmd->add_option("--tiles", o->tiles, "Tile edges; 0 = the viewer's automatic tile")
       ->capture_default_str()
       ->delimiter(',')

@@ -76,7 +76,7 @@ Command add_denoise_command(CLI::App& app) {
       ->check(CLI::IsMember(nn::available_backends()));
   cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"fp32", "bf16"}));
+      ->check(CLI::IsMember(nn::precision_names()));
   cmd->add_option("--tile", o->tile, "Tile edge in pixels, without the halo (default: the largest within --max-memory)")
       ->check(CLI::Range(int64_t{16}, int64_t{1} << 20));
   cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));

@@ -184,7 +184,7 @@ int run(const EvalSetOptions& o) {
         if (method->model()) model_file = method->model()->path;
         DenoiseOptions d;
         d.backend = o.backend;
-        d.precision = columns[ci].precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+        d.precision = nn::parse_precision(columns[ci].precision);
         d.threads = o.threads;
         d.energy_correction = columns[ci].energy_correction;
         d.variance_blend = o.variance_blend == "on";
@@ -276,7 +276,8 @@ Command add_evaluate_set_command(CLI::App& app) {
   auto o = std::make_shared<EvalSetOptions>();
   cmd->add_option("dataset", o->dataset, "Data set folder (s<seed>/noisy_a.exr, reference.exr)")->required();
   cmd->add_option("--models", o->models, "Model names or files; \"bilateral\" is the cross-bilateral baseline")->required()->delimiter(',');
-  cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',');
+  cmd->add_option("--precisions", o->precisions, "fp32, bf16")->capture_default_str()->delimiter(',')
+      ->check(CLI::IsMember(nn::precision_names()));
   cmd->add_option("--ensembles", o->ensembles,
                   "Self-ensemble sizes, a column each (1, 2, 4, 8: the network under that many flips and transposes, "
                   "averaged; default: each model's own)")

@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "core/denoise/method_registry.h"
+#include "core/denoise/provenance_of.h"
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
 #include "core/io/provenance.h"
@@ -70,7 +71,7 @@ void check_output(const std::string& output, const AovStack& layout, const io::E
 DenoiseOptions DenoiseCliOptions::denoise_options() const {
   DenoiseOptions d;
   d.backend = backend;
-  d.precision = precision == "bf16" ? nn::Precision::BF16 : nn::Precision::FP32;
+  d.precision = nn::parse_precision(precision);
   d.tile = tile;
   d.threads = threads;
   d.max_memory = max_memory_mib << 20;
@@ -142,12 +143,7 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     result.read_s = seconds_since(t0);
     const Image out = denoise(stack, *method, d, on_tile, &stats);
     throw_if_cancelled(d.cancel);
-    io::record(w.residue_attributes, {.backend = stats.backend,
-                                      .seconds = static_cast<float>(stats.seconds),
-                                      .energy_correction = stats.energy_corrected,
-                                      .variance_blend = stats.variance_blended,
-                                      .strength = stats.strength,
-                                      .ensemble = stats.ensemble});
+    io::record(w.residue_attributes, provenance_of(*method, stats));
     t0 = std::chrono::steady_clock::now();
     stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
     result.write_s = seconds_since(t0);

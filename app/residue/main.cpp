@@ -179,8 +179,7 @@ int main(int argc, char** argv) {
   }
   if (!models.isEmpty()) window.denoisePanel()->selectModel(models.front());
   if (cli.isSet(precision))
-    window.denoisePanel()->setPrecision(cli.value(precision) == "bf16" ? residue::nn::Precision::BF16
-                                                                       : residue::nn::Precision::FP32);
+    window.denoisePanel()->setPrecision(residue::nn::parse_precision(cli.value(precision).toStdString()));
   if (cli.isSet(tab)) {
     const QString t = cli.value(tab);
     auto* tabs = window.sideTabs();

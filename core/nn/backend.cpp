@@ -10,6 +10,14 @@ std::unique_ptr<Backend> make_onednn_backend(const Graph& graph, Precision preci
 
 const char* to_string(Precision p) { return p == Precision::BF16 ? "bf16" : "fp32"; }
 
+std::vector<std::string> precision_names() { return {to_string(Precision::FP32), to_string(Precision::BF16)}; }
+
+Precision parse_precision(std::string_view name) {
+  for (Precision p : {Precision::FP32, Precision::BF16})
+    if (name == to_string(p)) return p;
+  throw Error(ErrorKind::Usage, "precision '" + std::string(name) + "' is not one of fp32, bf16");
+}
+
 std::vector<std::string> available_backends() {
   std::vector<std::string> names = {"eigen"};
 #ifdef RESIDUE_HAVE_ONEDNN

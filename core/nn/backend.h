@@ -8,6 +8,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/image/image.h"
@@ -19,6 +20,10 @@ namespace residue::nn {
 
 enum class Precision { FP32, BF16 };
 const char* to_string(Precision p);
+// Every precision's name, in order ("fp32", "bf16"): what --precision and the viewer offer.
+std::vector<std::string> precision_names();
+// The precision a name stands for; Error(Usage) naming the valid ones otherwise.
+Precision parse_precision(std::string_view name);
 
 struct BackendOptions {
   Precision precision = Precision::FP32;

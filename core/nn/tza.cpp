@@ -5,6 +5,8 @@
 #include <fstream>
 #include <limits>
 
+#include <Imath/half.h>
+
 #include "core/util/error.h"
 #include "core/util/input_file.h"
 #include "core/util/little_endian.h"
@@ -15,30 +17,7 @@ namespace {
 constexpr uint16_t kMagic = 0x41D7;
 constexpr uint64_t kHeaderSize = 12;  // magic, major, minor, table offset
 
-// IEEE binary16 to binary32, exactly: every half (subnormals, infinities, NaN payloads) is a float.
-float half_to_float(uint16_t h) {
-  const uint32_t sign = static_cast<uint32_t>(h & 0x8000u) << 16;
-  const uint32_t exponent = (h >> 10) & 0x1Fu;
-  const uint32_t mantissa = h & 0x3FFu;
-  uint32_t bits = 0;
-  if (exponent == 0x1F) {
-    bits = sign | 0x7F800000u | (mantissa << 13);  // inf, or NaN with its payload
-  } else if (exponent != 0) {
-    bits = sign | ((exponent - 15 + 127) << 23) | (mantissa << 13);
-  } else if (mantissa != 0) {
-    // Subnormal: mantissa * 2^-24. Normalise it: shift until the implicit bit (bit 10) is set.
-    uint32_t m = mantissa;
-    int e = -1;
-    do {
-      m <<= 1;
-      ++e;
-    } while ((m & 0x400u) == 0);
-    bits = sign | (static_cast<uint32_t>(127 - 15 - e) << 23) | ((m & 0x3FFu) << 13);
-  } else {
-    bits = sign;  // +-0
-  }
-  return std::bit_cast<float>(bits);
-}
+
 
 // Reads little-endian fields from the byte vector, throwing a message naming `where` when they run out.
 class Cursor {
@@ -196,7 +175,7 @@ TzaFile parse_tza(const std::vector<uint8_t>& bytes, const std::string& where) {
           break;
         }
         case 'h':
-          t.values[k] = half_to_float(static_cast<uint16_t>(src[2 * k] | (src[2 * k + 1] << 8)));
+          t.values[k] = static_cast<float>(Imath::half(Imath::half::FromBits, static_cast<uint16_t>(src[2 * k] | (src[2 * k + 1] << 8))));
           break;
         case 'b': t.values[k] = static_cast<float>(static_cast<int8_t>(src[k])); break;
         default: t.values[k] = static_cast<float>(src[k]); break;

@@ -256,6 +256,13 @@ class TestResults : public QObject {
       QVERIFY2(worst < 1e-3, qPrintable(QString::number(worst)));
       auto in = OIIO::ImageInput::open((out + "/" + stem + ".exr").toStdString());
       QCOMPARE(QString::fromStdString(in->spec().get_string_attribute("residue:result")), r.name);
+      // What ran, as residue-cli records it (core's provenance_of): the model by name, its architecture, the
+      // backend and the post-steps; not the viewer's free-text description.
+      const std::string model = in->spec().get_string_attribute("residue:model");
+      QVERIFY2(model == "tiny" || model == "small", model.c_str());
+      QVERIFY(!in->spec().get_string_attribute("residue:architecture").empty());
+      QVERIFY(!in->spec().get_string_attribute("residue:backend").empty());
+      QVERIFY(in->spec().find_attribute("residue:energy_correction") != nullptr);
       // The map's values, and its picture with the bar below.
       const Image map = readExr(out + "/heatmap-" + stem + ".exr");
       QCOMPARE(maxAbsDiff(map, metrics::error_map(*r.image, stack->reference->image, metrics::MapKind::RelativeSquaredError), 1), 0.0);

@@ -35,6 +35,7 @@ BandDenoiser::BandDenoiser(RowSource& source, const NetworkPass& pass, const Den
   stats_.features = pass.model->features();
   stats_.energy_corrected = pass.energy_correction;
   stats_.variance_blended = pass.blend_tau > 0 && source.layout().variance.has_value();
+  stats_.strength = pass.replaces == AovRole::Color ? pass.strength : 1.0f;  // a prefilter's image is kept whole
 }
 
 int64_t BandDenoiser::bands_ahead(bool correct, int64_t tile) {
@@ -78,7 +79,6 @@ void BandDenoiser::denoise_band(int64_t y0) {
   const bool colour = pass_.replaces == AovRole::Color;
   b.blend = pass_.strength < 1.0f && colour;
   if (b.blend) b.base = b.out;
-  stats_.strength = colour ? pass_.strength : 1.0f;
   const int64_t per_pixel = pass_.work_per_pixel();
   for (const Rect& t : tiles_) {
     if (t.y < y0 || t.y >= y0 + rows) continue;

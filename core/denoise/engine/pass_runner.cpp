@@ -8,7 +8,7 @@
 #include "core/denoise/engine/band_denoiser.h"
 #include "core/denoise/engine/row_source.h"
 #include "core/denoise/engine/tiling.h"
-#include "core/io/provenance.h"
+#include "core/denoise/provenance_of.h"
 #include "core/util/error.h"
 
 namespace residue {
@@ -91,11 +91,7 @@ DenoiseStats stream_pass(const AovReader& reader, const NetworkPass& pass, const
                                       std::to_string(W) + "-pixel-wide image");
   ReaderRows rows(reader, 2 * h);
   BandDenoiser engine(rows, pass, options, backend, tile, on_tile, stats, work);
-  io::record(exr.residue_attributes, {.backend = stats.backend,
-                                      .energy_correction = stats.energy_corrected,
-                                      .variance_blend = stats.variance_blended,
-                                      .strength = options.strength,
-                                      .ensemble = stats.ensemble});
+  io::record(exr.residue_attributes, run_provenance(stats));  // the header is written first: no time yet
   stats.clamped_to_half =
       io::write_exr_bands(output, W, H, 3, tile, exr, [&](int64_t y0, int64_t n) { return engine.band(y0, n); })
           .clamped_to_half;
