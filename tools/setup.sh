@@ -22,7 +22,7 @@ packages=(
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
   # data generation: Blender (Cycles) for tools/datagen
   blender
-  # fuzzing (tools/fuzz.sh, the `fuzz` preset): clang 14 and its compiler-rt, which holds libFuzzer
+  # fuzzing (tools/dev/fuzz.sh, the `fuzz` preset): clang 14 and its compiler-rt, which holds libFuzzer
   # (libclang_rt.fuzzer-x86_64.a) and clang's ASan/UBSan runtimes; the `asan` preset uses gcc's (build-essential)
   clang libclang-rt-14-dev
   # render farm: Slurm and munge, for `residue-cli farm slurm` and its end-to-end test on a one-node cluster

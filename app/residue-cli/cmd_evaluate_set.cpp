@@ -297,7 +297,7 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("--output-guard", o->output_guard,
                   "on or off: clamp the network's output to its receptive field's brightest input (x2)")
       ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
-  cmd->add_option("--blend-tau", o->blend_tau, "The variance blend's tau for every model (tools/fit_blend_tau.py)")
+  cmd->add_option("--blend-tau", o->blend_tau, "The variance blend's tau for every model (tools/models/fit_blend_tau.py)")
       ->check(positive_finite());
   cmd->add_option("--energy-correction", o->energy,
                   "on, off, or both (a second column per model, labelled \"raw\", without the correction)")

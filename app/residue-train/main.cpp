@@ -148,7 +148,7 @@ void check_patch_covers_reach(const nn::Architecture& arch, int patch) {
 }
 
 // --export-training-set: the scenes exactly as this trainer sees them (feature planes, targets, patch weights),
-// for tools/torch_train.py, which trains the same network with PyTorch where a GPU is lent (docs/research/MODELS_HISTORY.md, lever 7).
+// for tools/models/torch_train.py, which trains the same network with PyTorch where a GPU is lent (docs/research/MODELS_HISTORY.md, lever 7).
 // The validation scenes go in whole, as inference sees them; the architecture and options in the metadata.
 int export_training_set(const Options& o, const nn::Architecture& arch, const train::TrainingSet& set,
                         const std::vector<fs::path>& val_scenes, const nn::Model* prior) {
@@ -529,7 +529,7 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile)->excludes("--init-from")->excludes("--grow-from");
   app.add_option("--export-training-set", o.export_set,
                  "Write the training and validation scenes as loaded (feature planes, targets, patch weights) to "
-                 "this safetensors file and stop, for tools/torch_train.py (a GPU trainer)");
+                 "this safetensors file and stop, for tools/models/torch_train.py (a GPU trainer)");
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser: faster on the Zen CPUs measured, slower on an Intel one (MODELS.md, \"Training speed\")");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -41,7 +41,7 @@ torch::Tensor aov_edge_mask(const torch::Tensor& albedo_planes, const torch::Ten
 
 // The edge pixels' share of 1 - SSIM (full resolution, the metric's tonemap and window): the sum of
 // edges x (1 - SSIM map averaged over RGB) over the pixels whose window is inside the patch, divided by their
-// count, so that it is exactly that class's contribution to the patch's 1 - SSIM (tools/error_bands.py's
+// count, so that it is exactly that class's contribution to the patch's 1 - SSIM (tools/research/error_bands.py's
 // "1-SSIM albedo/normal edge"). --edge-ssim-weight adds it to any loss. H and W must be at least 11.
 torch::Tensor edge_ssim_loss(const torch::Tensor& prediction, const torch::Tensor& target,
                              const torch::Tensor& edges);

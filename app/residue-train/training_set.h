@@ -62,7 +62,7 @@ class TrainingSet {
   int patch_;
 };
 
-// The loaded scenes as tensors, for a trainer outside this program (tools/torch_train.py, on a GPU): per scene i,
+// The loaded scenes as tensors, for a trainer outside this program (tools/models/torch_train.py, on a GPU): per scene i,
 // "<prefix>/<i>/input<h>" (H x W x C feature planes of noisy half h), "<prefix>/<i>/target<h>" (H x W x 3, the
 // half's target) and "<prefix>/<i>/exposure<h>" (1); for patch sampling, "<prefix>/<i>/corners" (N x 2: x, y) and
 // "<prefix>/<i>/weights" (N) of this set's patch size, and "<prefix>/<i>/noise" (H x W x 1), the map they average,

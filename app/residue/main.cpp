@@ -1,5 +1,5 @@
 // residue: the viewer. Opens the renders named on the command line; the options below also let scripts
-// (tools/screenshots.sh) put the window in a given state and save a screenshot of it.
+// (tools/dev/screenshots.sh) put the window in a given state and save a screenshot of it.
 #include <QApplication>
 #include <QCommandLineParser>
 #include <QElapsedTimer>

@@ -30,7 +30,7 @@ struct ColorScale {
 std::pair<double, double> resolve_range(const Image& map, const ColorScale& scale);
 
 // t in [0, 1] -> sRGB-encoded 8-bit colour, interpolating linearly between the 256 table entries
-// (colormap_tables.inc, generated from matplotlib by tools/gen_colormaps.py) and rounding. Values outside (and
+// (colormap_tables.inc, generated from matplotlib by tools/dev/gen_colormaps.py) and rounding. Values outside (and
 // NaN) are clamped.
 std::array<uint8_t, 3> colormap_lookup(Colormap map, double t);
 

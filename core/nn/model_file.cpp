@@ -333,7 +333,7 @@ std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet
       looked += " " + (d / "oidn").string();
     }
     throw Error(ErrorKind::Input, "Open Image Denoise's network " + file + ".tza is not installed (looked in:" +
-                                      looked + "); tools/fetch_oidn_weights.sh --install fetches it");
+                                      looked + "); tools/dev/fetch_oidn_weights.sh --install fetches it");
   }
   std::vector<FeatureSet> usable;
   for (FeatureSet s : {FeatureSet::FullVariance, FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly})

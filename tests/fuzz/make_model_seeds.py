@@ -11,7 +11,7 @@ import sys
 import numpy as np
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
-sys.path.insert(0, os.path.join(ROOT, "tools"))
+sys.path.insert(0, os.path.join(ROOT, "tools", "models"))
 from safetensors_meta import read_tensors, write_tensors  # noqa: E402
 CORPUS = os.path.join(ROOT, "tests", "fuzz", "corpus")
 MODELS = os.path.join(ROOT, "resources", "models")

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""tools/average_weights.py on the real shipped multiscale file: the weighted mean is exact (checked in float64
+"""tools/models/average_weights.py on the real shipped multiscale file: the weighted mean is exact (checked in float64
 against NumPy), the result loads and denoises in residue-cli, and bad inputs fail early without writing.
 
   test_average_weights.py REPO RESIDUE_CLI
@@ -10,11 +10,11 @@ import numpy as np
 
 repo, cli = sys.argv[1], sys.argv[2]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(repo, "tools"))
+sys.path.insert(0, os.path.join(repo, "tools", "models"))
 from safetensors_meta import read_tensors, write_tensors  # noqa: E402
 from checks import check, finish  # noqa: E402
 
-tool = os.path.join(repo, "tools", "average_weights.py")
+tool = os.path.join(repo, "tools", "models", "average_weights.py")
 model = os.path.join(repo, "resources", "models", "multiscale.safetensors")
 room = os.path.join(repo, "resources", "examples", "room")
 def arrays(path):

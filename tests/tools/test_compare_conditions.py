@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""tools/compare_conditions.py on two hand-made evaluations whose answers are known: the means over the scenes both
+"""tools/research/compare_conditions.py on two hand-made evaluations whose answers are known: the means over the scenes both
 hold (a scene only one has is left out), each model's relMSE against the yardstick's, and the reference's floor
 (noisy relMSE x n / (n + R)) taken off, and each model's SSIM less the yardstick's.
 
@@ -36,7 +36,7 @@ with tempfile.TemporaryDirectory() as tmp:
         "s2": {"noisy": (0.4, 0.4), "net": (0.1, 0.6), "oidn": (0.04, 0.8)},
     }, spp, 196)
     md = os.path.join(tmp, "table.md")
-    out = subprocess.run(["/usr/bin/python3", os.path.join(repo, "tools", "compare_conditions.py"), *first, *second,
+    out = subprocess.run(["/usr/bin/python3", os.path.join(repo, "tools", "research", "compare_conditions.py"), *first, *second,
                           "--models", "net", "--names", "a,b", "--md", md], capture_output=True, text=True)
     check(out.returncode == 0, f"exit status 0 (got {out.returncode}: {out.stderr})")
     rows = {line.split("|")[1].strip(): [c.strip() for c in line.split("|")[2:-1]]
@@ -53,7 +53,7 @@ with tempfile.TemporaryDirectory() as tmp:
     check(net is not None and net[6:] == ["-0.0500", "-0.2000"], "SSIM less the yardstick's")
     check(oidn is not None and oidn[2:] == ["1.000"] * 4 + ["+0.0000"] * 2, "the yardstick's own row is 1 and 0")
     check(os.path.isfile(md) and open(md).read() == out.stdout, "--md writes the printed table")
-    bad = subprocess.run(["/usr/bin/python3", os.path.join(repo, "tools", "compare_conditions.py"), *first, *second,
+    bad = subprocess.run(["/usr/bin/python3", os.path.join(repo, "tools", "research", "compare_conditions.py"), *first, *second,
                           "--models", "nothing"], capture_output=True, text=True)
     check(bad.returncode != 0 and "no column 'nothing'" in bad.stderr, "an unknown model is named")
 finish()

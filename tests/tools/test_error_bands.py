@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""tools/error_bands.py: the box mean against a naive float64 one, the frequency split on errors whose answer is
+"""tools/research/error_bands.py: the box mean against a naive float64 one, the frequency split on errors whose answer is
 known (a constant error is all low, a 2-px checkerboard all high), and the whole tool on the bundled room laid out
 as a one-scene data set, where its relMSE must equal residue-cli's own for the same model.
 
@@ -11,7 +11,7 @@ import numpy as np
 
 repo, cli = sys.argv[1], sys.argv[2]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(repo, "tools"))
+sys.path.insert(0, os.path.join(repo, "tools", "research"))
 import error_bands  # noqa: E402
 from checks import check, finish  # noqa: E402
 from goal_check import denoised_scores  # noqa: E402
@@ -42,7 +42,7 @@ with tempfile.TemporaryDirectory() as tmp:
     with open(os.path.join(data, "index.json"), "w") as f:
         json.dump({"scenes": [{"folder": "s0", "split": "validation", "kind": "interior", "spp": 8}]}, f)
     out = os.path.join(tmp, "bands.json")
-    run = subprocess.run([sys.executable, os.path.join(repo, "tools", "error_bands.py"), data, "--models",
+    run = subprocess.run([sys.executable, os.path.join(repo, "tools", "research", "error_bands.py"), data, "--models",
                           "multiscale,bilateral", "--json", out, "--cli", cli, "--work", os.path.join(tmp, "w")],
                          capture_output=True, text=True)
     check(run.returncode == 0, f"the tool runs: {run.stderr}")
@@ -71,7 +71,7 @@ with tempfile.TemporaryDirectory() as tmp:
         check(0 < parts["1-SSIM"] < 1, f"{m}: 1 - SSIM in (0, 1): {parts['1-SSIM']}")
     check(scene["multiscale"]["relmse"] < scene["bilateral"]["relmse"], "multiscale beats the bilateral filter")
     check(result["summary"]["interior"]["multiscale"]["relmse"] == scene["multiscale"]["relmse"], "one scene's mean")
-    bad = subprocess.run([sys.executable, os.path.join(repo, "tools", "error_bands.py"), data, "--models",
+    bad = subprocess.run([sys.executable, os.path.join(repo, "tools", "research", "error_bands.py"), data, "--models",
                           "multiscale", "--split", "train", "--cli", cli], capture_output=True, text=True)
     check(bad.returncode != 0 and "no train scenes" in bad.stderr, f"an empty split is refused: {bad.stderr}")
 

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""tools/fit_exposure_key.py (issue 16, lever 3d) on two real starter scenes made a validation split: each
+"""tools/models/fit_exposure_key.py (issue 16, lever 3d) on two real starter scenes made a validation split: each
 candidate's recorded score is what `residue-cli evaluate-set` gives a copy of the model set that way by other means;
 the written setting is the sweep's best by the stated rule; a model trained without autoexposure gets it only if a
 key wins, and a second fit still records how the model was trained; --dry-run and bad keys leave the file as it was.
@@ -10,7 +10,7 @@ import json, os, shutil, subprocess, sys, tempfile
 
 repo, cli = sys.argv[1], sys.argv[2]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(repo, "tools"))
+sys.path.insert(0, os.path.join(repo, "tools", "models"))
 from checks import check, finish  # noqa: E402
 import safetensors_meta  # noqa: E402
 
@@ -18,7 +18,7 @@ starter = os.path.join(repo, "..", "shared", "datasets", "cycles-starter")
 if not os.path.isdir(starter):
     starter = os.environ.get("RESIDUE_SHARED_DIR", "") + "/datasets/cycles-starter"
 scenes = sorted(d for d in os.listdir(starter) if d.startswith("s"))[-2:]
-tool = os.path.join(repo, "tools", "fit_exposure_key.py")
+tool = os.path.join(repo, "tools", "models", "fit_exposure_key.py")
 
 
 def fit(model, data, *args):

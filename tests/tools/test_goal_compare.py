@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""tools/goal_compare.py on a real goal_check.py file (docs/research/models): a file against itself wins nowhere; against a
+"""tools/research/goal_compare.py on a real goal_check.py file (docs/research/models): a file against itself wins nowhere; against a
 copy with one scene's relMSE lowered and two others' SSIM raised it counts exactly those; the means and Cornell
 values are the files' own; files scored on different scenes are refused, by the function and by the command.
 
@@ -9,7 +9,7 @@ import copy, json, os, subprocess, sys, tempfile
 
 repo = sys.argv[1]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(repo, "tools"))
+sys.path.insert(0, os.path.join(repo, "tools", "research"))
 from checks import check, finish  # noqa: E402
 from goal_compare import compare  # noqa: E402
 
@@ -45,10 +45,10 @@ with tempfile.TemporaryDirectory() as tmp:
     for name, doc in (("a.json", a), ("short.json", short)):
         paths.append(os.path.join(tmp, name))
         json.dump(doc, open(paths[-1], "w"))
-    run = subprocess.run([sys.executable, os.path.join(repo, "tools", "goal_compare.py"), *paths],
+    run = subprocess.run([sys.executable, os.path.join(repo, "tools", "research", "goal_compare.py"), *paths],
                          capture_output=True, text=True)
     check(run.returncode == 2 and "different scenes" in run.stderr, f"the command refuses: {run.returncode} {run.stderr}")
-    run = subprocess.run([sys.executable, os.path.join(repo, "tools", "goal_compare.py"), paths[0], paths[0]],
+    run = subprocess.run([sys.executable, os.path.join(repo, "tools", "research", "goal_compare.py"), paths[0], paths[0]],
                          capture_output=True, text=True)
     check(run.returncode == 0 and "relMSE lower on 0, SSIM higher on 0" in run.stdout, f"the command: {run.stdout}")
 finish()

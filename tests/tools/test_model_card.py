@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""tools/model_card.py on a shipped model and a hand-made evaluation whose answers are known: the per-scene table
+"""tools/models/model_card.py on a shipped model and a hand-made evaluation whose answers are known: the per-scene table
 with the noisy input, the bilateral filter and the --compare columns (matched with or without the precision), their
 means, and the checks' counts against each compared column; an unknown column is refused by name.
 
@@ -25,7 +25,7 @@ with tempfile.TemporaryDirectory() as tmp:
                                     "oidn fp32": score(0.04, 0.78)}},
     ]}, open(evaluation, "w"))
     model = os.path.join(repo, "resources", "models", "tiny.safetensors")
-    run = lambda *extra: subprocess.run(["/usr/bin/python3", os.path.join(repo, "tools", "model_card.py"), model,
+    run = lambda *extra: subprocess.run(["/usr/bin/python3", os.path.join(repo, "tools", "models", "model_card.py"), model,
                                          "--eval", evaluation, "--label", "net", "--cli", cli, *extra],
                                         capture_output=True, text=True)
     out = run("--compare", "oidn")

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""`residue-train --export-training-set` and tools/torch_train.py (issue 16, lever 7: training on a lent GPU).
+"""`residue-train --export-training-set` and tools/models/torch_train.py (issue 16, lever 7: training on a lent GPU).
 
 On three real starter scenes: the export holds each half's feature planes and target exactly (the target checked
 against log(1 + reference) read here with OpenImageIO, the patch weights against the noise measure recomputed here
@@ -16,7 +16,7 @@ import OpenImageIO as oiio
 
 repo, trainer, cli = sys.argv[1], sys.argv[2], sys.argv[3]
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(repo, "tools"))
+sys.path.insert(0, os.path.join(repo, "tools", "models"))
 from checks import check, finish  # noqa: E402
 import fit_exposure_key  # noqa: E402
 import safetensors_meta  # noqa: E402
@@ -88,7 +88,7 @@ with tempfile.TemporaryDirectory() as tmp:
 
     # pack: both halves of the training scenes, the validation scene's first, at fp16.
     packed = os.path.join(tmp, "data.npz")
-    r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "pack", export, packed],
+    r = subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "pack", export, packed],
                        capture_output=True, text=True)
     check(r.returncode == 0, f"pack runs: {r.stderr}")
     z = np.load(packed)
@@ -100,7 +100,7 @@ with tempfile.TemporaryDirectory() as tmp:
 
     # --part K/N keeps every N-th training scene from K (the data cut for N device calls).
     part = os.path.join(tmp, "part.npz")
-    r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "pack", export, part,
+    r = subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "pack", export, part,
                         "--part", "1/2", "--half", "1", "--no-val"], capture_output=True, text=True)
     zp = np.load(part) if r.returncode == 0 else {}
     check(r.returncode == 0 and zp["train_inputs"].shape[0] == 1 and "val_inputs" not in zp and
@@ -130,7 +130,7 @@ with tempfile.TemporaryDirectory() as tmp:
     other_key = os.path.join(tmp, "other_key.safetensors")
     fit_exposure_key.write_with_key(*safetensors_meta.read_header(multiscale), other_key, 2.5 if ms_key != "2.5" else 1)
     for model in (tiny_raw, other_key):
-        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "forward", "--data",
+        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "forward", "--data",
                             export_ae, "--model", model, "--out", os.path.join(tmp, "never.npy")],
                            capture_output=True, text=True)
         check(r.returncode != 0 and "--exposure-key" in r.stderr and "key " + ms_key in r.stderr and
@@ -193,7 +193,7 @@ with tempfile.TemporaryDirectory() as tmp:
         # A short run exports a model file residue-cli loads, which computes what the port computes (from `tiny` at a
         # low rate, so that the output stays within core's overshoot guard, which an untrained network trips).
         trained = os.path.join(tmp, "trained.safetensors")
-        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "train", "--data", packed,
+        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "train", "--data", packed,
                             "--init-from", tiny_raw,
                             "--steps", "30", "--batch", "2", "--lr", "1e-4", "--val-every", "10",
                             "--precise-bn", "4", "--device", "cpu", "--out", trained], capture_output=True, text=True)
@@ -201,16 +201,16 @@ with tempfile.TemporaryDirectory() as tmp:
         meta = torch_train.read_safetensors(trained)[1] if os.path.exists(trained) else {}
         check(json.loads(meta.get("training", "{}")).get("steps") == 30, "the file records its 30 steps")
         before = os.path.getmtime(trained)
-        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "train", "--data", packed,
+        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "train", "--data", packed,
                             "--steps", "1", "--device", "cpu", "--out", trained], capture_output=True, text=True)
         check(r.returncode != 0 and "exists" in r.stderr and os.path.getmtime(trained) == before,
               f"an existing model file is not replaced: {r.returncode} {r.stderr}")
 
         # A model trained without autoexposure is refused on data made with it, naming both.
         ae_packed = os.path.join(tmp, "ae.npz")
-        subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "pack", export_ae, ae_packed],
+        subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "pack", export_ae, ae_packed],
                        capture_output=True)
-        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "train", "--data",
+        r = subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "train", "--data",
                             ae_packed, "--init-from", tiny_raw,
                             "--steps", "1", "--device", "cpu", "--out", os.path.join(tmp, "never.safetensors")],
                            capture_output=True, text=True)
@@ -225,7 +225,7 @@ with tempfile.TemporaryDirectory() as tmp:
                                    (trained, export),
                                    (multiscale, export_ae)):
             ours = os.path.join(tmp, "port.npy")
-            r = subprocess.run([sys.executable, os.path.join(repo, "tools", "torch_train.py"), "forward", "--data",
+            r = subprocess.run([sys.executable, os.path.join(repo, "tools", "models", "torch_train.py"), "forward", "--data",
                                 planes_file, "--model", model, "--out", ours], capture_output=True, text=True)
             check(r.returncode == 0, f"forward runs with {model}: {r.stderr}")
             core = os.path.join(tmp, "core.exr")

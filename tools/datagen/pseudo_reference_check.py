@@ -138,7 +138,7 @@ def main():
                 f"(`tools/datagen/pseudo_reference_check.py`). Estimated distances to the truth assume relMSE = "
                 f"c / spp for a raw render. Restored: the pseudo-reference with its {args.low_band}-px box-mean "
                 f"band from the raw render (render_dataset.py --pseudo-ref-low-band). Low 16 / 48: the mean "
-                f"square of the relative error's 16- and 48-px box means, as in tools/error_bands.py.\n\n")
+                f"square of the relative error's 16- and 48-px box means, as in tools/research/error_bands.py.\n\n")
         f.write("| scene | kind | noisy spp | pseudo relMSE / SSIM vs ref | raw relMSE vs ref | est. vs truth: "
                 "1024 spp | 512 spp | pseudo | restored relMSE vs ref | low 48: raw / pseudo / restored |\n"
                 "|---|---|---|---|---|---|---|---|---|---|\n")

@@ -12,7 +12,7 @@ Layout (a frame sequence, as `residue-cli denoise` and `eval` take it):
   OUT/reference.####.exr   --ref-spp spp, colour only
   OUT/reference_b.####.exr with --second-reference: a second, independent reference per frame (seed
                            30000 + frame; static: one for every frame, as the first), so that the error the
-                           references' own noise adds to a metric can be measured (tools/flicker_study.py
+                           references' own noise adds to a metric can be measured (tools/research/flicker_study.py
                            subtracts it)
   OUT/animation.json       the scene, frames, camera moves, settings and timings
 Resumable: frames whose files exist are not rendered again.
