@@ -193,6 +193,7 @@ DenoiseController::Progress DenoiseController::progress() const {
   p.done = jp.done;
   p.total = jp.total;
   p.fraction = jp.fraction();
+  p.preliminary = jp.preliminary;
   if (p.fraction > 0 && p.fraction < 1) p.left = p.elapsed / p.fraction * (1.0 - p.fraction);
   return p;
 }

@@ -37,6 +37,7 @@ class DenoiseController : public QObject {
   struct Progress {
     int64_t done = 0, total = 0;  // tiles of the pass running
     double fraction = 0;          // of the work of every pass (a prefilter's included)
+    bool preliminary = false;     // the tiles are a prefilter's or a prior's, before the result's
     double elapsed = 0, left = -1;  // seconds; left < 0: not known yet
   };
 

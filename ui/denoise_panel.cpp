@@ -295,7 +295,11 @@ void DenoisePanel::showProgress() {
   if (p.total > 0) {
     progress_->setRange(0, 1000);
     progress_->setValue(static_cast<int>(p.fraction * 1000.0));
-    text += tr("\ntile %1 of %2, %3 elapsed").arg(p.done).arg(p.total).arg(duration(p.elapsed));
+    text += (p.preliminary ? tr("\nfirst passes (prefilter or prior): tile %1 of %2, %3 elapsed")
+                           : tr("\ntile %1 of %2, %3 elapsed"))
+                .arg(p.done)
+                .arg(p.total)
+                .arg(duration(p.elapsed));
     if (p.left >= 0) text += tr(", about %1 left").arg(duration(p.left));
   } else {
     text += tr("\n%1 elapsed").arg(duration(p.elapsed));

@@ -31,6 +31,7 @@ void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<con
           total_ = e.total;
           work_done_ = e.work_done;
           work_total_ = e.work_total;
+          preliminary_ = !e.result;
           if (e.skipped) ++skipped_;
           if (on_tile && e.result) on_tile(e.rect, pixels);
           return !cancel_.requested();
@@ -59,7 +60,7 @@ void DenoiseJob::work(std::shared_ptr<const AovStack> stack, std::shared_ptr<con
 }
 
 DenoiseJob::Progress DenoiseJob::progress() const {
-  return {done_.load(), total_.load(), skipped_.load(), work_done_.load(), work_total_.load()};
+  return {done_.load(), total_.load(), skipped_.load(), work_done_.load(), work_total_.load(), preliminary_.load()};
 }
 
 DenoiseJob::Status DenoiseJob::status() const { return status_.load(); }

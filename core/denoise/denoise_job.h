@@ -27,6 +27,7 @@ class DenoiseJob {
     int64_t total = 0;
     int64_t skipped = 0;
     int64_t work_done = 0, work_total = 0;  // every pass: the fraction to show
+    bool preliminary = false;  // the pass running prepares the result (a prefilter, a prior)
     double fraction() const {
       return work_total > 0 ? static_cast<double>(work_done) / static_cast<double>(work_total) : 0.0;
     }
@@ -67,6 +68,7 @@ class DenoiseJob {
 
   CancelToken cancel_;
   std::atomic<int64_t> done_{0}, total_{0}, skipped_{0}, work_done_{0}, work_total_{0};
+  std::atomic<bool> preliminary_{false};
   std::atomic<Status> status_{Status::Running};
   mutable std::mutex mutex_;
   std::condition_variable ended_;
