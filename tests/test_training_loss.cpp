@@ -132,7 +132,7 @@ TEST_F(TrainLossOnARealRender, EdgeSsimTermIsTheEdgePixelsShareOfOneMinusSsim) {
   Image features;
   const Rect all{0, 0, scene_.width(), scene_.height()};
   make_features(scene_, FeatureSet::Full, compute_feature_stats(scene_), all, features);
-  const int albedo = feature_plane(FeatureSet::Full, "albedo.r"), normal = feature_plane(FeatureSet::Full, "normal.x");
+  const int albedo = first_plane(FeatureSet::Full, AovRole::Albedo), normal = first_plane(FeatureSet::Full, AovRole::Normal);
   const int64_t w = features.width(), h = features.height();
   std::vector<uint8_t> edge(static_cast<size_t>(w * h), 0);
   const auto step = [&](int64_t x0, int64_t y0, int64_t x1, int64_t y1) {

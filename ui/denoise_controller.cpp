@@ -69,7 +69,7 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
 
   // Nothing to run when these settings already made what is asked for.
   const Result* kept = session_->findRun(k);
-  if (kept && kept->state.isEmpty() && (kept->complete || (rect && covered(kept->rects, *rect)))) {
+  if (kept && kept->done() && (kept->complete || (rect && covered(kept->rects, *rect)))) {
     session_->setA(kept->id);
     emit finished(true, tr("%1: kept from an earlier run").arg(kept->name));
     return false;
@@ -154,7 +154,8 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   const QString description = description_;
   session_->updateResult(result_id_, [&](Result& r) {
     r.description = description;
-    r.state = tr("running");
+    r.state = RunState::Running;
+    r.stateText = tr("running");
   });
   session_->setA(result_id_);
   clock_.start();
@@ -244,13 +245,13 @@ void DenoiseController::poll() {
     finish(true, {});
   } else if (st == DenoiseJob::Status::Cancelled) {
     finish(false, tr("cancelled after %1 of %2 tiles: the rest is the noisy input").arg(p.done).arg(p.total),
-           tr("cancelled after %1 of %2 tiles").arg(p.done).arg(p.total));
+           RunState::Cancelled, tr("cancelled after %1 of %2 tiles").arg(p.done).arg(p.total));
   } else {
-    finish(false, QString::fromStdString(job_->error()), tr("failed"));
+    finish(false, QString::fromStdString(job_->error()), RunState::Failed, tr("failed"));
   }
 }
 
-void DenoiseController::finish(bool ok, const QString& message, const QString& state) {
+void DenoiseController::finish(bool ok, const QString& message, RunState state, const QString& state_text) {
   poll_->stop();
   const double elapsed = static_cast<double>(clock_.elapsed()) / 1000.0;
   if (job_) job_->wait();
@@ -258,6 +259,7 @@ void DenoiseController::finish(bool ok, const QString& message, const QString& s
   const auto roi = request_.roi;
   session_->updateResult(result_id_, [&](Result& r) {
     r.state = state;
+    r.stateText = state == RunState::Done ? QString() : state_text;
     if (!ok) return;
     r.seconds = elapsed;
     if (roi) r.rects.push_back(*roi);

@@ -14,6 +14,7 @@
 #include "core/denoise/denoise_job.h"
 #include "core/nn/model_cache.h"
 #include "core/nn/model_card.h"
+#include "ui/result.h"
 
 class QTimer;
 
@@ -74,7 +75,7 @@ class DenoiseController : public QObject {
  private:
   bool start(const Request& r, const QString& asked);  // `asked`: the model the user picked
   void poll();
-  void finish(bool ok, const QString& message = {}, const QString& state = {});
+  void finish(bool ok, const QString& message = {}, RunState state = RunState::Done, const QString& state_text = {});
 
   Session* session_;
   std::vector<nn::ModelCard> models_;

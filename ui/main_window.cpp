@@ -482,7 +482,7 @@ void MainWindow::refreshPanes() {
     const Result* r = session_->result(id);
     if (!r) return QString();
     QString text = session_->resultName(id);
-    if (!r->state.isEmpty()) text += " (" + r->state + ")";
+    if (!r->done()) text += " (" + r->stateText + ")";
     return text;
   };
   in.a_name = label(session_->a());
@@ -542,7 +542,7 @@ void MainWindow::refreshAnalysis() {
     // A result still being made is listed without scores: its pixels are half noisy.
     if (r.id != running) row.image = r.id == session_->a() ? session_->denoisedShared() : r.image;
     row.seconds = r.seconds;
-    row.state = r.state;
+    row.state = r.done() ? QString() : r.stateText;
     row.a = r.id == session_->a();
     row.b = r.id == session_->b();
     in.rows.push_back(std::move(row));
@@ -692,6 +692,19 @@ void MainWindow::keyPressEvent(QKeyEvent* e) {
 void MainWindow::closeEvent(QCloseEvent* e) {
   denoise_->cancel();
   QMainWindow::closeEvent(e);
+}
+
+QStringList MainWindow::sideTabNames() { return {"results", "denoise", "heatmap", "pixel"}; }
+
+std::optional<MainWindow::SideTab> MainWindow::sideTabFromName(const QString& name) {
+  const qsizetype i = sideTabNames().indexOf(name.toLower());
+  if (i < 0) return std::nullopt;
+  return static_cast<SideTab>(i);
+}
+
+void MainWindow::showSideTab(SideTab tab) {
+  QWidget* pages[] = {metrics_, denoise_, heatmap_, inspector_};
+  tabs_->setCurrentWidget(pages[static_cast<int>(tab)]);
 }
 
 }  // namespace residue::ui

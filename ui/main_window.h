@@ -49,6 +49,12 @@ class MainWindow : public QMainWindow {
   DenoisePanel* denoisePanel() const { return denoise_; }
   PixelInspector* inspector() const { return inspector_; }
   QTabWidget* sideTabs() const { return tabs_; }
+  // The side bar's tabs by what they are, whatever language their titles are in. Names: "results", "denoise",
+  // "heatmap", "pixel" (--tab).
+  enum class SideTab { Results, Denoise, Heatmap, Pixel };
+  static QStringList sideTabNames();
+  static std::optional<SideTab> sideTabFromName(const QString& name);
+  void showSideTab(SideTab tab);
 
   // Opening. Errors go to a message box, or to the mapping dialog when the channels could not be mapped.
   void openFiles(const QStringList& files, const LoadOptions& options = {});

@@ -133,7 +133,7 @@ MainWindow::SheetInputs MainWindow::sheetInputs() const {
     QStringList lines = scores(name);
     if (r.seconds > 0 && !lines.isEmpty()) lines.back() += tr("   %1 s here").arg(r.seconds, 0, 'f', 2);
     else if (r.seconds > 0) lines << tr("%1 s here").arg(r.seconds, 0, 'f', 2);
-    if (!r.state.isEmpty()) lines << r.state;
+    if (!r.done()) lines << r.stateText;
     in.items.push_back({name, r.id == session_->a() ? session_->denoisedShared() : r.image, lines});
   }
   if (const auto ref = shared(Source::Reference)) in.items.push_back({tr("Reference"), ref, {}});

@@ -12,6 +12,9 @@
 
 namespace residue::ui {
 
+// Where a run stands; a result read from a file is Done.
+enum class RunState { Done, Running, Cancelled, Failed };
+
 struct Result {
   int id = 0;            // stable for the session's stack; never reused
   QString name;          // short and unique in the list: "small fp32", "nfor.exr"
@@ -23,9 +26,11 @@ struct Result {
   std::vector<Rect> rects;       // regions a run has finished, when not complete (ROI runs)
   double seconds = 0;            // how long the run took (0 for files)
   double flop = 0;               // network work of the run, when known (for time comparisons)
-  QString state;                 // "" when done; "running"; "cancelled after 3 of 12 tiles"
+  RunState state = RunState::Done;
+  QString stateText;             // said after the name unless Done: "running", "cancelled after 3 of 12 tiles"
   io::Provenance provenance;     // runs: what ran (method, architecture, backend, post-steps, time); files: none
   bool fromFile() const { return key.isEmpty(); }
+  bool done() const { return state == RunState::Done; }
 };
 
 }  // namespace residue::ui

@@ -16,8 +16,8 @@
 namespace residue::train {
 namespace fs = std::filesystem;
 
-int normal_plane(FeatureSet set) { return feature_plane(set, "normal.x"); }
-int albedo_plane(FeatureSet set) { return feature_plane(set, "albedo.r"); }
+int normal_plane(FeatureSet set) { return first_plane(set, AovRole::Normal); }
+int albedo_plane(FeatureSet set) { return first_plane(set, AovRole::Albedo); }
 
 namespace {
 

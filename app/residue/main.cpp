@@ -132,7 +132,7 @@ int main(int argc, char** argv) {
   checked.one_of(cli, heatmap, {"pane", "overlay", "off"});
   checked.one_of(cli, heatmap_of, {"a", "b", "noisy", "a-vs-b"});
   checked.one_of(cli, precision, {"fp32", "bf16"});
-  checked.one_of(cli, tab, {"results", "denoise", "heatmap", "pixel"});
+  checked.one_of(cli, tab, residue::ui::MainWindow::sideTabNames());
   checked.one_of(cli, aov, {"color", "albedo", "normal", "depth", "variance", "motion"});
   if (cli.value(when).startsWith("progress:") && !cli.isSet(denoise))
     checked.errors << QStringLiteral("--screenshot-when %1 needs --denoise: no denoise would get there").arg(cli.value(when));
@@ -180,16 +180,7 @@ int main(int argc, char** argv) {
   if (!models.isEmpty()) window.denoisePanel()->selectModel(models.front());
   if (cli.isSet(precision))
     window.denoisePanel()->setPrecision(residue::nn::parse_precision(cli.value(precision).toStdString()));
-  if (cli.isSet(tab)) {
-    const QString t = cli.value(tab);
-    auto* tabs = window.sideTabs();
-    for (int i = 0; i < tabs->count(); ++i)
-      if (tabs->tabText(i).compare(t, Qt::CaseInsensitive) == 0) tabs->setCurrentIndex(i);
-    if (tabs->tabText(tabs->currentIndex()).compare(t, Qt::CaseInsensitive) != 0) {
-      std::fprintf(stderr, "residue: --tab %s: the side bar has no such tab\n", qPrintable(t));
-      return 2;
-    }
-  }
+  if (cli.isSet(tab)) window.showSideTab(*residue::ui::MainWindow::sideTabFromName(cli.value(tab)));  // checked above
   if (cli.isSet(heatmap_of)) {
     const QString o = cli.value(heatmap_of);
     using Of = residue::ui::HeatmapPanel::Of;

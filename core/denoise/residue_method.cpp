@@ -92,7 +92,7 @@ class ResidueMethod final : public Method {
     p.blend_tau = variance_blend_tau(o);
     p.strength = o.strength;
     p.ensemble = ensemble_members(o, m);
-    p.turned_normal_plane = feature_plane(arch.features, "normal.x");  // view-space normals turn with the image
+    p.turned_normal_plane = first_plane(arch.features, AovRole::Normal);  // view-space normals turn with the image
     p.needs_exposure = arch.autoexposure;
     p.needs_depth = true;
     p.make_io = [&m](const WholeImageStats& s) {

@@ -21,6 +21,19 @@ int feature_plane(FeatureSet set, const std::string& name) {
   return it == planes.end() ? -1 : static_cast<int>(it - planes.begin());
 }
 
+int first_plane(FeatureSet set, AovRole role) {
+  switch (role) {
+    case AovRole::Color: return feature_plane(set, "color.r");
+    case AovRole::Depth: return feature_plane(set, "depth");
+    case AovRole::Normal: return feature_plane(set, "normal.x");
+    case AovRole::Albedo: return feature_plane(set, "albedo.r");
+    case AovRole::Variance: return feature_plane(set, "noise");
+    case AovRole::Reference:
+    case AovRole::Motion: return -1;  // the reference is never an input; no feature set reads motion yet
+  }
+  return -1;
+}
+
 const char* to_string(FeatureSet set) {
   switch (set) {
     case FeatureSet::Full: return "full";

@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "core/aov/aov_stack.h"
+
 namespace residue {
 
 enum class FeatureSet {
@@ -21,6 +23,9 @@ int feature_channels(FeatureSet set);
 std::vector<std::string> feature_planes(FeatureSet set);
 // The index of a named plane in the set's order; -1 when the set has none.
 int feature_plane(FeatureSet set, const std::string& name);
+// The index of the first plane `role` feeds (colour r, depth, normal x, albedo r, the variance's noise level);
+// -1 when the set does not read it.
+int first_plane(FeatureSet set, AovRole role);
 const char* to_string(FeatureSet set);  // "full", "color+albedo+normal", "color"
 std::optional<FeatureSet> feature_set_from_string(const std::string& name);
 

@@ -310,7 +310,7 @@ class TestResults : public QObject {
     QCOMPARE(progressed.last().at(1).toLongLong(), int64_t(9));  // 192 px in 64-px tiles
     QVERIFY(c.measuredSecondsPerMp("small").has_value());
     const Result* res = session.result(session.a());
-    QVERIFY(res && res->complete && res->state.isEmpty());
+    QVERIFY(res && res->complete && res->done());
     QCOMPARE(res->key, DenoiseController::key(r));
     // Equal to core's denoise with the same settings.
     DenoiseOptions core_options;
@@ -335,7 +335,7 @@ class TestResults : public QObject {
     QCOMPARE(session.results().size(), size_t(2));
     // Cancelled: kept in the list, said so, never taken for a finished run.
     const Result* cancelled = session.result(session.a());
-    QVERIFY(cancelled->state.startsWith("cancelled"));
+    QVERIFY(cancelled->state == RunState::Cancelled && cancelled->stateText.startsWith("cancelled"));
     QVERIFY(!cancelled->complete);
     // A self-ensemble: its own result, equal to core's with the same members.
     DenoiseController::Request x2;
