@@ -5,12 +5,14 @@
 #include <sys/wait.h>
 
 #include <fstream>
+#include <optional>
 #include <thread>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include "core/aov/aov_loader.h"
+#include "core/io/frame_claim.h"
 #include "core/io/frame_sequence.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
@@ -170,6 +172,26 @@ TEST(SequenceCli, AFailedFrameDoesNotStopTheOthersUnlessAsked) {
   EXPECT_EQ(j["done"], 2);
   EXPECT_EQ(j["frames"][3]["status"], "pending") << "not reached";
   EXPECT_FALSE(fs::exists(dir / "out.0004.exr"));
+}
+
+// A run killed between writing a frame and removing its claim leaves the claim file beside a finished frame.
+// The next run skips that frame and removes the stale claim; a claim a live process holds stays.
+TEST(SequenceCli, AStaleClaimBesideAFinishedFrameIsRemoved) {
+  TempDir dir;
+  write_frames(dir.path(), 1, 3, 32);
+  std::vector<std::string> args = {"denoise", (dir / "shot.####.exr").string(), "-m", "bilateral", "-o",
+                                   (dir / "out.####.exr").string()};
+  std::string out;
+  ASSERT_EQ(run_cli(args, &out), 0) << out;
+  std::ofstream(dir / ".out.0001.exr.residue-claim") << "";  // as a killed run leaves it
+  std::optional<io::FrameClaim> held = io::FrameClaim::take(dir / "out.0002.exr");  // a live process's
+  ASSERT_TRUE(held.has_value());
+  args.push_back("--skip-existing");
+  ASSERT_EQ(run_cli(args, &out), 0) << out;
+  EXPECT_FALSE(fs::exists(dir / ".out.0001.exr.residue-claim")) << "the stale claim was removed";
+  EXPECT_TRUE(fs::exists(dir / ".out.0002.exr.residue-claim")) << "a held claim is its owner's";
+  held.reset();
+  EXPECT_FALSE(fs::exists(dir / ".out.0002.exr.residue-claim"));
 }
 
 // A run killed (SIGKILL) part-way leaves only complete frames; the rerun with --skip-existing denoises the rest

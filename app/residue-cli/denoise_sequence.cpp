@@ -129,8 +129,10 @@ int run_sequence(const DenoiseCliOptions& o) {
       if (!skip_existing) existing.push_back(r.output.string());
       else if (const io::ExistingOutput e = io::inspect_output(r.output); e == io::ExistingOutput::Damaged)
         r.note = "damaged";  // redone (below)
-      else
+      else {
         r.status = "skipped", r.note = e == io::ExistingOutput::Foreign ? "exists, not an OpenEXR file: left alone" : "exists";
+        if (e == io::ExistingOutput::Complete) io::FrameClaim::clear_stale(r.output);
+      }
     }
     records.push_back(std::move(r));
   }

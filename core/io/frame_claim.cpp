@@ -15,9 +15,23 @@
 namespace residue::io {
 namespace fs = std::filesystem;
 
-std::optional<FrameClaim> FrameClaim::take(const fs::path& output) {
+namespace {
+
+fs::path claim_path(const fs::path& output) {
   const fs::path folder = output.has_parent_path() ? output.parent_path() : fs::path(".");
-  const fs::path path = folder / ("." + output.filename().string() + ".residue-claim");
+  return folder / ("." + output.filename().string() + ".residue-claim");
+}
+
+}  // namespace
+
+void FrameClaim::clear_stale(const fs::path& output) {
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(claim_path(output), ec))) return;
+  (void)take(output);  // held by no one: taken, and removed as the claim ends; held: left to its owner
+}
+
+std::optional<FrameClaim> FrameClaim::take(const fs::path& output) {
+  const fs::path path = claim_path(output);
   const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
   if (fd < 0)
     throw Error(ErrorKind::Output, "cannot claim '" + output.string() + "': cannot create '" + path.string() +

@@ -14,6 +14,10 @@ class FrameClaim {
  public:
   // The claim, or nullopt when another process holds it now. Error(Output) when the folder refuses the file.
   static std::optional<FrameClaim> take(const std::filesystem::path& output);
+  // Removes the claim file a killed process left beside a frame it had finished (killed between writing the frame
+  // and removing its claim), unless a live process holds it. A run that skips a finished frame calls this, so no
+  // hidden file outlives the sequence's next run.
+  static void clear_stale(const std::filesystem::path& output);
   FrameClaim(FrameClaim&& other) noexcept;
   FrameClaim& operator=(FrameClaim&&) = delete;
   FrameClaim(const FrameClaim&) = delete;
