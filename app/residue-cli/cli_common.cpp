@@ -1,5 +1,7 @@
 #include "cli_common.h"
 
+#include <map>
+
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -124,6 +126,11 @@ std::string display_path(const std::string& path) {
   const auto rel = std::filesystem::relative(path, std::filesystem::current_path(), ec);
   if (!ec && !rel.empty() && rel.string().size() < path.size()) return rel.string();
   return path;
+}
+
+CLI::Option* add_on_off(CLI::App* cmd, const std::string& name, bool& value, const std::string& help) {
+  const std::map<std::string, bool> names{{"on", true}, {"off", false}};
+  return cmd->add_option(name, value, help)->transform(CLI::CheckedTransformer(names))->default_str(on_off(value));
 }
 
 }  // namespace residue::cli

@@ -48,6 +48,9 @@ struct InputOptions {
 // a number that must be finite and > 0 (CLI::PositiveNumber lets NaN through).
 CLI::Validator non_empty(const std::string& expected);
 CLI::Validator positive_finite();
+// "on" / "off" into a bool: the option's value is typed, and anything else is refused listing the two.
+CLI::Option* add_on_off(CLI::App* cmd, const std::string& name, bool& value, const std::string& help);
+inline const char* on_off(bool value) { return value ? "on" : "off"; }
 
 // "x,y,w,h" -> Rect; throws CLI::ValidationError on a malformed one.
 Rect parse_roi(const std::string& text);

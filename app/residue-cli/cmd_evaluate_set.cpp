@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -35,9 +36,10 @@ struct EvalSetOptions {
   int last = 0;  // 0: every scene
   std::string split = "all";  // or the data set's "train" / "validation" cut (index.json)
   std::string perturb = "none";  // input-convention studies: see perturb_inputs
-  std::string energy = "on";     // energy correction: on, off, or both (two columns per model)
-  std::string variance_blend = "on";  // with the data set's variance (from the two halves): on or off
-  std::string output_guard = "on";    // bound the network's output by its receptive field's max: on or off
+  // The energy correction's columns: with it, without it ("raw"), or both for every model.
+  enum class Energy { On, Off, Both } energy = Energy::On;
+  bool variance_blend = true;  // with the data set's variance (from the two halves)
+  bool output_guard = true;    // bound the network's output by its receptive field's max
   float blend_tau = 0;                // 0: each model's own (or the default)
   std::string out_md, out_json;
   int threads = 0;
@@ -156,8 +158,9 @@ int run(const EvalSetOptions& o) {
     for (const auto& p : o.precisions)
       for (const int n : o.ensembles) {
         const std::string name = (o.precisions.size() > 1 ? label + " " + p : label) + (n > 0 ? " x" + std::to_string(n) : "");
-        if (o.energy != "off") columns.push_back({name, m, p, true, n});
-        if (o.energy != "on") columns.push_back({o.energy == "both" ? name + " raw" : name, m, p, false, n});
+        using Energy = EvalSetOptions::Energy;
+        if (o.energy != Energy::Off) columns.push_back({name, m, p, true, n});
+        if (o.energy != Energy::On) columns.push_back({o.energy == Energy::Both ? name + " raw" : name, m, p, false, n});
       }
   }
 
@@ -187,8 +190,8 @@ int run(const EvalSetOptions& o) {
         d.precision = nn::parse_precision(columns[ci].precision);
         d.threads = o.threads;
         d.energy_correction = columns[ci].energy_correction;
-        d.variance_blend = o.variance_blend == "on";
-        d.output_guard = o.output_guard == "on";
+        d.variance_blend = o.variance_blend;
+        d.output_guard = o.output_guard;
         d.blend_tau = o.blend_tau;
         d.ensemble = columns[ci].ensemble;
         DenoiseStats st;
@@ -252,7 +255,7 @@ int run(const EvalSetOptions& o) {
                        {"mean_ratio", mean[ci].mean_ratio},
                        {"relmse_reduction", mean[0].relmse / mean[ci].relmse},
                        {"seconds_per_megapixel", mean[ci].seconds / megapixels_total}});
-  const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb}, {"variance_blend", o.variance_blend}, {"output_guard", o.output_guard}, {"blend_tau", o.blend_tau},
+  const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb}, {"variance_blend", on_off(o.variance_blend)}, {"output_guard", on_off(o.output_guard)}, {"blend_tau", o.blend_tau},
                             {"scenes", json_scenes}, {"summary", summary},
                             {"metrics", metrics::formula_text({})}};
 
@@ -291,17 +294,17 @@ Command add_evaluate_set_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--split", o->split, "all, or the data set's train / validation cut (its index.json)")
       ->capture_default_str()->check(CLI::IsMember({"all", "train", "validation"}));
-  cmd->add_option("--variance-blend", o->variance_blend,
-                  "on or off: keep clean input pixels, from the variance of the scenes' two halves")
-      ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
-  cmd->add_option("--output-guard", o->output_guard,
-                  "on or off: clamp the network's output to its receptive field's brightest input (x2)")
-      ->capture_default_str()->check(CLI::IsMember({"on", "off"}));
+  add_on_off(cmd, "--variance-blend", o->variance_blend,
+             "on or off: keep clean input pixels, from the variance of the scenes' two halves");
+  add_on_off(cmd, "--output-guard", o->output_guard,
+             "on or off: clamp the network's output to its receptive field's brightest input (x2)");
   cmd->add_option("--blend-tau", o->blend_tau, "The variance blend's tau for every model (tools/models/fit_blend_tau.py)")
       ->check(positive_finite());
+  using Energy = EvalSetOptions::Energy;
   cmd->add_option("--energy-correction", o->energy,
                   "on, off, or both (a second column per model, labelled \"raw\", without the correction)")
-      ->capture_default_str()->check(CLI::IsMember({"on", "off", "both"}));
+      ->transform(CLI::CheckedTransformer(std::map<std::string, Energy>{{"on", Energy::On}, {"off", Energy::Off}, {"both", Energy::Both}}))
+      ->default_str("on");
   cmd->add_option("--md", o->out_md, "Write the table as Markdown");
   cmd->add_option("--json", o->out_json, "Write every number as JSON");
   cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));
