@@ -176,7 +176,6 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   // Tiles arrive on the worker thread and are handed to the GUI thread; poll() delivers the queued ones before
   // it ends a job, so none of an old job lands in a new one.
   const int id = result_id_;
-  method_ = method;
   job_ = std::make_unique<DenoiseJob>(stack, method, options, [this, id](const Rect& r, const Image& pixels) {
     QMetaObject::invokeMethod(
         this, [this, id, r, pixels] { if (job_) session_->setResultTile(id, r, pixels); }, Qt::QueuedConnection);
@@ -236,7 +235,7 @@ void DenoiseController::poll() {
     const Rect r = request_.roi.value_or(job_->result()->bounds());
     // The tiles shown so far are the network's output; the result may differ by the post-steps.
     session_->setResultTile(result_id_, r, crop(*job_->result(), r));
-    const io::Provenance ran = provenance_of(*method_, stats);
+    const io::Provenance ran = provenance_of(job_->method(), stats);
     session_->updateResult(result_id_, [&](Result& res) { res.provenance = ran; });
     const double mp = static_cast<double>(r.area()) / 1e6;
     // Kept per network run: a self-ensemble's time divided by its members.

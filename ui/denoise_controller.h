@@ -87,7 +87,6 @@ class DenoiseController : public QObject {
   bool from_noisy_ = false;
   QElapsedTimer clock_;
   QTimer* poll_ = nullptr;
-  std::shared_ptr<const Method> method_;  // the running (or last) job's, for its result's provenance
   std::unique_ptr<DenoiseJob> job_;
 };
 

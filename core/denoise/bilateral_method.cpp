@@ -26,21 +26,19 @@ class BilateralMethod final : public Method {
   void check_inputs(const AovStack&) const override {}
 
   int64_t work(int64_t width, int64_t height, const DenoiseOptions& o) const override {
-    const int64_t taps = (2 * options_.radius + 1) * (2 * options_.radius + 1);
-    return region_pixels(width, height, o) * taps * kWorkPerTap;
+    return region_pixels(width, height, o) * work_per_pixel();
   }
 
   Image denoise(const AovStack& stack, const DenoiseOptions& o, const TileCallback& on_tile, DenoiseStats& stats,
                 WorkCounter& work) const override {
     const Rect region = checked_region(o, stack.width(), stack.height());
     const std::vector<Rect> tiles = make_tiles(region, kTile);
-    const int64_t per_pixel = BilateralMethod::work(1, 1, DenoiseOptions{});
     Image out = stack.color.image;
     int64_t done = 0;
     for (const Rect& t : tiles) {
       throw_if_cancelled(o.cancel);
       cross_bilateral_rect(stack, options_, t, out);
-      work.done += t.area() * per_pixel;
+      work.done += t.area() * work_per_pixel();
       ++done;
       if (on_tile && !on_tile({t, false, done, static_cast<int64_t>(tiles.size()), work.done, work.total, true}, crop(out, t)))
         throw Cancelled();
@@ -54,6 +52,8 @@ class BilateralMethod final : public Method {
   }
 
  private:
+  int64_t work_per_pixel() const { return (2 * options_.radius + 1) * (2 * options_.radius + 1) * kWorkPerTap; }
+
   BilateralOptions options_;
 };
 

@@ -6,7 +6,8 @@ namespace residue {
 
 DenoiseJob::DenoiseJob(std::shared_ptr<const AovStack> stack, std::shared_ptr<const Method> method,
                        DenoiseOptions options, TileReady on_tile)
-    : worker_(&DenoiseJob::work, this, std::move(stack), std::move(method), std::move(options), std::move(on_tile)) {}
+    : method_(method),
+      worker_(&DenoiseJob::work, this, std::move(stack), std::move(method), std::move(options), std::move(on_tile)) {}
 
 DenoiseJob::DenoiseJob(std::shared_ptr<const AovStack> stack, std::shared_ptr<const nn::Model> model,
                        DenoiseOptions options, TileReady on_tile)

@@ -60,12 +60,14 @@ class DenoiseJob {
   const std::optional<Image>& result() const { return result_; }
   const DenoiseStats& stats() const { return stats_; }
   const std::string& error() const { return error_; }
+  const Method& method() const { return *method_; }  // what runs (or ran)
   std::optional<ErrorKind> error_kind() const { return error_kind_; }
 
  private:
   void work(std::shared_ptr<const AovStack> stack, std::shared_ptr<const Method> method, DenoiseOptions options,
             TileReady on_tile);
 
+  std::shared_ptr<const Method> method_;
   CancelToken cancel_;
   std::atomic<int64_t> done_{0}, total_{0}, skipped_{0}, work_done_{0}, work_total_{0};
   std::atomic<bool> preliminary_{false};
