@@ -17,6 +17,8 @@ namespace residue::cli {
 namespace {
 
 int run(const DenoiseCliOptions& o) {
+  if (o.temporal && is_model_free_method(o.model))
+    throw Error(ErrorKind::Usage, "--temporal runs a temporal network; the " + o.model + " filter denoises frames one by one");
   if (o.ensemble > 1 && is_model_free_method(o.model))
     throw Error(ErrorKind::Usage, "--ensemble " + std::to_string(o.ensemble) + ": the self-ensemble averages a network "
                                   "under flips; the " + o.model + " filter has none (leave --ensemble out)");
@@ -72,6 +74,10 @@ Command add_denoise_command(CLI::App& app) {
                   "A model name (residue-cli models lists them), a .safetensors file, \"bilateral\" (the baseline "
                   "filter), or \"oidn\" / \"oidn-cleanaux\" (Open Image Denoise's networks, for comparison)")
       ->capture_default_str();
+  cmd->add_flag("--temporal", o->temporal,
+                "Sequences: denoise each frame with its neighbours, warped to it along the motion vectors (the "
+                "renderer's motion AOV, e.g. Cycles' Vector pass): less flicker. Runs " +
+                    std::string(nn::kDefaultTemporalModel) + " unless -m names another temporal model");
   cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)")
       ->check(CLI::IsMember(nn::available_backends()));
   cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")

@@ -42,6 +42,7 @@ struct FarmOptions {
   int64_t chunk = 10;
   int retries = 2, max_parallel = 0, cpus = 2;
   bool dry_run = false;
+  bool temporal = false;  // each frame with its neighbours (denoise --temporal); a chunk reads the frames beside it
   std::vector<std::string> denoise_args;  // passed through to each denoise
 };
 
@@ -113,10 +114,21 @@ std::string slurm_file_name(const std::string& path) {
 }
 
 // The model must resolve for the frames' AOVs now, not fail on every task once the array runs.
+std::string model_of(const FarmOptions& o) {
+  return o.model.empty() ? nn::kDefaultTemporalModel : o.model;
+}
+
 void check_model(const FarmOptions& o, const fs::path& first_frame) {
-  if (is_model_free_method(o.model)) return;
+  if (o.model.empty() && !o.temporal) throw Error(ErrorKind::Usage, "farm slurm: give -m MODEL (or --temporal)");
+  if (is_model_free_method(model_of(o))) {
+    if (o.temporal) throw Error(ErrorKind::Usage, "--temporal runs a temporal network, not the " + o.model + " filter");
+    return;
+  }
   const AovReader reader({first_frame}, LoadOptions{});
-  (void)nn::find_model_for(o.model, feature_set_for(reader.layout()));
+  if (o.temporal && !reader.layout().motion)
+    throw Error(ErrorKind::Input, "'" + first_frame.string() + "' has no motion AOV (Cycles: the Vector pass): "
+                                  "--temporal warps each frame's neighbours to it along the motion vectors");
+  (void)nn::find_model_for(model_of(o), feature_set_for(reader.layout()));
 }
 
 int run_slurm(const FarmOptions& o) {
@@ -159,8 +171,8 @@ int run_slurm(const FarmOptions& o) {
   write_text(dir / "chunks.txt", chunks, false);
 
   std::string denoise = quote(self_path()) + " denoise " + quote(fs::absolute(o.input).string()) + " -o " +
-                        quote(fs::absolute(o.output).string()) + " -m " + quote(o.model) + " --threads " +
-                        std::to_string(o.cpus) + " --skip-existing";
+                        quote(fs::absolute(o.output).string()) + " -m " + quote(model_of(o)) + " --threads " +
+                        std::to_string(o.cpus) + " --skip-existing" + (o.temporal ? " --temporal" : "");
   if (!o.reference.empty()) denoise += " -r " + quote(fs::absolute(o.reference).string());
   for (const std::string& a : o.denoise_args) denoise += " " + quote(a);
   std::ostringstream task;
@@ -266,7 +278,10 @@ Command add_farm_command(CLI::App& app) {
                                              "job that gathers the chunks' summaries");
   slurm->add_option("input", o->input, "The noisy frames, a pattern: shot.####.exr")->required();
   slurm->add_option("-o,--output", o->output, "The denoised frames, a pattern: out.####.exr")->required();
-  slurm->add_option("-m,--model", o->model, "The model (as for denoise)")->required();
+  slurm->add_option("-m,--model", o->model, "The model (as for denoise; with --temporal, default " +
+                    std::string(nn::kDefaultTemporalModel) + ")");
+  slurm->add_flag("--temporal", o->temporal, "Denoise each frame with its neighbours (denoise --temporal): each task "
+                  "reads the frames beside its chunk, so frames come out as one run over the whole range makes them");
   slurm->add_option("-r,--reference", o->reference, "References, a pattern (ref.####.exr): per-frame metrics");
   slurm->add_option("--frames", o->frames, "Frames, e.g. 1001-1100 (default: every frame whose input exists now)");
   slurm->add_option("--chunk", o->chunk, "Frames per array task")->capture_default_str()->check(CLI::Range(1, 1 << 20));

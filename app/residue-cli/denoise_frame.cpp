@@ -13,6 +13,7 @@
 #include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
 #include "core/metrics/metrics.h"
+#include "core/temporal/frame_window.h"
 #include "core/util/error.h"
 
 namespace residue::cli {
@@ -66,7 +67,40 @@ void check_output(const std::string& output, const AovStack& layout, const io::E
                  removed.c_str());
 }
 
+// Frame t's neighbours warped to it (core/temporal/frame_window.h), each read once per sequence: frames the
+// window has moved past are dropped. Returns the offsets the sequence lacks.
+std::vector<int> read_neighbours(FrameContext& context, AovStack& frame, int radius, const NeighbourInputs& inputs) {
+  std::map<int, std::shared_ptr<const AovStack>> window;
+  std::map<std::string, std::shared_ptr<const AovStack>> kept;
+  for (int d : neighbour_offsets(radius)) {
+    const std::optional<std::vector<std::filesystem::path>> files = inputs(d);
+    if (!files) continue;
+    const std::string key = files->front().string();
+    auto it = context.neighbour_frames.find(key);
+    std::shared_ptr<const AovStack> s;
+    if (it != context.neighbour_frames.end()) {
+      s = it->second;
+    } else {
+      LoadOptions lo = context.options.input.load_options();
+      lo.load_reference = false;
+      lo.reference.reset();
+      s = std::make_shared<const AovStack>(load_aov_stack(*files, lo));
+    }
+    window[d] = s;
+    kept[key] = s;
+  }
+  context.neighbour_frames = std::move(kept);
+  return attach_neighbours(frame, radius, [&](int d) -> const AovStack* {
+    const auto it = window.find(d);
+    return it == window.end() ? nullptr : it->second.get();
+  });
+}
+
 }  // namespace
+
+std::string DenoiseCliOptions::model_name() const {
+  return temporal && model == nn::kDefaultModel ? nn::kDefaultTemporalModel : model;
+}
 
 DenoiseOptions DenoiseCliOptions::denoise_options() const {
   DenoiseOptions d;
@@ -93,7 +127,7 @@ io::ExrWriteOptions DenoiseCliOptions::write_options() const {
 }
 
 FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
-                          const LoadOptions& load, const std::string& output) {
+                          const LoadOptions& load, const std::string& output, const NeighbourInputs* neighbours) {
   const DenoiseCliOptions& o = context.options;
   const AovReader reader(inputs, load);
   const AovStack& layout = reader.layout();
@@ -128,7 +162,15 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   DenoiseStats& stats = result.stats;
   // A model name picks the variant trained for the AOVs this render has (NAME, NAME-albedo-normal, NAME-color);
   // each file is loaded once per process.
-  const std::unique_ptr<Method> method = resolve_method(o.model, feature_set_for(layout), context.models);
+  const std::unique_ptr<Method> method = resolve_method(o.model_name(), feature_set_for(layout), context.models);
+  result.frame_radius = method->frame_radius();
+  if (o.temporal && result.frame_radius == 0)
+    throw Error(ErrorKind::Usage, "--temporal: " + method->name() + " denoises frames one by one; give a temporal "
+                                  "model (" + nn::kDefaultTemporalModel + ", the default with --temporal)");
+  if (result.frame_radius > 0 && neighbours && !layout.motion)
+    throw Error(ErrorKind::Input, "'" + layout.color.source.file + "' has no motion AOV (Cycles: the Vector pass; "
+                                  "or a motion.X/Y layer, Arnold's motionvector, V-Ray's velocity): " + method->name() +
+                                  " warps the neighbouring frames to it along the motion vectors");
   result.model = method->name();
   result.architecture = method->architecture();
   io::record(w.residue_attributes, {.model = result.model, .architecture = result.architecture});
@@ -139,9 +181,15 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     stats = denoise_to_exr(reader, *method, d, output, w, on_tile);
   } else {
     auto t0 = std::chrono::steady_clock::now();
-    const AovStack stack = reader.read(whole);
+    auto stack = std::make_shared<AovStack>(reader.read(whole));
+    if (result.frame_radius > 0 && neighbours)
+      result.missing_neighbours = read_neighbours(context, *stack, result.frame_radius, *neighbours);
     result.read_s = seconds_since(t0);
-    const Image out = denoise(stack, *method, d, on_tile, &stats);
+    const Image out = denoise(*stack, *method, d, on_tile, &stats);
+    if (result.frame_radius > 0 && neighbours) {  // the next frames read this one as a neighbour
+      stack->neighbours.clear();
+      context.neighbour_frames[layout.color.source.file] = stack;
+    }
     throw_if_cancelled(d.cancel);
     io::record(w.residue_attributes, provenance_of(*method, stats));
     t0 = std::chrono::steady_clock::now();

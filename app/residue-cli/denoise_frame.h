@@ -5,6 +5,8 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <map>
 #include <optional>
 #include <string>
@@ -42,10 +44,17 @@ struct DenoiseCliOptions {
   bool skip_existing = false;
   bool fail_fast = false;
   std::string summary;
+  bool temporal = false;  // a temporal model (kDefaultTemporalModel unless -m names one), neighbours read
 
+  // The model -m names, or the default temporal model for --temporal without -m.
+  std::string model_name() const;
   DenoiseOptions denoise_options() const;
   io::ExrWriteOptions write_options() const;  // without the per-render header
 };
+
+// A sequence's frames beside the one denoised, for a temporal method: the inputs of frame t + offset, or none
+// where the sequence has no such frame (before its first, after its last, missing on disk).
+using NeighbourInputs = std::function<std::optional<std::vector<std::filesystem::path>>(int offset)>;
 
 // What the frames of one process share: the models, loaded once, and their backends, planned once.
 struct FrameContext {
@@ -54,6 +63,8 @@ struct FrameContext {
   bool show_progress = true;  // a progress bar (single renders) or nothing (sequences print a line per frame)
   nn::ModelCache models;  // before the backends, which are keyed by the models: they go first
   BackendCache backends;
+  // Frames read as a temporal method's neighbours, by their colour file, kept while the next frames need them.
+  std::map<std::string, std::shared_ptr<const AovStack>> neighbour_frames;
 };
 
 struct FrameResult {
@@ -65,10 +76,14 @@ struct FrameResult {
   bool streamed = false;
   std::optional<io::MetricsReport> metrics;  // noisy and denoised rows, when the render has a reference
   std::vector<std::string> notes;            // the loader's
+  int frame_radius = 0;                      // a temporal method's neighbours each side
+  std::vector<int> missing_neighbours;       // offsets the sequence lacked (read as not valid)
 };
 
 // Throws residue::Error (nothing written), or Cancelled when interrupted before the output was complete.
+// `neighbours`: for a sequence, where frame t's neighbours are (a temporal method reads them; a still's ignores
+// them); null for a single render, which a temporal method denoises from its own frame alone.
 FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
-                          const LoadOptions& load, const std::string& output);
+                          const LoadOptions& load, const std::string& output, const NeighbourInputs* neighbours = nullptr);
 
 }  // namespace residue::cli

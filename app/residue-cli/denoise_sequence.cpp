@@ -28,6 +28,7 @@ struct FrameRecord {
   double seconds = 0, megapixels = 0;
   std::string model;
   std::optional<io::MetricsReport> metrics;
+  std::vector<int> missing_neighbours;  // a temporal method's: offsets the sequence lacked
 };
 
 FramePattern pattern_of(const std::string& text, const char* what) {
@@ -54,6 +55,7 @@ nlohmann::ordered_json to_json(const std::vector<FrameRecord>& records, const De
       j["model"] = r.model;
       j["seconds"] = r.seconds;
       j["megapixels"] = r.megapixels;
+      if (!r.missing_neighbours.empty()) j["missing_neighbours"] = r.missing_neighbours;
       if (r.metrics) {
         const auto& noisy = r.metrics->rows[0].scores;
         const auto& denoised = r.metrics->rows[1].scores;
@@ -74,7 +76,7 @@ nlohmann::ordered_json to_json(const std::vector<FrameRecord>& records, const De
   nlohmann::ordered_json doc;
   doc["input"] = in.to_string();
   doc["output"] = out.to_string();
-  doc["model"] = o.model;
+  doc["model"] = o.model_name();
   doc["frames_requested"] = records.size();
   doc["done"] = done;
   doc["skipped"] = skipped;
@@ -191,7 +193,14 @@ int run_sequence(const DenoiseCliOptions& o) {
     if (reference) load.reference = reference->path(r.frame);
     try {
       if (!fs::exists(r.input)) throw Error(ErrorKind::Input, "input '" + r.input.string() + "' does not exist");
-      const FrameResult result = denoise_frame(context, {r.input}, load, r.output.string());
+      // A temporal method's neighbours: the frames beside this one on disk, whatever --frames selects.
+      const NeighbourInputs neighbours = [&](int d) -> std::optional<std::vector<fs::path>> {
+        const fs::path p = in.path(r.frame + d);
+        if (!fs::exists(p)) return std::nullopt;
+        return std::vector<fs::path>{p};
+      };
+      const FrameResult result = denoise_frame(context, {r.input}, load, r.output.string(), &neighbours);
+      r.missing_neighbours = result.missing_neighbours;
       r.status = "done";
       r.seconds = result.stats.seconds;
       r.megapixels = result.megapixels;
@@ -202,6 +211,11 @@ int run_sequence(const DenoiseCliOptions& o) {
       if (r.metrics)
         std::printf("  relMSE %.5f (noisy %.5f)  SSIM %.4f", r.metrics->rows[1].scores.relmse,
                     r.metrics->rows[0].scores.relmse, r.metrics->rows[1].scores.ssim);
+      if (!r.missing_neighbours.empty()) {
+        std::string missing;
+        for (int d : r.missing_neighbours) missing += (missing.empty() ? "" : ", ") + std::string(d < 0 ? "t" : "t+") + std::to_string(d);
+        std::printf("  (fewer neighbours: no frame %s)", missing.c_str());
+      }
       std::printf("  [%zu/%zu]\n", index, records.size());
       std::fflush(stdout);
     } catch (const Cancelled&) {

@@ -17,6 +17,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/dataset.h"
+#include "core/aov/shot_dataset.h"
 #include "core/denoise/denoiser.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_file.h"
@@ -33,6 +34,8 @@ namespace {
 
 struct Options {
   std::vector<std::string> data;
+  std::vector<std::string> shots;  // shot data sets (render_shots.py), for a temporal model
+  int temporal = 0;                // the radius of the neighbouring frames a temporal model sees
   int val = 6;
   std::string arch = "4/32";
   std::string features = "full";
@@ -79,13 +82,13 @@ struct Validation {
 };
 
 // Denoises every validation scene with core (the shipped inference path) and scores it.
-Validation validate(train::ResidueNet& net, const std::vector<fs::path>& scenes, const fs::path& tmp_model) {
+Validation validate(train::ResidueNet& net, const std::vector<train::TrainingSource>& scenes, const fs::path& tmp_model) {
   if (fs::exists(tmp_model)) fs::remove(tmp_model);
   nn::write_safetensors(tmp_model, train::export_model(net, {}), true);
   const nn::Model model = nn::load_model(tmp_model);
   Validation v;
-  for (const auto& dir : scenes) {
-    const AovStack s = load_dataset_scene(dir);
+  for (const train::TrainingSource& source : scenes) {
+    const AovStack s = train::load_source(source, net->arch.temporal);
     DenoiseOptions d;
     d.skip_empty_tiles = false;
     const Image out = denoise(s, model, d);
@@ -102,7 +105,7 @@ Validation validate(train::ResidueNet& net, const std::vector<fs::path>& scenes,
     v.noisy_relmse += noisy.relmse;
     v.noisy_ssim += noisy.ssim;
     v.mean_ratio += ratio;
-    v.per_scene.push_back({{"scene", dir.filename().string()}, {"noisy_relmse", noisy.relmse}, {"relmse", den.relmse},
+    v.per_scene.push_back({{"scene", source.name()}, {"noisy_relmse", noisy.relmse}, {"relmse", den.relmse},
                            {"noisy_ssim", noisy.ssim}, {"ssim", den.ssim}, {"mean_ratio", ratio}});
   }
   const double n = static_cast<double>(scenes.size());
@@ -151,13 +154,13 @@ void check_patch_covers_reach(const nn::Architecture& arch, int patch) {
 // for tools/models/torch_train.py, which trains the same network with PyTorch where a GPU is lent (docs/research/MODELS_HISTORY.md, lever 7).
 // The validation scenes go in whole, as inference sees them; the architecture and options in the metadata.
 int export_training_set(const Options& o, const nn::Architecture& arch, const train::TrainingSet& set,
-                        const std::vector<fs::path>& val_scenes, const nn::Model* prior) {
+                        const std::vector<train::TrainingSource>& val_scenes, const nn::Model* prior) {
   nn::SafetensorsFile out;
   train::add_to_export(set, "train", out);
   if (!val_scenes.empty()) train::add_to_export(train::TrainingSet(val_scenes, arch, o.patch, prior), "val", out);
   out.metadata["arch"] = o.arch;
   out.metadata["features"] = o.features;
-  out.metadata["feature_planes"] = nlohmann::json(feature_planes(arch.features)).dump();
+  out.metadata["feature_planes"] = nlohmann::json(nn::input_planes(arch)).dump();
   out.metadata["autoexposure"] = arch.autoexposure ? "1" : "0";
   if (arch.autoexposure) out.metadata["exposure_key"] = nn::exposure_key_string(arch.exposure_key);
   out.metadata["normal_plane"] = std::to_string(train::normal_plane(arch.features));
@@ -195,6 +198,11 @@ int run(const Options& o) {
   if (!arch.autoexposure && o.exposure_key != nn::Architecture::kOidnExposureKey)
     throw Error(ErrorKind::Usage, "--exposure-key needs --autoexposure");
   arch.prior = o.prior;
+  arch.temporal = o.temporal;
+  if (arch.temporal > 0 && (arch.features != FeatureSet::Full || o.demodulate || !o.prior.empty()))
+    throw Error(ErrorKind::Usage, "--temporal needs --features full, without --demodulate or --prior");
+  if (arch.temporal > 0 && o.shots.empty()) throw Error(ErrorKind::Usage, "--temporal trains on shots: give --shots");
+  if (o.data.empty() && o.shots.empty()) throw Error(ErrorKind::Usage, "give --data (scenes) or --shots (shots)");
   if (!arch.prior.empty() && arch.features != FeatureSet::Full)
     throw Error(ErrorKind::Usage, "--prior needs --features full");
   const int albedo_at = train::albedo_plane(arch.features);
@@ -222,13 +230,24 @@ int run(const Options& o) {
   if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out + "' exists; pass --force");
 
   // Scenes: each data folder's own cut (index.json) or, without one, its last `val` scenes by name.
-  std::vector<fs::path> train_scenes, val_scenes;
+  std::vector<train::TrainingSource> train_scenes, val_scenes;
+  auto add = [](std::vector<train::TrainingSource>& to, const std::vector<train::TrainingSource>& from) {
+    to.insert(to.end(), from.begin(), from.end());
+  };
   for (const auto& d : o.data) {
     const DatasetSplit split = split_dataset(d, static_cast<size_t>(o.val));
-    train_scenes.insert(train_scenes.end(), split.train.begin(), split.train.end());
-    val_scenes.insert(val_scenes.end(), split.validation.begin(), split.validation.end());
+    add(train_scenes, train::scene_sources(split.train));
+    add(val_scenes, train::scene_sources(split.validation));
     std::printf("residue-train: %s: %zu training, %zu validation scenes (%s)\n", d.c_str(), split.train.size(),
                 split.validation.size(), split.from_index ? "index.json" : "the last by name");
+  }
+  for (const auto& d : o.shots) {  // every frame of a shot is a scene (with its neighbours, for a temporal model)
+    const ShotSplit split = split_shots(d);
+    const auto train = train::shot_sources(split.train), val = train::shot_sources(split.validation);
+    add(train_scenes, train);
+    add(val_scenes, val);
+    std::printf("residue-train: %s: %zu training shots (%zu frames), %zu validation shots (%zu frames)\n", d.c_str(),
+                split.train.size(), train.size(), split.validation.size(), val.size());
   }
   if (train_scenes.empty()) throw Error(ErrorKind::Input, "no scenes found in --data");
   std::printf("residue-train: %s, %zu training scenes, %zu validation scenes\n", arch.to_string().c_str(),
@@ -407,7 +426,7 @@ int run(const Options& o) {
       (o.lowband_weight > 0 ? " + w * relMSE of " + std::to_string(o.lowband_width) + "-px box means" : "") +
       (o.edge_ssim_weight > 0 ? " + w * (1 - SSIM) on albedo/normal edge pixels" : "") +
       (teacher ? ", against targets distilled from a teacher" : "");
-  nlohmann::json training = {{"data", o.data}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
+  nlohmann::json training = {{"data", o.data}, {"shots", o.shots}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
                              {"loss", loss_text}, {"optimizer", "Adam(0.9, 0.999), grad clip 1.0"},
                              {"seed", o.seed}, {"threads", o.threads}, {"wall_s_this_run", wall},
@@ -441,7 +460,12 @@ int main(int argc, char** argv) {
   ensure_passive_openmp(argc, argv);
   CLI::App app{"residue-train: train the residual denoising network and export a model file", "residue-train"};
   Options o;
-  app.add_option("--data", o.data, "Data set folders (s<seed>/noisy_a.exr, noisy_b.exr, reference.exr)")->required();
+  app.add_option("--data", o.data, "Data set folders (s<seed>/noisy_a.exr, noisy_b.exr, reference.exr)");
+  app.add_option("--shots", o.shots, "Shot data set folders (tools/datagen/render_shots.py: s<seed>/noisy.####.exr, "
+                 "reference.####.exr, index.json with the split); every frame is a scene");
+  app.add_option("--temporal", o.temporal, "A temporal model: the radius k of the neighbouring frames it sees (1 or "
+                 "2), each warped to the frame along the motion; trains on --shots")
+      ->check(CLI::Range(1, 2));
   app.add_option("--val", o.val, "Scenes held out per data folder without an index.json (the last by name)")->capture_default_str();
   app.add_option("--arch", o.arch, "BLOCKS/WIDTH, or BLOCKS,.../WIDTH,... per level (multi-scale)")->capture_default_str();
   app.add_option("--dilations", o.dilations,

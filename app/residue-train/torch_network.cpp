@@ -1,6 +1,7 @@
 #include "torch_network.h"
 
 #include <algorithm>
+#include <cstdlib>
 
 #include "core/nn/model_file.h"
 #include "core/util/error.h"
@@ -173,7 +174,13 @@ void initialise_from(ResidueNet& net, const nn::SafetensorsFile& source, const s
     throw Error(ErrorKind::Input, file + ": a " + meta("residue.blocks", "?") + "/" + meta("residue.width", "?") +
                                       " network cannot initialise a " + std::to_string(net->arch.blocks) + "/" +
                                       std::to_string(net->arch.width) + " one (blocks, width and dilations must match)");
-  const std::vector<std::string> from = feature_planes(*source_features), to = feature_planes(net->arch.features);
+  // The head's input planes are matched by name, so a model starts from one with fewer inputs (a temporal model
+  // from a still's: the neighbours' planes start at zero weight, and it denoises as its source did).
+  nn::Architecture source_arch;
+  source_arch.features = *source_features;
+  source_arch.prior = meta("residue.prior", "");
+  source_arch.temporal = std::atoi(meta("residue.temporal", "0").c_str());
+  const std::vector<std::string> from = nn::input_planes(source_arch), to = nn::input_planes(net->arch);
 
   torch::NoGradGuard no_grad;
   auto copy = [&](const std::string& name, torch::Tensor& target) {

@@ -1,12 +1,14 @@
 #include "training_set.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <optional>
 
 #include <nlohmann/json.hpp>
 
 #include "core/aov/aov_loader.h"
 #include "core/aov/dataset.h"
+#include "core/aov/shot_dataset.h"
 #include "core/denoise/denoiser.h"
 #include "core/denoise/oidn_filter.h"
 #include "core/features/features.h"
@@ -38,9 +40,49 @@ Image noise_map(const AovStack& a, const AovStack* b, const Image& reference) {
   return n;
 }
 
+// A single render's relative error against its reference, where there is no second half to compare with.
+Image error_map(const AovStack& a, const Image& reference) {
+  Image n(a.width(), a.height(), 1, 1.0f);
+  for (int64_t y = 0; y < n.height(); ++y)
+    for (int64_t x = 0; x < n.width(); ++x) {
+      float s = 0;
+      for (int c = 0; c < 3; ++c) {
+        const float d = a.color.image.at(x, y, c) - reference.at(x, y, c);
+        const float r = reference.at(x, y, c);
+        if (std::isfinite(d) && std::isfinite(r)) s += d * d / (r * r + 0.01f);
+      }
+      n.at(x, y) = std::min(s, 100.0f);
+    }
+  return n;
+}
+
 }  // namespace
 
-TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architecture& arch, int patch,
+std::string TrainingSource::name() const {
+  if (!frame) return dir.filename().string();
+  char f[16];
+  std::snprintf(f, sizeof f, "/%04d", *frame);
+  return dir.filename().string() + f;
+}
+
+std::vector<TrainingSource> scene_sources(const std::vector<fs::path>& scenes) {
+  std::vector<TrainingSource> s;
+  for (const auto& d : scenes) s.push_back({d, std::nullopt});
+  return s;
+}
+
+std::vector<TrainingSource> shot_sources(const std::vector<fs::path>& shots) {
+  std::vector<TrainingSource> s;
+  for (const auto& d : shots)
+    for (int f : shot_frame_numbers(d)) s.push_back({d, f});
+  return s;
+}
+
+AovStack load_source(const TrainingSource& source, int radius) {
+  return source.frame ? load_shot_frame(source.dir, *source.frame, radius) : load_dataset_scene(source.dir);
+}
+
+TrainingSet::TrainingSet(const std::vector<TrainingSource>& scenes, const nn::Architecture& arch, int patch,
                          const nn::Model* prior, const Teacher& teacher)
     : features_(arch.features), channels_(arch.in_channels()), patch_(patch) {
   if (!arch.prior.empty() && !prior)
@@ -53,16 +95,18 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     FeatureStats f = compute_feature_stats(s);
     f.demodulate = arch.demodulate;
     f.prior = !arch.prior.empty();
+    f.temporal = arch.temporal;
     f.exposure = arch.autoexposure ? arch.exposure(oidn_autoexposure(s.color.image)) : 1.0f;
     if (f.prior) s.prior = Aov{denoise(s, *prior, {}), {}, {}, 0};
     return f;
   };
-  for (const auto& dir : scenes) {
-    AovStack a = load_dataset_scene(dir);  // with the variance from the two halves when there are two
+  for (const TrainingSource& source : scenes) {
+    const fs::path& dir = source.dir;
+    AovStack a = load_source(source, arch.temporal);  // with the variance from the two halves when there are two
     if (a.width() < patch || a.height() < patch)
       throw Error(ErrorKind::Input, "scene '" + dir.string() + "' is smaller than one " + std::to_string(patch) + " px patch");
     TrainingScene s;
-    s.name = dir.filename().string();
+    s.name = source.name();
     const Rect all{0, 0, a.width(), a.height()};
     // Each half with its target: log(1 + reference), times the half's own exposure for an autoexposed model (the
     // halves' noise gives them slightly different exposures; inference scales by the noisy input's, too).
@@ -91,7 +135,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     };
     add_input(a);
     std::optional<AovStack> b;
-    if (fs::exists(dir / "noisy_b.exr")) {
+    if (!source.frame && fs::exists(dir / "noisy_b.exr")) {
       LoadOptions lb;
       lb.load_reference = false;
       b = load_aov_stack({dir / "noisy_b.exr"}, lb);
@@ -100,7 +144,7 @@ TrainingSet::TrainingSet(const std::vector<fs::path>& scenes, const nn::Architec
     }
 
     // Patch weights: mean relative noise inside the patch, plus a floor so flat regions still appear.
-    s.noise = noise_map(a, b ? &*b : nullptr, a.reference->image);
+    s.noise = source.frame ? error_map(a, a.reference->image) : noise_map(a, b ? &*b : nullptr, a.reference->image);
     const Image& noise = s.noise;
     Image integral(a.width() + 1, a.height() + 1, 1);  // summed-area table
     for (int64_t y = 0; y < a.height(); ++y)

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -40,11 +41,27 @@ struct Teacher {
   int ensemble = 8;
 };
 
+// What one training scene is read from: a data set's scene folder (s<seed>/noisy_a.exr, ...), or one frame of a
+// shot (core/aov/shot_dataset.h) with its neighbours warped to it, for a temporal model.
+struct TrainingSource {
+  TrainingSource(std::filesystem::path scene, std::optional<int> shot_frame = std::nullopt)  // NOLINT: a scene is a source
+      : dir(std::move(scene)), frame(shot_frame) {}
+  std::filesystem::path dir;
+  std::optional<int> frame;  // a shot's frame number; none: a still scene
+  std::string name() const;  // "s1010", "s8007/0005"
+};
+std::vector<TrainingSource> scene_sources(const std::vector<std::filesystem::path>& scenes);
+// Every frame of the shots (those with a reference), in order.
+std::vector<TrainingSource> shot_sources(const std::vector<std::filesystem::path>& shots);
+// The source's stack as inference sees it, with the reference: a scene's noisy_a (load_dataset_scene), or a
+// shot's frame with `radius` neighbours each side (load_shot_frame).
+AovStack load_source(const TrainingSource& source, int radius);
+
 class TrainingSet {
  public:
   // The input planes of `arch` (its feature set, demodulated or not, with its prior's output: `prior`, run once
   // per noisy half by core's denoiser, as inference runs it); targets from the reference, or distilled (`teacher`).
-  TrainingSet(const std::vector<std::filesystem::path>& scenes, const nn::Architecture& arch, int patch,
+  TrainingSet(const std::vector<TrainingSource>& scenes, const nn::Architecture& arch, int patch,
               const nn::Model* prior = nullptr, const Teacher& teacher = {});
 
   // A batch: inputs B x C x P x P, targets B x 3 x P x P. Patches from random scenes, corners drawn by

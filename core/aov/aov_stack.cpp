@@ -73,6 +73,19 @@ int64_t AovStack::channel_count() const {
   return n;
 }
 
+std::vector<int> neighbour_offsets(int radius) {
+  std::vector<int> offsets;
+  for (int d = -radius; d <= radius; ++d)
+    if (d != 0) offsets.push_back(d);
+  return offsets;
+}
+
+const WarpedNeighbour* AovStack::neighbour(int offset) const {
+  for (const WarpedNeighbour& n : neighbours)
+    if (n.offset == offset) return &n;
+  return nullptr;
+}
+
 const Aov* AovStack::find(AovRole role) const { return const_cast<AovStack*>(this)->find(role); }
 
 namespace {

@@ -56,12 +56,27 @@ struct Aov {
   int64_t uncovered_pixels = 0;  // grid pixels outside this AOV's data window (filled with 0)
 };
 
+// A neighbouring frame of a shot seen from this frame (core/temporal/frame_window.h): its noisy colour warped
+// along the motion, and where that is the same surface. A temporal model reads these (set by the caller, never
+// loaded with the frame).
+struct WarpedNeighbour {
+  int offset = 0;  // -1 the previous frame, +1 the next, -2 ...
+  Image color;     // 3 channels on this frame's grid; this frame's own colour where not valid
+  Image valid;     // 1 channel: 1 where the neighbour shows the same surface, 0 where masked or missing
+};
+
+// The offsets of the neighbours a temporal model of radius k reads, in its planes' order: -k..-1, +1..+k.
+std::vector<int> neighbour_offsets(int radius);
+
 struct AovStack {
   std::string convention;  // how the inputs were recognised: "Blender Cycles", "Tungsten file set", ...
   Aov color;
   std::optional<Aov> albedo, normal, depth, variance, reference, motion;
   // Another model's denoised colour, which a post-correction model refines (set by the denoiser, never loaded).
   std::optional<Aov> prior;
+  // The neighbouring frames a temporal model reads, by offset (set by the caller, never loaded).
+  std::vector<WarpedNeighbour> neighbours;
+  const WarpedNeighbour* neighbour(int offset) const;
 
   NormalSpace normal_space = NormalSpace::Unknown;
   DepthKind depth_kind = DepthKind::Unknown;

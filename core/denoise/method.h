@@ -30,6 +30,10 @@ class Method {
   // The model its main pass runs, or null for a filter (the viewer sizes its tiles from the graph).
   virtual const nn::Model* model() const { return nullptr; }
 
+  // The neighbouring frames it reads each side (stack.neighbours, core/temporal/frame_window.h): 0 for a
+  // still's method; k for a temporal one, which a sequence run feeds frames t-k..t+k.
+  virtual int frame_radius() const { return 0; }
+
   // Error(Input) naming the AOV `stack` lacks.
   virtual void check_inputs(const AovStack& stack) const = 0;
   // The work of a whole denoise of a `width` x `height` image with `options`, every pass included.

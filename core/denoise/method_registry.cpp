@@ -13,6 +13,8 @@ std::deque<MethodEntry>& table() {  // a deque: entries stay where they are as o
   static std::deque<MethodEntry> entries = {
       {"residue", "Residue's direct residual networks (.safetensors)", true, make_residue_method},
       {"oidn", "Open Image Denoise's networks as OIDN runs them (.tza), for comparison", true, make_oidn_method},
+      {"temporal", "Residue's temporal networks: a frame of a shot with its neighbours warped to it", true,
+       make_temporal_method},
       {"bilateral", "the cross-bilateral filter guided by the AOVs: the baseline, no model", false, make_bilateral_method},
   };
   return entries;
@@ -51,7 +53,9 @@ std::vector<std::string> method_families() {
 
 std::unique_ptr<Method> make_method(std::shared_ptr<const nn::Model> model) {
   if (!model) throw Error(ErrorKind::Usage, "make_method: no model");
-  const std::string kind = nn::to_string(model->method);
+  const std::string kind = model->method == nn::Method::Residue && model->network.arch.temporal > 0
+                               ? "temporal"
+                               : nn::to_string(model->method);
   const MethodEntry* e = find_method(kind);
   if (!e) throw Error(ErrorKind::Usage, "no method runs models of kind " + kind);
   return e->make(std::move(model));

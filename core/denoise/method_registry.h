@@ -1,5 +1,6 @@
-// The methods Residue knows, keyed by family name: "residue" (its residual networks, .safetensors), "oidn"
-// (Open Image Denoise's networks, .tza) and "bilateral" (the filter, no model file). Adding a method is one
+// The methods Residue knows, keyed by family name: "residue" (its residual networks, .safetensors), "temporal"
+// (those of them that read a shot's neighbouring frames), "oidn" (Open Image Denoise's networks, .tza) and
+// "bilateral" (the filter, no model file). Adding a method is one
 // file that implements Method (method.h) and one line in the table (method_registry.cpp), or a
 // register_method() call (a plug-in, a test).
 #pragma once
@@ -31,7 +32,8 @@ void register_method(MethodEntry entry);
 const MethodEntry* find_method(std::string_view family);
 std::vector<std::string> method_families();
 
-// The method that runs a loaded model: the entry of the model's kind (nn::Model::method).
+// The method that runs a loaded model: the entry of the model's kind (nn::Model::method; "temporal" for a
+// Residue network that reads neighbouring frames).
 std::unique_ptr<Method> make_method(std::shared_ptr<const nn::Model> model);
 // A model-free method by family name ("bilateral"); Error(Usage) listing the known ones otherwise.
 std::unique_ptr<Method> make_method(std::string_view family);
@@ -47,5 +49,6 @@ std::unique_ptr<Method> resolve_method(const std::string& name_or_path, FeatureS
 std::unique_ptr<Method> make_residue_method(std::shared_ptr<const nn::Model> model);
 std::unique_ptr<Method> make_oidn_method(std::shared_ptr<const nn::Model> model);
 std::unique_ptr<Method> make_bilateral_method(std::shared_ptr<const nn::Model> model);
+std::unique_ptr<Method> make_temporal_method(std::shared_ptr<const nn::Model> model);
 
 }  // namespace residue

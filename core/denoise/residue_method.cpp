@@ -99,6 +99,7 @@ class ResidueMethod final : public Method {
       FeatureStats f = s.features;
       f.demodulate = m.network.arch.demodulate;
       f.prior = !m.network.arch.prior.empty();
+      f.temporal = m.network.arch.temporal;
       f.exposure = m.network.arch.exposure(s.exposure);  // an autoexposed model scales OIDN's exposure to its key
       return std::make_unique<ResidueIO>(m.network.arch.features, f);
     };

@@ -96,7 +96,16 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
   if (stats.prior && (!stack.prior || set != FeatureSet::Full))
     throw Error(ErrorKind::Usage, "a post-correction model reads the full AOV set and its prior model's output; "
                                   "the prior was not computed or the set is not \"full\"");
-  const int channels = feature_channels(set) + (stats.prior ? 3 : 0);
+  const int channels = feature_channels(set) + (stats.prior ? 3 : 0) + 8 * stats.temporal;
+  std::vector<const WarpedNeighbour*> neighbours;  // null: missing, read as this frame's colour, not valid
+  for (int d : neighbour_offsets(stats.temporal)) {
+    const WarpedNeighbour* n = stack.neighbour(d);
+    if (n && (n->color.width() != stack.width() || n->color.height() != stack.height() || n->color.channels() != 3 ||
+              n->valid.width() != stack.width() || n->valid.height() != stack.height() || n->valid.channels() != 1))
+      throw Error(ErrorKind::Usage, "the neighbour at offset " + std::to_string(d) + " of '" + stack.color.source.file +
+                                    "' is not 3 + 1 channels on the frame's grid");
+    neighbours.push_back(n);
+  }
   if (out.width() != rect.width || out.height() != rect.height || out.channels() != channels)
     out = Image(rect.width, rect.height, channels);
   const float inv_depth_mean = static_cast<float>(1.0 / stats.depth_scale);
@@ -142,6 +151,12 @@ void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& st
           const float p = exposed(stack.prior->image.at(sx, sy, c), e);
           *f++ = compress_color(stats.demodulate ? p / demodulation_factor(stack.albedo->image.at(sx, sy, c)) : p);
         }
+      for (const WarpedNeighbour* nb : neighbours) {
+        const bool valid = nb && nb->valid.at(sx, sy) > 0.5f;
+        const Image& from = valid ? nb->color : stack.color.image;
+        for (int c = 0; c < 3; ++c) *f++ = compress_color(exposed(from.at(sx, sy, c), e));
+        *f++ = valid ? 1.0f : 0.0f;
+      }
     }
   });
 }

@@ -14,6 +14,11 @@
 //                                            the standard deviation in the colour's units, log-compressed alike
 //   prior   log(1 + p)                       (post-correction models only, after the set's planes) p: the prior
 //                                            model's denoised colour (stack.prior), sanitised like colour
+//   t-k..   log(1 + n), valid                (temporal models only, last; per neighbour -k..-1, +1..+k) n: the
+//                                            neighbour's noisy colour warped to this frame (stack.neighbours),
+//                                            sanitised like colour and exposed like it; valid 1 or 0. A neighbour
+//                                            the stack lacks (the shot's first or last frames) reads as this
+//                                            frame's colour with valid 0, as a disoccluded pixel does
 // Output: c = exp(y) - 1, clamped to [0, FLT_MAX], NaN -> 0: always finite and non-negative.
 // Autoexposed models (Architecture::autoexposure) see c (noise, p) times the image's exposure (FeatureStats) in
 // place of c, and their output is divided by it: scaling a render's colour scales their output alike.
@@ -44,6 +49,7 @@ struct FeatureStats {
   // key is 0.18: Architecture::exposure).
   float exposure = 1.0f;
   bool prior = false;       // 3 more planes: the prior model's colour (stack.prior)
+  int temporal = 0;         // 4 more planes per neighbour of this radius (stack.neighbours)
 };
 
 FeatureStats compute_feature_stats(const AovStack& stack);
@@ -71,7 +77,7 @@ FeatureSet feature_set_for(const AovStack& stack);
 void check_features_available(const AovStack& stack, FeatureSet set);
 
 // Fills `out` with the feature planes of `rect` (inside the stack): rect.width x rect.height x channels (+ 3 with
-// stats.prior).
+// stats.prior, + 8 x stats.temporal).
 void make_features(const AovStack& stack, FeatureSet set, const FeatureStats& stats, const Rect& rect, Image& out);
 
 // Colour transform and its inverse, exposed for training and tests.

@@ -216,6 +216,16 @@ Model load_model(const std::filesystem::path& path) {
                                     "Image Denoise's rt_hdr_alb_nrm), not \"" + arch.prior + "\" with feature set \"" +
                                     to_string(arch.features) + "\"");
   }
+  if (const auto it = md.find("residue.temporal"); it != md.end()) {
+    const auto k = parse_ints(it->second, 1, 2);
+    if (!k || k->size() != 1)
+      throw Error(ErrorKind::Input, where + ": metadata \"residue.temporal\" must be the radius of the frames it sees, 1 "
+                                    "or 2, not \"" + it->second + "\"");
+    arch.temporal = k->front();
+    if (arch.features != FeatureSet::Full || arch.demodulate || !arch.prior.empty())
+      throw Error(ErrorKind::Input, where + ": a temporal model reads the \"full\" feature set, not demodulated and with "
+                                    "no prior");
+  }
   const float eps = md.count("residue.bn_eps") ? metadata_eps(md.at("residue.bn_eps"), where) : kBnEps;
 
   Model m;
@@ -373,6 +383,7 @@ void write_architecture_metadata(const Architecture& arch, std::map<std::string,
     metadata["residue.exposure_key"] = exposure_key_string(arch.exposure_key);
   }
   if (!arch.prior.empty()) metadata["residue.prior"] = arch.prior;
+  if (arch.temporal > 0) metadata["residue.temporal"] = std::to_string(arch.temporal);
   if (arch.multiscale()) {
     metadata["residue.levels"] = ints_to_string(arch.levels);
     metadata["residue.widths"] = ints_to_string(arch.widths);

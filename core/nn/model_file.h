@@ -68,6 +68,8 @@ Model load_model(const std::filesystem::path& path);
 // The model a denoise runs when none is named (the CLI, the viewer): the best speed/accuracy trade measured
 // (docs/MODELS.md).
 inline constexpr const char* kDefaultModel = "multiscale";
+// What `denoise --temporal` runs unless -m names another temporal model (docs/TEMPORAL.md).
+inline constexpr const char* kDefaultTemporalModel = "multiscale-temporal";
 
 // `name_or_path`: an existing file, or a model name looked up in $RESIDUE_MODEL_PATH, the source tree's
 // resources/models and <prefix>/share/residue/models. Throws Error(Input) listing where it looked.

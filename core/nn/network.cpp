@@ -95,16 +95,29 @@ std::string Architecture::autoexposure_string() const {
   return exposure_key == kOidnExposureKey ? " autoexposure" : " autoexposure " + exposure_key_string(exposure_key);
 }
 
+std::vector<std::string> input_planes(const Architecture& arch) {
+  std::vector<std::string> planes = feature_planes(arch.features);
+  if (!arch.prior.empty())
+    for (const char* c : {"prior.r", "prior.g", "prior.b"}) planes.push_back(c);
+  for (int d : neighbour_offsets(arch.temporal)) {
+    const std::string frame = (d < 0 ? "t" : "t+") + std::to_string(d) + ".";
+    for (const char* c : {"color.r", "color.g", "color.b", "valid"}) planes.push_back(frame + c);
+  }
+  return planes;
+}
+
 std::string Architecture::to_string() const {
   if (multiscale())
     return "ms " + ints_to_string(levels) + "/" + ints_to_string(widths) + " " + residue::to_string(features) +
-           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "") + autoexposure_string() + (prior.empty() ? "" : " refines " + prior);
+           (input_skip ? " input-skip" : "") + (demodulate ? " demodulated" : "") + autoexposure_string() + (prior.empty() ? "" : " refines " + prior) +
+           (temporal > 0 ? " temporal " + std::to_string(temporal) : "");
   std::string s = std::to_string(blocks) + "/" + std::to_string(width) + " " + residue::to_string(features);
   if (max_dilation() > 1) s += " dilated " + dilations_to_string(dilations);
   if (input_skip) s += " input-skip";
   if (demodulate) s += " demodulated";
   s += autoexposure_string();
   if (!prior.empty()) s += " refines " + prior;
+  if (temporal > 0) s += " temporal " + std::to_string(temporal);
   return s;
 }
 

@@ -55,11 +55,15 @@ struct Architecture {
   // Post-correction: the model ("oidn") whose output this one refines. Its log colour comes in as 3 more input
   // planes after the feature set's, and input_skip adds those planes instead of the noisy colour. Empty: none.
   std::string prior;
+  // Temporal (issue 51): the radius k of the shot's frames it sees. Each neighbour t-k..t-1, t+1..t+k, warped to
+  // this frame along the motion (core/temporal/frame_window.h), comes in as 4 more planes after the prior's: its
+  // log colour (3) and where it shows the same surface (1). 0: a still's model.
+  int temporal = 0;
 
   bool multiscale() const { return !levels.empty(); }
   int level_width(int l) const { return widths.empty() ? width : widths[static_cast<size_t>(l)]; }
 
-  int in_channels() const { return feature_channels(features) + (prior.empty() ? 0 : 3); }
+  int in_channels() const { return feature_channels(features) + (prior.empty() ? 0 : 3) + 4 * 2 * temporal; }
   int skip_plane() const { return prior.empty() ? 0 : feature_channels(features); }  // first plane input_skip adds
   int conv_layers() const;
   int dilation(int block) const {
@@ -74,6 +78,10 @@ struct Architecture {
   std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip", "ms 2,2,4/32,48,64 full"
   std::string autoexposure_string() const;  // "", " autoexposure" (OIDN's key) or " autoexposure 1"
 };
+
+// The network's input planes by name, in order: the feature set's (feature_planes), then a post-correction
+// model's prior ("prior.r", ...), then each neighbour's ("t-1.color.r", ..., "t-1.valid", "t+1.color.r", ...).
+std::vector<std::string> input_planes(const Architecture& arch);
 
 // A 3x3 convolution with bias. Weights in OIHW order (as PyTorch stores them): weight[((o*in + i)*3 + ky)*3 + kx].
 struct Conv3x3 {

@@ -69,11 +69,13 @@ Reprojected reproject(const Image& neighbour, const Image& motion, MotionStep st
       const double w[4] = {(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay};
       for (int k = 0; k < 4 && s == 0; ++k) {
         if (w[k] == 0) continue;
+        bool background = false;  // the environment in both (depth 0: no hit), which has no normal to compare
         if (depth_test) {
           const double zt = depth_t->at(x, y), zn = depth_neighbour->at(tx[k], ty[k]);
+          background = zt == 0 && zn == 0;
           if (!(std::abs(zn - zt) <= options.depth_tolerance * std::max(std::abs(zt), 1e-6))) s = 2;
         }
-        if (normal_test && s == 0) {
+        if (normal_test && s == 0 && !background) {
           double dot = 0;
           for (int c = 0; c < 3; ++c) dot += double{normal_t->at(x, y, c)} * normal_neighbour->at(tx[k], ty[k], c);
           if (!(dot >= options.normal_min_dot)) s = 2;

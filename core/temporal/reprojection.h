@@ -39,7 +39,8 @@ struct Reprojected {
 // Frame t's view of `neighbour` (the previous or the next frame's image, any channels): at each pixel p of t, the
 // neighbour bilinearly sampled at p + d(p), d from `motion` (frame t's, Residue's convention; channels 0-1 for
 // Previous, 2-3 for Next). With the neighbour's and t's depth (1 channel) and camera-space normals (3 channels),
-// each of the four bilinear taps must pass the depth and normal tests or the pixel is masked. Throws
+// each of the four bilinear taps must pass the depth and normal tests or the pixel is masked (the environment,
+// depth 0 in both, passes: it has no normal). Throws
 // Error(Usage) when the sizes differ or `motion` lacks 4 channels.
 Reprojected reproject(const Image& neighbour, const Image& motion, MotionStep step,
                       const Image* depth_t = nullptr, const Image* depth_neighbour = nullptr,
