@@ -99,7 +99,12 @@ std::vector<int> read_neighbours(FrameContext& context, AovStack& frame, int rad
 }  // namespace
 
 std::string DenoiseCliOptions::model_name() const {
-  return temporal && model == nn::kDefaultModel ? nn::kDefaultTemporalModel : model;
+  if (!temporal) return model;
+  // A family's temporal model: NAME-temporal (multiscale -> multiscale-temporal); a file or a temporal name as given.
+  const std::string suffix = "-temporal";
+  const bool named_temporal = model.size() > suffix.size() && model.compare(model.size() - suffix.size(), suffix.size(), suffix) == 0;
+  if (named_temporal || std::filesystem::path(model).has_extension()) return model;
+  return model + suffix;
 }
 
 DenoiseOptions DenoiseCliOptions::denoise_options() const {
@@ -169,7 +174,7 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
                                   "model (" + nn::kDefaultTemporalModel + ", the default with --temporal)");
   if (result.frame_radius > 0 && neighbours && !layout.motion)
     throw Error(ErrorKind::Input, "'" + layout.color.source.file + "' has no motion AOV (Cycles: the Vector pass; "
-                                  "or a motion.X/Y layer, Arnold's motionvector, V-Ray's velocity): " + method->name() +
+                                  "another renderer's: --map motion=...): " + method->name() +
                                   " warps the neighbouring frames to it along the motion vectors");
   result.model = method->name();
   result.architecture = method->architecture();

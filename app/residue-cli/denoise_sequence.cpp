@@ -106,6 +106,17 @@ int run_sequence(const DenoiseCliOptions& o) {
   if (frames.empty())
     throw Error(ErrorKind::Input, "no frame of '" + in.to_string() + "' exists (give --frames to name them)");
 
+  // --temporal warps each frame's neighbours along its motion vectors: a sequence without them is refused now.
+  if (o.temporal)
+    for (int64_t f : frames)
+      if (fs::exists(in.path(f))) {
+        const AovReader first({in.path(f)}, o.input.load_options());
+        if (!first.layout().motion)
+          throw Error(ErrorKind::Input, "--temporal: '" + in.path(f).string() + "' has no motion AOV (Cycles: the "
+                                        "Vector pass; another renderer's: --map motion=...): the neighbouring frames "
+                                        "are warped to each frame along its motion vectors");
+        break;
+      }
   // Every check before the first frame: the summary file, then each output (a conflict lists them all).
   if (!o.summary.empty()) {
     io::require_extension(o.summary, {".json"}, "--summary");

@@ -65,6 +65,7 @@ struct Options {
   std::string loss = "l1-log";  // see training_loss.h
   double ssim_weight = 1.0;      // for l1-log+ssim and l1-pu+ssim
   double relmse_weight = 0.0;    // adds relmse_weight x relMSE (eps 0.01) to the loss
+  double temporal_weight = 0.0;  // adds temporal_weight x L1 of the change between consecutive frames' errors
   double lowband_weight = 0.0;   // adds lowband_weight x the relMSE of lowband_width-px box means
   int lowband_width = 16;
   double edge_ssim_weight = 0.0;  // adds edge_ssim_weight x the albedo/normal edge pixels' share of 1 - SSIM
@@ -224,6 +225,8 @@ int run(const Options& o) {
   if (o.lowband_weight > 0 && o.lowband_width > o.patch)
     throw Error(ErrorKind::Usage, "--lowband-width (" + std::to_string(o.lowband_width) +
                                   " px) must fit the patch (--patch " + std::to_string(o.patch) + ")");
+  if (o.temporal_weight > 0 && (o.shots.empty() || o.batch % 2 != 0))
+    throw Error(ErrorKind::Usage, "--temporal-weight trains on pairs of consecutive frames: give --shots and an even --batch");
   if (o.out.empty() && o.export_set.empty()) throw Error(ErrorKind::Usage, "--out is required");
   if (!o.export_set.empty() && fs::exists(o.export_set) && !o.force)
     throw Error(ErrorKind::Output, "'" + o.export_set + "' exists; pass --force");
@@ -356,7 +359,8 @@ int run(const Options& o) {
     net->train();
     if (frozen()) train::freeze_batch_norm(net);
     torch::Tensor x, y;
-    set.sample(rng, o.batch, x, y);
+    if (o.temporal_weight > 0) set.sample_pairs(rng, o.batch / 2, x, y);  // frame t, then the same patches of t - 1
+    else set.sample(rng, o.batch, x, y);
     x = train::to_channels_last(x);
     opt.zero_grad();
     torch::Tensor prediction;
@@ -372,6 +376,12 @@ int run(const Options& o) {
     if (arch.demodulate) prediction = train::remodulate(prediction, x.slice(1, albedo_at, albedo_at + 3));
     torch::Tensor loss = train::training_loss(o.loss, prediction, y, o.ssim_weight);
     if (o.relmse_weight > 0) loss = loss + o.relmse_weight * train::relative_mse(prediction, y);
+    if (o.temporal_weight > 0) {
+      // The error's change from frame t - 1 to t at each pixel (in log colour), as the flicker metric sees it.
+      const int64_t pairs = prediction.size(0) / 2;
+      const torch::Tensor error = prediction - y;
+      loss = loss + o.temporal_weight * (error.slice(0, 0, pairs) - error.slice(0, pairs)).abs().mean();
+    }
     if (o.lowband_weight > 0)
       loss = loss + o.lowband_weight * train::low_band_relative_mse(prediction, y, o.lowband_width);
     if (o.edge_ssim_weight > 0) {
@@ -425,6 +435,7 @@ int run(const Options& o) {
       train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "") +
       (o.lowband_weight > 0 ? " + w * relMSE of " + std::to_string(o.lowband_width) + "-px box means" : "") +
       (o.edge_ssim_weight > 0 ? " + w * (1 - SSIM) on albedo/normal edge pixels" : "") +
+      (o.temporal_weight > 0 ? " + w * L1 of the change of the log error from frame t - 1 to t" : "") +
       (teacher ? ", against targets distilled from a teacher" : "");
   nlohmann::json training = {{"data", o.data}, {"shots", o.shots}, {"train_scenes", train_scenes.size()}, {"steps", o.steps},
                              {"batch", o.batch}, {"patch", o.patch}, {"lr", o.lr}, {"schedule", "cosine to lr/100, 100 warm-up"},
@@ -436,6 +447,7 @@ int run(const Options& o) {
   if (!init_from_name.empty()) training["init_from"] = init_from_name;
   if (o.loss == "l1-log+ssim" || o.loss == "l1-pu+ssim") training["ssim_weight"] = o.ssim_weight;
   if (o.relmse_weight > 0) training["relmse_weight"] = o.relmse_weight;
+  if (o.temporal_weight > 0) training["temporal_weight"] = o.temporal_weight;
   if (o.lowband_weight > 0) {
     training["lowband_weight"] = o.lowband_weight;
     training["lowband_width"] = o.lowband_width;
@@ -515,6 +527,10 @@ int main(int argc, char** argv) {
                  "--ssim-weight x (1 - SSIM) over 3 scales, on the SSIM metric's tonemap) or l1-pu+ssim (the same, "
                  "its L1 on OIDN's PU transfer instead of log(1 + c))")
       ->capture_default_str()->check(CLI::IsMember(train::loss_names()));
+  app.add_option("--temporal-weight", o.temporal_weight,
+                 "Adds this x the L1 of the change of the (log) error between consecutive frames of a shot at each "
+                 "pixel: patches come in pairs, frame t and t - 1 (--shots; --batch counts both)")
+      ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--relmse-weight", o.relmse_weight,
                  "Adds this weight x relMSE (the metric's, eps 0.01, on linear colour) to the loss")
       ->check(CLI::NonNegativeNumber);

@@ -162,6 +162,11 @@ TrainingSet::TrainingSet(const std::vector<TrainingSource>& scenes, const nn::Ar
       }
     const double floor = 0.25 * total / static_cast<double>(s.weights.size()) + 1e-6;
     for (double& w : s.weights) w += floor;
+    if (source.frame && !scenes_.empty() && source.frame > 1) {
+      const TrainingSource& prev = scenes[scenes_.size() - 1];
+      if (prev.dir == dir && prev.frame == *source.frame - 1) s.previous = static_cast<int>(scenes_.size() - 1);
+    }
+    if (s.previous >= 0) paired_.push_back(scenes_.size());
     scenes_.push_back(std::move(s));
   }
   if (scenes_.empty()) throw Error(ErrorKind::Input, "no training scenes");
@@ -173,17 +178,45 @@ void TrainingSet::sample(std::mt19937& rng, int batch, torch::Tensor& inputs, to
   targets = torch::empty({batch, 3, P, P}, torch::kFloat32);
   float* in = inputs.data_ptr<float>();
   float* tg = targets.data_ptr<float>();
-  const int np = normal_plane(features_);
   std::uniform_int_distribution<size_t> pick_scene(0, scenes_.size() - 1);
   std::uniform_int_distribution<int> pick_transform(0, 7);
   for (int b = 0; b < batch; ++b) {
     const TrainingScene& s = scenes_[pick_scene(rng)];
     std::discrete_distribution<size_t> pick_corner(s.weights.begin(), s.weights.end());
-    const auto [x0, y0] = s.corners[pick_corner(rng)];
+    const auto corner = s.corners[pick_corner(rng)];
     const size_t half = std::uniform_int_distribution<size_t>(0, s.inputs.size() - 1)(rng);
+    copy_patch(s, half, corner, pick_transform(rng), b, in, tg);
+  }
+}
+
+void TrainingSet::sample_pairs(std::mt19937& rng, int pairs, torch::Tensor& inputs, torch::Tensor& targets) const {
+  if (paired_.empty()) throw Error(ErrorKind::Usage, "a temporal loss needs consecutive frames of shots (--shots)");
+  const int64_t P = patch_;
+  inputs = torch::empty({2 * pairs, channels_, P, P}, torch::kFloat32);
+  targets = torch::empty({2 * pairs, 3, P, P}, torch::kFloat32);
+  float* in = inputs.data_ptr<float>();
+  float* tg = targets.data_ptr<float>();
+  std::uniform_int_distribution<size_t> pick_scene(0, paired_.size() - 1);
+  std::uniform_int_distribution<int> pick_transform(0, 7);
+  for (int b = 0; b < pairs; ++b) {
+    const TrainingScene& s = scenes_[paired_[pick_scene(rng)]];
+    std::discrete_distribution<size_t> pick_corner(s.weights.begin(), s.weights.end());
+    const auto corner = s.corners[pick_corner(rng)];
+    const int transform = pick_transform(rng);
+    copy_patch(s, 0, corner, transform, b, in, tg);
+    copy_patch(scenes_[static_cast<size_t>(s.previous)], 0, corner, transform, pairs + b, in, tg);
+  }
+}
+
+void TrainingSet::copy_patch(const TrainingScene& s, size_t half, std::pair<int64_t, int64_t> corner, int transform,
+                             int b, float* in, float* tg) const {
+  const int64_t P = patch_;
+  const int np = normal_plane(features_);
+  const auto [x0, y0] = corner;
+  {  // NOLINT: the patch's pixels
     const Image& src = s.inputs[half];
     const Image& target = s.targets[half];
-    const Dihedral d = Dihedral::from_index(pick_transform(rng));
+    const Dihedral d = Dihedral::from_index(transform);
     for (int64_t v = 0; v < P; ++v)
       for (int64_t u = 0; u < P; ++u) {
         const auto [sx, sy] = d.source(u, v, P, P);

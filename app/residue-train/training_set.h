@@ -29,6 +29,7 @@ struct TrainingScene {
   // Patch sampling: top-left corners on a grid and their probabilities.
   std::vector<std::pair<int64_t, int64_t>> corners;
   std::vector<double> weights;
+  int previous = -1;  // a shot's frame: the index of the frame before it among the set's scenes; -1 none
 };
 
 // Distillation: each half's target is moved towards what a teacher model makes of that half, (1 - weight) x
@@ -68,12 +69,22 @@ class TrainingSet {
   // the noise weights, one of the 8 flips/rotations applied (normals turned with the image).
   void sample(std::mt19937& rng, int batch, torch::Tensor& inputs, torch::Tensor& targets) const;
 
+  // For a temporal loss: `pairs` patches of frame t in the first half of the batch and the same patches (corner and
+  // flip) of frame t - 1 of the same shot in the second, inputs 2 pairs x C x P x P. Error(Usage) without frame pairs.
+  void sample_pairs(std::mt19937& rng, int pairs, torch::Tensor& inputs, torch::Tensor& targets) const;
+  bool has_pairs() const { return !paired_.empty(); }
+
   size_t size() const { return scenes_.size(); }
   const std::vector<TrainingScene>& scenes() const { return scenes_; }
   int channels() const { return channels_; }
 
  private:
+  // One patch of scene `s` at `corner` under `transform` into batch slot b.
+  void copy_patch(const TrainingScene& s, size_t half, std::pair<int64_t, int64_t> corner, int transform, int b,
+                  float* in, float* tg) const;
+
   std::vector<TrainingScene> scenes_;
+  std::vector<size_t> paired_;  // scenes with a previous frame
   FeatureSet features_;
   int channels_;
   int patch_;

@@ -11,8 +11,8 @@ namespace {
 void check_motion(const AovStack& s) {
   if (!s.motion)
     throw Error(ErrorKind::Input, "'" + s.color.source.file + "' has no motion vectors (the motion AOV: Cycles' "
-                                  "Vector pass, a motion.X/Y layer, ...): a temporal model warps the neighbouring "
-                                  "frames to it along them");
+                                  "Vector pass, or --map motion=...): a temporal model warps the neighbouring frames "
+                                  "to it along them");
 }
 
 void check_grid(const AovStack& frame, const AovStack& other) {

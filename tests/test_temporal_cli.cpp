@@ -1,0 +1,120 @@
+// `residue-cli denoise --temporal` on the committed rendered shot (tests/data/shot: 6 frames, 64x64, a camera
+// truck and two moving props, Cycles' Vector pass): frames denoised in chunks equal the same frames denoised in
+// one run (each chunk reads the frames beside it), the shot's ends say they had fewer neighbours, the temporal
+// model flickers less than the per-frame one on this shot, and a sequence without motion vectors is refused
+// naming the frame and the AOV.
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "support/exr_fixture.h"
+#include "support/test_support.h"
+
+namespace residue {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kShot = fs::path(RESIDUE_SOURCE_RESOURCES) / ".." / "tests" / "data" / "shot";
+
+nlohmann::json read_json(const fs::path& p) {
+  std::ifstream f(p);
+  return nlohmann::json::parse(f);
+}
+
+TEST(TemporalSequenceCli, ChunksEqualOneRunAndTheEndsHaveFewerNeighbours) {
+  const testing::TempDir dir;
+  const std::string in = (kShot / "noisy.####.exr").string();
+  std::string out;
+  ASSERT_EQ(testing::run_cli({"denoise", in, "--temporal", "-o", (dir / "all.####.exr").string(), "--summary",
+                              (dir / "all.json").string(), "--float"}, &out), 0) << out;
+  for (const char* chunk : {"1-2", "3-4", "5-6"})
+    ASSERT_EQ(testing::run_cli({"denoise", in, "--temporal", "--frames", chunk, "-o", (dir / "chunk.####.exr").string(),
+                                "--float"}, &out), 0) << out;
+  for (int f = 1; f <= 6; ++f) {
+    char a[32], b[32];
+    std::snprintf(a, sizeof a, "all.%04d.exr", f);
+    std::snprintf(b, sizeof b, "chunk.%04d.exr", f);
+    const Image x = testing::read_exr_float(dir / a), y = testing::read_exr_float(dir / b);
+    ASSERT_EQ(x.size(), y.size());
+    for (size_t i = 0; i < x.size(); ++i) ASSERT_EQ(x.data()[i], y.data()[i]) << "frame " << f << ", value " << i;
+  }
+  const nlohmann::json s = read_json(dir / "all.json");
+  EXPECT_EQ(s["model"], "multiscale-temporal");
+  ASSERT_EQ(s["frames"].size(), 6u);
+  EXPECT_EQ(s["frames"][0]["missing_neighbours"], nlohmann::json::array({-1}));
+  EXPECT_EQ(s["frames"][5]["missing_neighbours"], nlohmann::json::array({1}));
+  EXPECT_FALSE(s["frames"][2].contains("missing_neighbours"));
+}
+
+TEST(TemporalSequenceCli, FlickersLessThanThePerFrameModelOnARenderedShot) {
+  const testing::TempDir dir;
+  const std::string in = (kShot / "noisy.####.exr").string(), ref = (kShot / "reference.####.exr").string();
+  std::string out;
+  ASSERT_EQ(testing::run_cli({"denoise", in, "--temporal", "-o", (dir / "t.####.exr").string()}, &out), 0) << out;
+  ASSERT_EQ(testing::run_cli({"denoise", in, "-m", "multiscale", "-o", (dir / "m.####.exr").string()}, &out), 0) << out;
+  auto score = [&](const char* pattern) {
+    std::string json;
+    EXPECT_EQ(testing::run_cli({"eval", in, "-r", ref, "-d", (dir / pattern).string(), "--json"}, &json), 0) << json;
+    return nlohmann::json::parse(json);
+  };
+  const nlohmann::json t = score("t.####.exr"), m = score("m.####.exr");
+  const double flicker_t = t["temporal_relmse_symmetric"]["denoised"], flicker_m = m["temporal_relmse_symmetric"]["denoised"];
+  const double rel_t = t["mean"]["denoised"]["relmse"], rel_m = m["mean"]["denoised"]["relmse"];
+  std::printf("[ measured ] tests/data/shot: temporal relMSE %.5f (multiscale-temporal) vs %.5f (multiscale); "
+              "relMSE %.5f vs %.5f\n", flicker_t, flicker_m, rel_t, rel_m);
+  EXPECT_LT(flicker_t, 0.95 * flicker_m);
+  EXPECT_LT(rel_t, rel_m);
+}
+
+// farm slurm --temporal: each chunk's denoise reads its neighbours (the test above: chunks equal one run).
+TEST(TemporalSequenceCli, FarmChunksRunTheTemporalDenoise) {
+  const testing::TempDir dir;
+  std::string out;
+  ASSERT_EQ(testing::run_cli({"farm", "slurm", (kShot / "noisy.####.exr").string(), "-o", (dir / "o.####.exr").string(),
+                              "--temporal", "--chunk", "2", "--dry-run", "--job-dir", (dir / "job").string()}, &out), 0)
+      << out;
+  std::ifstream f(dir / "job" / "denoise.sbatch");
+  const std::string script((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  EXPECT_NE(script.find("-m 'multiscale-temporal'"), std::string::npos) << script;
+  EXPECT_NE(script.find("--skip-existing --temporal"), std::string::npos) << script;
+  EXPECT_EQ(testing::run_cli({"farm", "slurm", (kShot / "noisy.####.exr").string(), "-o", (dir / "o.####.exr").string(),
+                              "--dry-run", "--job-dir", (dir / "job2").string()}, &out), 2) << out;
+  EXPECT_NE(out.find("give -m MODEL (or --temporal)"), std::string::npos) << out;
+}
+
+TEST(TemporalSequenceCli, ASequenceWithoutMotionIsRefusedNamingTheFrameAndTheAov) {
+  const testing::TempDir dir;
+  for (int f = 1; f <= 2; ++f) {
+    testing::FixturePart p;  // every AOV a full model reads, but no motion
+    p.width = p.height = 16;
+    for (const char* c : {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "depth.Z"})
+      p.channels.push_back(testing::constant_channel(c, 0.5f));
+    for (const char* c : {"normal.X", "normal.Y"}) p.channels.push_back(testing::constant_channel(c, 0.0f));
+    p.channels.push_back(testing::constant_channel("normal.Z", 1.0f));
+    char name[32];
+    std::snprintf(name, sizeof name, "plain.%04d.exr", f);
+    testing::write_fixture_exr((dir / name).string(), {p});
+  }
+  std::string out;
+  // Refused before any frame, naming the first frame and the AOV.
+  EXPECT_EQ(testing::run_cli({"denoise", (dir / "plain.####.exr").string(), "--temporal", "-o",
+                              (dir / "o.####.exr").string()}, &out), 3) << out;
+  EXPECT_NE(out.find("plain.0001.exr' has no motion AOV"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "o.0001.exr"));
+  // A still's model with --temporal: said so. A family without a temporal model: the name looked for.
+  const std::string still = (fs::path(RESIDUE_SOURCE_RESOURCES) / "models" / "multiscale.safetensors").string();
+  EXPECT_EQ(testing::run_cli({"denoise", (kShot / "noisy.####.exr").string(), "--temporal", "-m", still, "-o",
+                              (dir / "o.####.exr").string()}, &out), 2) << out;
+  EXPECT_NE(out.find("multiscale denoises frames one by one"), std::string::npos) << out;
+  EXPECT_EQ(testing::run_cli({"denoise", (kShot / "noisy.####.exr").string(), "--temporal", "-m", "small", "-o",
+                              (dir / "o.####.exr").string()}, &out), 3) << out;
+  EXPECT_NE(out.find("small-temporal"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "o.0001.exr"));
+}
+
+}  // namespace
+}  // namespace residue
