@@ -1,5 +1,5 @@
-// Flicker (issue 19): the temporal relMSE against an independent float64 computation, its fixed points, and
-// `residue-cli eval` on a sequence.
+// Flicker (issue 19): the temporal relMSE against an independent float64 computation, its fixed points, its
+// motion-compensated form (issue 51), and `residue-cli eval` on a sequence.
 #include <cmath>
 #include <fstream>
 
@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/metrics/temporal.h"
+#include "core/temporal/reprojection.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
 
@@ -79,6 +80,38 @@ TEST(Temporal, TheSymmetricFormIsNotDominatedByAHighlightThatLeft) {
   m.add(x1, r1);
   EXPECT_NEAR(m.value(), 0.25 / 0.01, 1e-9);
   EXPECT_NEAR(m.value_symmetric(), 0.25 / (8.0 + 0.01), 1e-12);
+}
+
+// A pan: every frame shows the strip 2 px further on, and the error rides on the surfaces (a stable denoise of a
+// moving camera). At a fixed pixel the error changes; along the motion it does not.
+TEST(Temporal, TheCompensatedFormFollowsTheSurfaces) {
+  const int64_t W = 30, H = 8;
+  const Image strip = random_image(W + 12, H, 3, 21, 0.2f, 2.0f), error = random_image(W + 12, H, 3, 22, -0.1f, 0.1f);
+  auto frame = [&](const Image& from, int t) {
+    Image f(W, H, 3);
+    for (int64_t y = 0; y < H; ++y)
+      for (int64_t x = 0; x < W; ++x)
+        for (int c = 0; c < 3; ++c) f.at(x, y, c) = from.at(x + 2 * t, y, c);
+    return f;
+  };
+  metrics::TemporalRelMse fixed;
+  metrics::CompensatedTemporalRelMse along;
+  Image motion(W, H, 4);
+  for (int64_t y = 0; y < H; ++y)
+    for (int64_t x = 0; x < W; ++x) motion.at(x, y, 0) = 2.0f;  // each surface was 2 px to the right before
+  for (int t = 0; t < 4; ++t) {
+    const Image r = frame(strip, t), e = frame(error, t);
+    Image x = r;
+    for (size_t i = 0; i < x.size(); ++i) x.data()[i] += e.data()[i];
+    fixed.add(x, r);
+    if (t == 0) continue;
+    const Image r_prev = frame(strip, t - 1), e_prev = frame(error, t - 1);
+    const Reprojected we = reproject(e_prev, motion, MotionStep::Previous), wr = reproject(r_prev, motion, MotionStep::Previous);
+    along.add_pair(x, r, we.image, wr.image, we.valid);
+  }
+  EXPECT_GT(fixed.value(), 1e-3) << "at a fixed pixel the error moves past";
+  EXPECT_LT(along.value(), 1e-12) << "along the motion it is the same error";
+  EXPECT_EQ(along.pixels(), 3 * (W - 2) * H) << "the 2 columns each frame brings in have no past";
 }
 
 TEST(TemporalCli, EvalScoresASequenceAndItsFlicker) {

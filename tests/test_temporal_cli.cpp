@@ -1,7 +1,7 @@
 // `residue-cli denoise --temporal` on the committed rendered shot (tests/data/shot: 6 frames, 64x64, a camera
 // truck and two moving props, Cycles' Vector pass): frames denoised in chunks equal the same frames denoised in
 // one run (each chunk reads the frames beside it), the shot's ends say they had fewer neighbours, the temporal
-// model flickers less than the per-frame one on this shot, and a sequence without motion vectors is refused
+// model flickers less than the per-frame one on this shot and does not ghost where surfaces were hidden, and a sequence without motion vectors is refused
 // naming the frame and the AOV.
 #include <filesystem>
 #include <fstream>
@@ -68,6 +68,18 @@ TEST(TemporalSequenceCli, FlickersLessThanThePerFrameModelOnARenderedShot) {
               "relMSE %.5f vs %.5f\n", flicker_t, flicker_m, rel_t, rel_m);
   EXPECT_LT(flicker_t, 0.95 * flicker_m);
   EXPECT_LT(rel_t, rel_m);
+  // Along the motion (frame t-1's error warped to t): how the error on each surface changes.
+  const double along_t = t["temporal_relmse_compensated"]["denoised"], along_m = m["temporal_relmse_compensated"]["denoised"];
+  std::printf("[ measured ] along the motion: %.5f vs %.5f\n", along_t, along_m);
+  EXPECT_LT(along_t, 0.9 * along_m);
+  // No ghosting: where a neighbour shows another surface, the temporal model is no worse than the per-frame one
+  // by more than the 10 % (eval's disocclusion mask, from the shot's motion, depth and normals).
+  ASSERT_TRUE(t.contains("disoccluded")) << t.dump();
+  const double ghost_t = t["disoccluded"]["denoised_relmse"], ghost_m = m["disoccluded"]["denoised_relmse"];
+  std::printf("[ measured ] on the %lld disoccluded pixels: relMSE %.5f vs %.5f\n",
+              static_cast<long long>(t["disoccluded"]["pixels"].get<int64_t>()), ghost_t, ghost_m);
+  EXPECT_GT(t["disoccluded"]["pixels"].get<int64_t>(), 1000);
+  EXPECT_LE(ghost_t, 1.1 * ghost_m);
 }
 
 // farm slurm --temporal: each chunk's denoise reads its neighbours (the test above: chunks equal one run).

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <map>
 
 #include <nlohmann/json.hpp>
 
@@ -10,6 +11,7 @@
 #include "core/io/frame_sequence.h"
 #include "core/metrics/metrics.h"
 #include "core/metrics/temporal.h"
+#include "core/temporal/frame_window.h"
 #include "core/util/error.h"
 
 namespace residue::cli {
@@ -26,6 +28,73 @@ FramePattern pattern_or_throw(const std::string& text, const char* what) {
 
 nlohmann::ordered_json scores_json(const metrics::Scores& s) {
   return {{"relmse", s.relmse}, {"ssim", s.ssim}, {"psnr", std::isfinite(s.psnr) ? s.psnr : 0.0}, {"pixels", s.pixels}};
+}
+
+// Pixels of frame t that a neighbouring frame (t-1 or t+1, where the sequence has it) does not show: the
+// surface was hidden or off screen there (core/temporal/frame_window.h's mask). Where a temporal denoiser has
+// only frame t's samples, and where it would ghost if it trusted a neighbour. Empty when the frame has no motion
+// AOV or no neighbour.
+Image disocclusion_mask(const AovStack& frame, const FramePattern& in, int64_t f, const LoadOptions& load) {
+  if (!frame.motion) return {};
+  LoadOptions lo = load;
+  lo.load_reference = false;
+  lo.reference.reset();
+  std::map<int, AovStack> near;
+  for (int d : {-1, 1})
+    if (fs::exists(in.path(f + d))) near.emplace(d, load_aov_stack({in.path(f + d)}, lo));
+  if (near.empty()) return {};
+  AovStack t = frame;
+  attach_neighbours(t, 1, [&](int d) -> const AovStack* {
+    const auto it = near.find(d);
+    return it == near.end() ? nullptr : &it->second;
+  });
+  Image mask(frame.width(), frame.height(), 1);
+  for (const WarpedNeighbour& n : t.neighbours)
+    for (int64_t i = 0; i < static_cast<int64_t>(mask.size()); ++i)
+      if (n.valid.data()[i] == 0.0f) mask.data()[i] = 1.0f;
+  return mask;
+}
+
+// relMSE over the pixels where `mask` is 1: (x - r)^2 / (r^2 + eps), averaged over them and RGB; non-finite skipped.
+struct MaskedError {
+  double sum = 0;
+  int64_t values = 0;
+  void add(const Image& x, const Image& r, const Image& mask, double eps) {
+    for (int64_t y = 0; y < mask.height(); ++y)
+      for (int64_t px = 0; px < mask.width(); ++px) {
+        if (mask.at(px, y) == 0.0f) continue;
+        for (int c = 0; c < 3; ++c) {
+          const double a = x.at(px, y, c), b = r.at(px, y, c);
+          if (!std::isfinite(a) || !std::isfinite(b)) continue;
+          sum += (a - b) * (a - b) / (b * b + eps);
+          ++values;
+        }
+      }
+  }
+  double value() const { return values > 0 ? sum / static_cast<double>(values) : 0.0; }
+};
+
+// Frame t-1's error and reference (6 channels) brought to frame t along t's motion, with where that is valid.
+Reprojected previous_error_at_t(const AovStack& t, const AovStack& prev, const Image& prev_x) {
+  const Image& r = prev.reference->image;
+  Image both(r.width(), r.height(), 6);
+  for (int64_t y = 0; y < r.height(); ++y)
+    for (int64_t x = 0; x < r.width(); ++x)
+      for (int c = 0; c < 3; ++c) {
+        both.at(x, y, c) = prev_x.at(x, y, c) - r.at(x, y, c);
+        both.at(x, y, 3 + c) = r.at(x, y, c);
+      }
+  auto img = [](const std::optional<Aov>& a) { return a ? &a->image : nullptr; };
+  return reproject(both, t.motion->image, MotionStep::Previous, img(t.depth), img(prev.depth), img(t.normal),
+                   img(prev.normal));
+}
+
+void add_compensated(metrics::CompensatedTemporalRelMse& m, const Image& x, const Image& r, const Reprojected& w) {
+  Image e(x.width(), x.height(), 3), rp(x.width(), x.height(), 3);
+  for (int64_t y = 0; y < x.height(); ++y)
+    for (int64_t px = 0; px < x.width(); ++px)
+      for (int c = 0; c < 3; ++c) e.at(px, y, c) = w.image.at(px, y, c), rp.at(px, y, c) = w.image.at(px, y, 3 + c);
+  m.add_pair(x, r, e, rp, w.valid);
 }
 
 }  // namespace
@@ -50,7 +119,12 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
   if (!o.json) std::printf("%-8s %12s %9s %12s %9s\n", "frame", "noisy relMSE", "SSIM", "denoised", "SSIM");
   // A frame that cannot be scored (missing, unreadable, another size) is reported and left out, and the
   // sequence goes on, as `denoise` does; the temporal error pairs only frames that follow each other.
-  int64_t scored = 0;
+  int64_t scored = 0, disoccluded_pixels = 0;
+  MaskedError noisy_d, denoised_d;  // on the pixels a neighbouring frame does not show
+  metrics::CompensatedTemporalRelMse noisy_c(o.eps), denoised_c(o.eps);  // along the motion (frames that have it)
+  std::optional<AovStack> prev;  // the frame before, when it was scored
+  Image prev_d;
+  int64_t prev_f = 0;
   std::vector<std::string> failed;
   for (int64_t f : frames) try {
     LoadOptions load = o.input.load_options();
@@ -71,6 +145,19 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
         throw Error(ErrorKind::Input, "'" + den->path(f).string() + "' is not the size of frame " + std::to_string(f));
     }
     noisy_t.add(stack.color.image, r);
+    if (prev && prev_f == f - 1 && stack.motion && prev->width() == stack.width() && prev->height() == stack.height()) {
+      add_compensated(noisy_c, stack.color.image, r, previous_error_at_t(stack, *prev, prev->color.image));
+      if (den) add_compensated(denoised_c, d, r, previous_error_at_t(stack, *prev, prev_d));
+    }
+    const Image mask = disocclusion_mask(stack, in, f, o.input.load_options());
+    if (!mask.empty()) {
+      int64_t count = 0;
+      for (size_t i = 0; i < mask.size(); ++i) count += mask.data()[i] != 0.0f;
+      disoccluded_pixels += count;
+      noisy_d.add(stack.color.image, r, mask, o.eps);
+      if (den) denoised_d.add(d, r, mask, o.eps);
+      row["disoccluded_pixels"] = count;
+    }
     if (den) {
       denoised = metrics::compare(d, r, m);
       denoised_t.add(d, r);
@@ -84,12 +171,16 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
                   denoised ? std::to_string(denoised->ssim).substr(0, 7).c_str() : "-");
     rows.push_back(std::move(row));
     ++scored;
+    prev = stack;
+    prev_d = d;
+    prev_f = f;
   } catch (const Error& e) {
     std::fprintf(stderr, "frame %lld  not scored: %s\n", static_cast<long long>(f), e.what());
     rows.push_back({{"frame", f}, {"error", e.what()}});
     failed.push_back(std::to_string(f));
     noisy_t.gap();
     denoised_t.gap();
+    prev.reset();
   }
   if (scored == 0) throw Error(ErrorKind::Input, "no frame of '" + in.to_string() + "' could be scored (above)");
   const double n = static_cast<double>(scored);
@@ -104,6 +195,19 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
     doc["temporal_relmse"]["denoised"] = denoised_t.value();
     doc["temporal_relmse_symmetric"]["denoised"] = denoised_t.value_symmetric();
     doc["flicker_ratio"] = denoised_t.value() / noisy_t.value();
+  }
+  if (noisy_c.pixels() > 0) {
+    doc["temporal_relmse_compensated"] = {{"noisy", noisy_c.value()}};
+    if (den) doc["temporal_relmse_compensated"]["denoised"] = denoised_c.value();
+    doc["temporal_compensated_formula"] =
+        "mean over frame pairs, the pixels frame t-1 shows (along frame t's motion) and RGB of (e_t - W e_{t-1})^2 / "
+        "((r_t^2 + (W r_{t-1})^2) / 2 + eps), e = x - r, W: bilinear warp from t-1 to t";
+  }
+  if (disoccluded_pixels > 0) {
+    doc["disoccluded"] = {{"pixels", disoccluded_pixels}, {"noisy_relmse", noisy_d.value()}};
+    if (den) doc["disoccluded"]["denoised_relmse"] = denoised_d.value();
+    doc["disoccluded_formula"] = "relMSE over the pixels of each frame that frame t-1 or t+1 does not show (the motion "
+                                 "AOV's reprojection: off screen, or another depth or normal there)";
   }
   doc["temporal_formula"] = "mean over frame pairs, pixels and RGB of ((x_t - x_{t-1}) - (r_t - r_{t-1}))^2 / (r_t^2 + eps)";
   doc["temporal_symmetric_formula"] =
@@ -120,6 +224,17 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
     std::printf("\ntemporal relMSE, symmetric: noisy %.6f", noisy_t.value_symmetric());
     if (den) std::printf(", denoised %.6f", denoised_t.value_symmetric());
     std::printf("\n  = %s, eps = %g\n", doc["temporal_formula"].get<std::string>().c_str(), o.eps);
+    if (noisy_c.pixels() > 0) {
+      std::printf("temporal relMSE, along the motion: noisy %.6f", noisy_c.value());
+      if (den) std::printf(", denoised %.6f", denoised_c.value());
+      std::printf("\n");
+    }
+    if (disoccluded_pixels > 0) {
+      std::printf("disoccluded pixels (a neighbouring frame shows another surface): %lld, relMSE there: noisy %.6f",
+                  static_cast<long long>(disoccluded_pixels), noisy_d.value());
+      if (den) std::printf(", denoised %.6f", denoised_d.value());
+      std::printf("\n");
+    }
     if (!failed.empty())
       std::printf("%zu of %zu frames not scored (above); the means are over the other %lld\n", failed.size(),
                   frames.size(), static_cast<long long>(scored));

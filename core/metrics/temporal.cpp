@@ -57,4 +57,30 @@ double TemporalRelMse::value_symmetric() const {
   return pixels_ > 0 ? sum_symmetric_ / static_cast<double>(pixels_) : std::numeric_limits<double>::quiet_NaN();
 }
 
+void CompensatedTemporalRelMse::add_pair(const Image& frame, const Image& reference, const Image& previous_error_warped,
+                                         const Image& previous_reference_warped, const Image& valid) {
+  for (const Image* im : {&reference, &previous_error_warped, &previous_reference_warped, &valid})
+    if (im->width() != frame.width() || im->height() != frame.height())
+      throw Error(ErrorKind::Usage, "compensated temporal relMSE: the images of a pair differ in size");
+  for (int64_t y = 0; y < frame.height(); ++y)
+    for (int64_t x = 0; x < frame.width(); ++x) {
+      if (valid.at(x, y) == 0.0f) continue;
+      double term = 0;
+      bool finite = true;
+      for (int c = 0; c < 3; ++c) {
+        const double rt = reference.at(x, y, c), rp = previous_reference_warped.at(x, y, c);
+        const double d = (double{frame.at(x, y, c)} - rt) - previous_error_warped.at(x, y, c);
+        finite = finite && std::isfinite(d) && std::isfinite(rt) && std::isfinite(rp);
+        term += d * d / (0.5 * (rt * rt + rp * rp) + eps_);
+      }
+      if (!finite) continue;
+      sum_ += term / 3.0;
+      ++pixels_;
+    }
+}
+
+double CompensatedTemporalRelMse::value() const {
+  return pixels_ > 0 ? sum_ / static_cast<double>(pixels_) : std::numeric_limits<double>::quiet_NaN();
+}
+
 }  // namespace residue::metrics

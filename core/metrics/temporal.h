@@ -44,4 +44,26 @@ class TemporalRelMse {
   int64_t pairs_ = 0, pixels_ = 0, excluded_ = 0;
 };
 
+// The motion-compensated form (issue 51): frame t's error e_t = x_t - r_t against frame t-1's error brought to
+// frame t along the motion, over the pixels where frame t-1 shows the same surface:
+//
+//   mean over those pixels and RGB of (e_t - W e_{t-1})^2 / ((r_t^2 + (W r_{t-1})^2) / 2 + eps)
+//
+// where W warps frame t-1 to t (core/temporal/reprojection.h). On a moving camera the fixed-pixel forms above also
+// count the error's own motion; this one counts only how the error on a surface changes. The caller warps; this
+// adds one pair. Error(Usage) when the sizes differ.
+class CompensatedTemporalRelMse {
+ public:
+  explicit CompensatedTemporalRelMse(double eps = 0.01) : eps_(eps) {}
+  void add_pair(const Image& frame, const Image& reference, const Image& previous_error_warped,
+                const Image& previous_reference_warped, const Image& valid);
+  double value() const;  // NaN before a pair with a valid pixel
+  int64_t pixels() const { return pixels_; }
+
+ private:
+  double eps_;
+  double sum_ = 0;
+  int64_t pixels_ = 0;
+};
+
 }  // namespace residue::metrics

@@ -53,4 +53,6 @@ tools/models/render_training_data.sh residue-photo residue-pseudo residue-photo-
 step "data: shots for a temporal denoiser (issue 51)"
 mkdir -p /work/datasets
 /usr/bin/python3 tools/datagen/render_shots.py --out /work/datasets/residue-shots-v1 --seeds 8000-8047 --threads 1 --wait
+step "data: second references of the validation shots (the references' floor, issue 51)"
+/usr/bin/python3 tools/datagen/second_references.py /work/datasets/residue-shots-v1 --threads 1
 step "done"
