@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Bit-identity across a change that must not alter any output (a refactor): denoises the Cornell box (Tungsten,
 # from ../shared) and the bundled room with every shipped model, both OIDN modes, the bilateral filter, an
-# ensemble, a strength, a region, both backends and bf16, and writes the EXRs to DIR. Run it before the change
+# ensemble, a strength, a region, both backends and bf16, and the temporal model on a rendered shot, and writes the EXRs to DIR. Run it before the change
 # with `capture DIR`, after it with `compare DIR`: every file must equal its twin to the last bit
 # (oiiotool --diff --fail 0), and the listing says which differ.
 #   tools/dev/identity_check.sh capture /tmp/identity-before
@@ -43,6 +43,9 @@ for c in "${cases[@]}"; do
   # shellcheck disable=SC2086
   "$cli" denoise "$input" -o "$out/$name.exr" --float $opts > "$out/$name.log" 2>&1 || echo "FAILED $name (see $out/$name.log)"
 done
+# A sequence: the temporal model on frames of the committed rendered shot, with their neighbours.
+"$cli" denoise "$repo/tests/data/shot/noisy.####.exr" --temporal --frames 1-3 -o "$out/shot-temporal.####.exr" --float \
+  > "$out/shot-temporal.log" 2>&1 || echo "FAILED shot-temporal (see $out/shot-temporal.log)"
 [ "$mode" = capture ] && { echo "captured $(ls "$out"/*.exr | wc -l) outputs in $out"; exit 0; }
 bad=0
 for f in "$dir"/*.exr; do
