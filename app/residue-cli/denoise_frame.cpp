@@ -67,7 +67,7 @@ void check_output(const std::string& output, const AovStack& layout, const io::E
                  removed.c_str());
 }
 
-// Frame t's neighbours warped to it (core/temporal/frame_window.h), each read once per sequence: frames the
+// Frame t's neighbours warped to it (core/temporal/frame_window.h), kept while the next frames read them: frames the
 // window has moved past are dropped. Returns the offsets the sequence lacks.
 std::vector<int> read_neighbours(FrameContext& context, AovStack& frame, int radius, const NeighbourInputs& inputs) {
   std::map<int, std::shared_ptr<const AovStack>> window;
