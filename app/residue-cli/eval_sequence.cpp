@@ -33,20 +33,25 @@ nlohmann::ordered_json scores_json(const metrics::Scores& s) {
 // Pixels of frame t that a neighbouring frame (t-1 or t+1, where the sequence has it) does not show: the
 // surface was hidden or off screen there (core/temporal/frame_window.h's mask). Where a temporal denoiser has
 // only frame t's samples, and where it would ghost if it trusted a neighbour. Empty when the frame has no motion
-// AOV or no neighbour.
-Image disocclusion_mask(const AovStack& frame, const FramePattern& in, int64_t f, const LoadOptions& load) {
+// AOV or no neighbour. `previous`: frame t-1 when the loop has it already (scored just before), else null and it
+// is read here.
+Image disocclusion_mask(const AovStack& frame, const FramePattern& in, int64_t f, const LoadOptions& load,
+                        const AovStack* previous) {
   if (!frame.motion) return {};
   LoadOptions lo = load;
   lo.load_reference = false;
   lo.reference.reset();
-  std::map<int, AovStack> near;
+  std::map<int, AovStack> read;
+  std::map<int, const AovStack*> near;
+  if (previous) near[-1] = previous;
   for (int d : {-1, 1})
-    if (fs::exists(in.path(f + d))) near.emplace(d, load_aov_stack({in.path(f + d)}, lo));
+    if (!near.count(d) && fs::exists(in.path(f + d)))
+      near[d] = &read.emplace(d, load_aov_stack({in.path(f + d)}, lo)).first->second;
   if (near.empty()) return {};
   AovStack t = frame;
   attach_neighbours(t, 1, [&](int d) -> const AovStack* {
     const auto it = near.find(d);
-    return it == near.end() ? nullptr : &it->second;
+    return it == near.end() ? nullptr : it->second;
   });
   Image mask(frame.width(), frame.height(), 1);
   for (const WarpedNeighbour& n : t.neighbours)
@@ -145,11 +150,12 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
         throw Error(ErrorKind::Input, "'" + den->path(f).string() + "' is not the size of frame " + std::to_string(f));
     }
     noisy_t.add(stack.color.image, r);
-    if (prev && prev_f == f - 1 && stack.motion && prev->width() == stack.width() && prev->height() == stack.height()) {
+    const bool follows = prev && prev_f == f - 1 && prev->width() == stack.width() && prev->height() == stack.height();
+    if (follows && stack.motion) {
       add_compensated(noisy_c, stack.color.image, r, previous_error_at_t(stack, *prev, prev->color.image));
       if (den) add_compensated(denoised_c, d, r, previous_error_at_t(stack, *prev, prev_d));
     }
-    const Image mask = disocclusion_mask(stack, in, f, o.input.load_options());
+    const Image mask = disocclusion_mask(stack, in, f, o.input.load_options(), follows ? &*prev : nullptr);
     if (!mask.empty()) {
       int64_t count = 0;
       for (size_t i = 0; i < mask.size(); ++i) count += mask.data()[i] != 0.0f;
