@@ -4,7 +4,6 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
-#include <optional>
 
 #include <nlohmann/json.hpp>
 

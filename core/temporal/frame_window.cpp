@@ -1,6 +1,5 @@
 #include "core/temporal/frame_window.h"
 
-#include <cstdlib>
 #include <string>
 
 #include "core/util/error.h"
