@@ -46,6 +46,18 @@ TEST(FramePattern, HashesAndPrintf) {
             std::string::npos);
 }
 
+TEST(FramePattern, ANumberedFileNamesItsSequence) {
+  const auto p = FramePattern::of_numbered_file("shots/s8007/noisy.0042.exr");
+  ASSERT_TRUE(p);
+  EXPECT_EQ(p->to_string(), "shots/s8007/noisy.####.exr") << "the folder's digits are not the frame";
+  EXPECT_EQ(p->frame_of("shots/s8007/noisy.0042.exr"), 42);
+  EXPECT_EQ(p->path(1001), "shots/s8007/noisy.1001.exr");
+  EXPECT_EQ(FramePattern::of_numbered_file("beauty_7.exr")->path(12), "beauty_12.exr") << "no padding: none added";
+  EXPECT_EQ(FramePattern::of_numbered_file("v2/shot1001.exr")->to_string(), "v2/shot####.exr");
+  EXPECT_FALSE(FramePattern::of_numbered_file("render/noisy.exr"));
+  EXPECT_FALSE(FramePattern::of_numbered_file("noisy_20261202153000.exr")) << "14 digits: a time stamp, not a frame";
+}
+
 TEST(FrameSpec, RangesStepsAndLists) {
   EXPECT_EQ(parse_frame_spec("1001-1004"), (std::vector<int64_t>{1001, 1002, 1003, 1004}));
   EXPECT_EQ(parse_frame_spec("1001-1010x3"), (std::vector<int64_t>{1001, 1004, 1007, 1010}));

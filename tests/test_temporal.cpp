@@ -1,13 +1,17 @@
 // Flicker (issue 19): the temporal relMSE against an independent float64 computation, its fixed points, its
 // motion-compensated form (issue 51), and `residue-cli eval` on a sequence.
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <fstream>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "core/aov/aov_loader.h"
 #include "core/metrics/temporal.h"
 #include "core/temporal/reprojection.h"
+#include "core/temporal/warped_error.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
 
@@ -112,6 +116,62 @@ TEST(Temporal, TheCompensatedFormFollowsTheSurfaces) {
   EXPECT_GT(fixed.value(), 1e-3) << "at a fixed pixel the error moves past";
   EXPECT_LT(along.value(), 1e-12) << "along the motion it is the same error";
   EXPECT_EQ(along.pixels(), 3 * (W - 2) * H) << "the 2 columns each frame brings in have no past";
+}
+
+// The per-pixel map on two frames of the committed Cycles shot, against the definition written out in float64:
+// frame t-1's error and reference sampled bilinearly where t's motion says the surface was, then the term.
+TEST(Temporal, TheCompensatedMapIsTheDefinitionPerPixel) {
+  const std::string shot = std::string(RESIDUE_SOURCE_RESOURCES) + "/../tests/data/shot/";
+  const auto frame = [&](int f) {
+    LoadOptions o;
+    o.reference = shot + "reference.000" + std::to_string(f) + ".exr";
+    return load_aov_stack({shot + "noisy.000" + std::to_string(f) + ".exr"}, o);
+  };
+  const AovStack t = frame(3), prev = frame(2);
+  ASSERT_TRUE(t.motion && t.reference && prev.reference);
+  const Image& x = t.color.image;
+  const Image& xp = prev.color.image;
+  const Image map = compensated_temporal_map(t, x, prev, xp);
+  const double eps = 0.01;
+  int64_t checked = 0, masked = 0;
+  metrics::CompensatedTemporalRelMse mean;
+  mean.add_map(map);
+  double sum = 0;
+  for (int64_t py = 0; py < t.height(); ++py)
+    for (int64_t px = 0; px < t.width(); ++px) {
+      const float v = map.at(px, py);
+      if (!std::isfinite(v)) {
+        ++masked;
+        continue;
+      }
+      sum += v;
+      const double sx = static_cast<double>(px) + t.motion->image.at(px, py, 0);
+      const double sy = static_cast<double>(py) + t.motion->image.at(px, py, 1);
+      const int64_t x0 = static_cast<int64_t>(std::floor(sx)), y0 = static_cast<int64_t>(std::floor(sy));
+      const double ax = sx - std::floor(sx), ay = sy - std::floor(sy);
+      const auto at = [&](const Image& im, int64_t xx, int64_t yy, int c) {
+        xx = std::clamp<int64_t>(xx, 0, im.width() - 1), yy = std::clamp<int64_t>(yy, 0, im.height() - 1);
+        return double{im.at(xx, yy, c)};
+      };
+      double term = 0;
+      for (int c = 0; c < 3; ++c) {
+        const auto sample = [&](const std::function<double(int64_t, int64_t)>& f) {
+          return (1 - ax) * (1 - ay) * f(x0, y0) + ax * (1 - ay) * f(x0 + 1, y0) + (1 - ax) * ay * f(x0, y0 + 1) +
+                 ax * ay * f(x0 + 1, y0 + 1);
+        };
+        const double ep = sample([&](int64_t a, int64_t b) { return at(xp, a, b, c) - at(prev.reference->image, a, b, c); });
+        const double rp = sample([&](int64_t a, int64_t b) { return at(prev.reference->image, a, b, c); });
+        const double rt = t.reference->image.at(px, py, c);
+        const double d = (double{x.at(px, py, c)} - rt) - ep;
+        term += d * d / (0.5 * (rt * rt + rp * rp) + eps);
+      }
+      EXPECT_NEAR(v, term / 3, 1e-4 * (term / 3) + 1e-9) << px << "," << py;
+      ++checked;
+    }
+  EXPECT_GT(checked, t.width() * t.height() / 2);
+  EXPECT_GT(masked, 0) << "the shot's truck uncovers the road";
+  EXPECT_NEAR(mean.value(), sum / static_cast<double>(checked), 1e-9 * mean.value());
+  EXPECT_EQ(mean.pixels(), checked);
 }
 
 TEST(TemporalCli, EvalScoresASequenceAndItsFlicker) {

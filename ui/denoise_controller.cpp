@@ -9,6 +9,7 @@
 #include "core/denoise/provenance_of.h"
 #include "core/features/features.h"
 #include "core/nn/model_alias.h"
+#include "core/temporal/frame_window.h"
 #include "core/util/error.h"
 #include "ui/session.h"
 
@@ -116,6 +117,28 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
     return start(instead, asked);
   }
 
+  // A temporal method reads the frames beside this one, warped to it (core/temporal/frame_window.h): the
+  // session holds frames t-1 and t+1 of a sequence; a frame it lacks is read as not valid, and said.
+  std::shared_ptr<const AovStack> run_stack = stack;
+  QString neighbours;
+  if (const int radius = method->frame_radius(); radius > 0) {
+    auto with = std::make_shared<AovStack>(*stack);
+    std::vector<int> missing;
+    try {
+      missing = attach_neighbours(*with, radius, [this](int d) { return session_->frameStack(session_->frame() + d).get(); });
+    } catch (const std::exception& e) {
+      emit finished(false, QString::fromStdString(e.what()));
+      return false;
+    }
+    run_stack = std::move(with);
+    if (!session_->sequence()) {
+      neighbours = tr(", no neighbouring frames (not a sequence)");
+    } else if (!missing.empty()) {
+      QStringList offsets;
+      for (int d : missing) offsets << QString("t%1%2").arg(d < 0 ? "-" : "+").arg(std::abs(d));
+      neighbours = tr(", without frame %1").arg(offsets.join(", "));
+    }
+  }
   // Continue the result these settings started (a new region adds to it), else start one from the noisy
   // colour, so that tiles that have not run yet show the input.
   from_noisy_ = !kept;
@@ -151,6 +174,7 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
     if (asked != req.model) description_ += tr(", instead of %1, which has no variant for this render's AOVs").arg(asked);
     else if (variant != req.model) description_ += tr(" — picked for the AOVs this render has");
   }
+  description_ += neighbours;
   const QString description = description_;
   session_->updateResult(result_id_, [&](Result& r) {
     r.description = description;
@@ -176,7 +200,7 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   // Tiles arrive on the worker thread and are handed to the GUI thread; poll() delivers the queued ones before
   // it ends a job, so none of an old job lands in a new one.
   const int id = result_id_;
-  job_ = std::make_unique<DenoiseJob>(stack, method, options, [this, id](const Rect& r, const Image& pixels) {
+  job_ = std::make_unique<DenoiseJob>(run_stack, method, options, [this, id](const Rect& r, const Image& pixels) {
     QMetaObject::invokeMethod(
         this, [this, id, r, pixels] { if (job_) session_->setResultTile(id, r, pixels); }, Qt::QueuedConnection);
   });

@@ -15,6 +15,10 @@
 
 namespace residue::ui {
 
+namespace {
+constexpr int kTemporalKind = 100;  // the kind box's item for the temporal map (not a metrics::MapKind)
+}  // namespace
+
 // ---------------------------------------------------------------------------------------------------------------
 // ColorBar
 
@@ -86,6 +90,11 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   kind_->addItem(tr("absolute error"), static_cast<int>(metrics::MapKind::AbsoluteError));
   kind_->addItem(tr("squared error"), static_cast<int>(metrics::MapKind::SquaredError));
   kind_->addItem(tr("SSIM"), static_cast<int>(metrics::MapKind::Ssim));
+  kind_->addItem(tr("temporal error (along the motion)"), kTemporalKind);
+  kind_->setItemData(kind_->count() - 1,
+                     tr("How much the error changed since frame t-1 on the same surfaces (frames of a sequence with "
+                        "motion vectors; needs the result on frame t-1)"),
+                     Qt::ToolTipRole);
   form->addRow(tr("Map"), kind_);
   of_ = new QComboBox(this);
   of_->setObjectName("heatmapOf");
@@ -169,7 +178,10 @@ HeatmapPanel::Display HeatmapPanel::display() const {
   }
 }
 HeatmapPanel::Of HeatmapPanel::of() const { return static_cast<Of>(of_->currentData().toInt()); }
-metrics::MapKind HeatmapPanel::kind() const { return static_cast<metrics::MapKind>(kind_->currentData().toInt()); }
+metrics::MapKind HeatmapPanel::kind() const {
+  return temporal() ? metrics::MapKind::RelativeSquaredError : static_cast<metrics::MapKind>(kind_->currentData().toInt());
+}
+bool HeatmapPanel::temporal() const { return kind_->currentData().toInt() == kTemporalKind; }
 Colormap HeatmapPanel::colormap() const { return static_cast<Colormap>(colormap_->currentData().toInt()); }
 
 std::pair<double, double> HeatmapPanel::sharedRange(metrics::MapKind kind) {
@@ -206,6 +218,10 @@ ColorScale HeatmapPanel::scale() const {
 QString HeatmapPanel::title() const {
   // Words, not the CLI's short names ("rse" meant nothing to a first-time user).
   QString what;
+  if (temporal()) {
+    return tr("Temporal error along the motion of %1%2").arg(subject_.isEmpty() ? tr("nothing yet") : subject_,
+                                                             scale().log ? tr(" (log)") : QString());
+  }
   switch (kind()) {
     case metrics::MapKind::AbsoluteError: what = tr("Absolute error"); break;
     case metrics::MapKind::SquaredError: what = tr("Squared error"); break;
@@ -235,7 +251,15 @@ void HeatmapPanel::setRange(std::optional<double> lo, std::optional<double> hi) 
 
 void HeatmapPanel::compute(std::shared_ptr<const Image> test, std::shared_ptr<const Image> against,
                            const QString& subject, const QString& missing, const metrics::Options& options) {
-  if (!test || !against) {
+  if (!test || !against) return computeMap(nullptr, subject, missing);
+  metrics::Options o = options;
+  o.roi.reset();  // the map covers the whole image; the ROI only scopes the scores
+  const auto k = kind();
+  computeMap([=] { return metrics::error_map(*test, *against, k, o); }, subject, missing);
+}
+
+void HeatmapPanel::computeMap(std::function<Image()> make, const QString& subject, const QString& missing) {
+  if (!make) {
     task_->supersede();
     map_.reset();
     image_ = QImage();
@@ -245,16 +269,13 @@ void HeatmapPanel::compute(std::shared_ptr<const Image> test, std::shared_ptr<co
     emit ready();
     return;
   }
-  metrics::Options o = options;
-  o.roi.reset();  // the map covers the whole image; the ROI only scopes the scores
-  const auto k = kind();
   const auto cm = colormap();
   const auto sc = scale();
   task_->start([=](const LatestTask<Result>::Token& token) {
     Result r;
     try {
       r.subject = subject;
-      auto map = std::make_shared<Image>(metrics::error_map(*test, *against, k, o));
+      auto map = std::make_shared<Image>(make());
       if (token.superseded()) return r;  // dropped anyway: skip the colouring
       r.range = resolve_range(*map, sc);
       r.image = colorize(*map, cm, sc);

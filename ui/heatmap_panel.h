@@ -7,6 +7,7 @@
 
 #include <QImage>
 #include <QWidget>
+#include <functional>
 #include <memory>
 
 #include "core/image/colormap.h"
@@ -56,6 +57,10 @@ class HeatmapPanel : public QWidget {
   // said when `test` or `against` is null.
   void compute(std::shared_ptr<const Image> test, std::shared_ptr<const Image> against, const QString& subject,
                const QString& missing, const metrics::Options& options);
+  // The same for a map `make` computes on the worker (the temporal map); null `make`: `missing` is said.
+  void computeMap(std::function<Image()> make, const QString& subject, const QString& missing);
+  // The map chosen is the temporal error along the motion (frames of a sequence), not one of kind().
+  bool temporal() const;
   // The map as a picture to keep: the colour-mapped image with the colour bar, title and range below it.
   QImage imageWithBar() const;
   // The fixed range every result's map shares, per kind (what "the same for every result" uses).
@@ -63,7 +68,7 @@ class HeatmapPanel : public QWidget {
 
   Display display() const;
   Of of() const;
-  metrics::MapKind kind() const;
+  metrics::MapKind kind() const;  // the temporal map reads as relative squared error (its range and scale)
   Colormap colormap() const;
   ColorScale scale() const;  // as set: log and the range (shared, typed, or unset for this map's own)
   bool sharedScale() const;  // the range is the fixed one every result shares

@@ -66,6 +66,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   buildDocks();
   buildToolBar();
   buildActions();
+  buildFrameBar();
 
   size_label_ = new QLabel(this);
   zoom_label_ = new QLabel(this);
@@ -534,6 +535,12 @@ void MainWindow::refreshAnalysis() {
   noisy.image = shared(Source::Noisy);
   in.rows.push_back(noisy);
   const int running = denoise_->controller()->runningResult();
+  // Frames of a sequence: each result against itself on frame t-1 (the temporal column and map).
+  if (session_->sequence()) {
+    in.frame = stack;
+    in.previous_frame = session_->frameStack(session_->frame() - 1);
+    in.rows.front().previous = session_->previousImage(nullptr);
+  }
   for (const auto& r : session_->results()) {
     MetricsPanel::Row row;
     row.id = r.id;
@@ -541,6 +548,8 @@ void MainWindow::refreshAnalysis() {
     row.file = r.description;
     // A result still being made is listed without scores: its pixels are half noisy.
     if (r.id != running) row.image = r.id == session_->a() ? session_->denoisedShared() : r.image;
+    // A blended to a strength below 1 has no like on frame t-1 (that frame keeps its results at strength 1).
+    if (in.frame && r.id != running && !(row.a && session_->strength() < 1.0f)) row.previous = session_->previousImage(&r);
     row.seconds = r.seconds;
     row.state = r.done() ? QString() : r.stateText;
     row.a = r.id == session_->a();
@@ -562,6 +571,7 @@ void MainWindow::refreshAnalysis() {
   const QString a_name = session_->resultName(session_->a()), b_name = session_->resultName(session_->b());
   const auto a_image = running == session_->a() ? nullptr : session_->denoisedShared();
   const auto b_image = running == session_->b() ? nullptr : session_->compareShared();
+  if (heatmap_->temporal()) return computeTemporalMap();
   switch (heatmap_->of()) {
     case HeatmapPanel::Of::A:
       heatmap_->compute(a_image, in.reference, a_name.isEmpty() ? tr("A") : a_name,
@@ -683,6 +693,7 @@ void MainWindow::updateTitle() {
 void MainWindow::keyPressEvent(QKeyEvent* e) {
   if (e->key() == Qt::Key_Escape) {
     if (help_->isVisible()) help_->hide();
+    else if (playing_) setPlaying(false);
     else denoise_->cancel();
     return;
   }

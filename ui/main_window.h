@@ -8,6 +8,7 @@
 
 #include <QFuture>
 #include <QFutureWatcher>
+#include <QElapsedTimer>
 #include <QMainWindow>
 #include <memory>
 #include <optional>
@@ -82,6 +83,14 @@ class MainWindow : public QMainWindow {
   // -> noisy).
   void setWipePair(Source a, Source b);
   void setLayout(ImageCanvas::Layout layout);
+  // Sequences (ui/main_window_frames.cpp): the frame shown, stepping, playing, and denoising every frame in turn.
+  bool goToFrame(int64_t frame);  // false when the render is no sequence or has no such frame
+  void stepFrame(int step);       // previous / next, wrapping around while playing
+  void setPlaying(bool play);
+  bool playing() const { return playing_; }
+  void denoiseEveryFrame();       // with the selected settings, from the first frame; Esc stops it
+  bool denoisingEveryFrame() const { return every_frame_; }
+  class FrameBar* frameBar() const { return frame_bar_; }
   int paneIndex(Source s) const;         // index in canvas()->panes(), -1 when not shown
   bool rendering() const;                // panes being re-rendered
   bool busy() const;                     // anything running on a worker (load, render, metrics, heatmap, denoise)
@@ -112,6 +121,10 @@ class MainWindow : public QMainWindow {
   void buildActions();
   void buildDocks();
   void buildToolBar();
+  void buildFrameBar();
+  void updateFrameBar();
+  void playNext();  // panes drawn while playing: the next frame when its time has come
+  void computeTemporalMap();  // the heatmap's temporal error of A, B or the noisy input
   void onLoaded();
   void onLoadFailed(const QString& message, int kind, const QStringList& inputs);
   void refreshPanes();
@@ -181,6 +194,15 @@ class MainWindow : public QMainWindow {
   std::unique_ptr<LatestTask<Rendered>> render_;  // the panes, drawn on a worker
   std::vector<Rect> run_tiles_;  // tiles of the running denoise, re-drawn over panes rendered meanwhile
   int exports_running_ = 0;
+
+  FrameBar* frame_bar_ = nullptr;
+  class QToolBar* frames_toolbar_ = nullptr;
+  QTimer* play_timer_ = nullptr;  // the rest of a frame's time while playing
+  QElapsedTimer frame_clock_;     // since the frame shown was asked for
+  std::vector<qint64> shown_at_;  // when the last frames were shown while playing (ms of play_clock_), for the fps
+  QElapsedTimer play_clock_;
+  bool playing_ = false;
+  bool every_frame_ = false;      // denoising every frame in turn
 };
 
 }  // namespace residue::ui

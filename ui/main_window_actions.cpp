@@ -50,8 +50,12 @@ const std::vector<std::pair<QString, QString>>& MainWindow::shortcuts() {
       {"Shift+drag, right-drag", "region of interest (metrics, ROI denoise)"},
       {"Backspace", "clear the region of interest"},
       {"H", "heatmap: own pane / overlay / off"},
+      {"Left  Right", "previous / next frame of a sequence"},
+      {"Home  End", "first / last frame"},
+      {"P", "play / pause the frames"},
       {"Ctrl+D", "denoise with the selected model"},
-      {"Esc", "cancel the denoise, close this help"},
+      {"Ctrl+Shift+D", "denoise every frame of the sequence"},
+      {"Esc", "stop playing, cancel the denoise (every frame too), close this help"},
       {"Ctrl+O  Ctrl+Shift+O", "open render / open reference"},
       {"Ctrl+Shift+A", "add a result to compare (or drop files on the image)"},
       {"F5", "reload"},
@@ -300,7 +304,19 @@ void MainWindow::buildActions() {
 
   auto* den = menuBar()->addMenu(tr("&Denoise"));
   action(den, tr("&Denoise"), QKeySequence(Qt::CTRL | Qt::Key_D), [this] { denoise_->start(); });
+  action(den, tr("Denoise &Every Frame"), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_D), [this] { denoiseEveryFrame(); });
   action(den, tr("&Cancel"), QKeySequence(), [this] { denoise_->cancel(); });
+
+  auto* frames = menuBar()->addMenu(tr("F&rames"));
+  action(frames, tr("&Previous Frame"), QKeySequence(Qt::Key_Left), [this] { stepFrame(-1); });
+  action(frames, tr("&Next Frame"), QKeySequence(Qt::Key_Right), [this] { stepFrame(+1); });
+  action(frames, tr("&First Frame"), QKeySequence(Qt::Key_Home), [this] {
+    if (const auto& s = session_->sequence()) goToFrame(s->frames.front());
+  });
+  action(frames, tr("&Last Frame"), QKeySequence(Qt::Key_End), [this] {
+    if (const auto& s = session_->sequence()) goToFrame(s->frames.back());
+  });
+  action(frames, tr("P&lay / Pause"), QKeySequence(Qt::Key_P), [this] { setPlaying(!playing_); });
 
   auto* help = menuBar()->addMenu(tr("&Help"));
   auto* keys = action(help, tr("Keyboard shortcuts"), QKeySequence(Qt::Key_Question), [this] { help_->toggle(); });

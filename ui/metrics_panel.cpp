@@ -11,13 +11,17 @@
 #include <QPushButton>
 #include <QTableWidget>
 #include <QVBoxLayout>
+#include <algorithm>
 #include <cmath>
 #include <limits>
+
+#include "core/metrics/temporal.h"
+#include "core/temporal/warped_error.h"
 
 namespace residue::ui {
 
 namespace {
-enum Column { kAB, kName, kRelMse, kSsim, kPsnr, kTime, kRoiRelMse, kRoiSsim, kRoiPsnr, kColumns };
+enum Column { kAB, kName, kRelMse, kSsim, kPsnr, kTemporal, kTime, kRoiRelMse, kRoiSsim, kRoiPsnr, kColumns };
 
 QString number(double v, int precision) {
   if (std::isnan(v)) return QStringLiteral("n/a");
@@ -49,13 +53,16 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
 
   table_ = new QTableWidget(0, kColumns, this);
   table_->setObjectName("metricsTable");
-  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("PSNR"), tr("time"),
+  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("PSNR"), tr("temporal"), tr("time"),
                                      tr("ROI relMSE"), tr("ROI SSIM"), tr("ROI PSNR")});
   const QStringList tips = {tr("A: the denoised pane; B: the one compared with it"),
                             tr("What made the image: model and precision, or the file it came from"),
                             tr("relMSE = mean (x - r)\u00b2 / (r\u00b2 + eps) over the whole image (lower is better)"),
                             tr("SSIM over the whole image (higher is better)"),
                             tr("PSNR in dB over the whole image (higher is better)"),
+                            tr("Temporal error along the motion: how much the error changed since frame t-1 on the "
+                               "same surfaces, relMSE-like (frame t-1's error warped to this frame; pixels it does "
+                               "not show are left out). Lower is steadier. Needs this result on frame t-1 too."),
                             tr("Seconds the run took here"),
                             tr("relMSE in the dragged region"),
                             tr("SSIM in the dragged region"),
@@ -66,7 +73,10 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   table_->setSelectionMode(QAbstractItemView::SingleSelection);
   table_->verticalHeader()->hide();
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::ResizeToContents);
-  table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Stretch);
+  // The name gets the width it needs (up to a limit, then elided), the scores theirs; a narrow side bar scrolls
+  // sideways rather than squeezing the names to a few letters.
+  table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Interactive);
+  table_->horizontalHeader()->setStretchLastSection(true);
   table_->setSortingEnabled(true);
   table_->sortByColumn(kName, Qt::AscendingOrder);  // the order the results came in
   table_->setWordWrap(false);
@@ -128,6 +138,7 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   task_ = std::make_unique<LatestTask<Computed>>(this, [this](Computed&& r) {
     error_ = r.error;
     known_.merge(r.scores);
+    temporal_.merge(r.temporal);
     showTable();
     emit computed();
   });
@@ -160,6 +171,7 @@ void MetricsPanel::compute(Inputs inputs) {
   if (inputs.reference.get() != known_reference_ || o.eps != known_options_.eps ||
       o.ssim_space != known_options_.ssim_space) {
     known_.clear();
+    temporal_.clear();
     known_reference_ = inputs.reference.get();
     known_options_ = o;
   }
@@ -181,15 +193,23 @@ void MetricsPanel::compute(Inputs inputs) {
       if (!known_.count(k)) todo.emplace_back(k, row.image);
     }
   }
+  std::vector<std::pair<Pair, KnownTemporal>> pairs;  // temporal errors not known yet
+  const bool temporal = inputs.frame && inputs.previous_frame && inputs.frame->motion && inputs.frame->reference &&
+                        inputs.previous_frame->reference;
+  if (temporal)
+    for (const auto& row : inputs.rows)
+      if (row.image && row.previous && !temporal_.count({row.image.get(), row.previous.get()}))
+        pairs.push_back({{row.image.get(), row.previous.get()}, {row.image, row.previous, kUnknown}});
   showTable();  // the rows at once, scores as they are known
-  if (todo.empty()) {
+  if (todo.empty() && pairs.empty()) {
     task_->supersede();
     emit computed();
     return;
   }
   scope_->setText(tr("Computing..."));
   const auto reference = inputs.reference;
-  task_->start([todo, reference, o](const LatestTask<Computed>::Token& token) {
+  const auto frame = inputs.frame, previous_frame = inputs.previous_frame;
+  task_->start([todo, pairs, reference, frame, previous_frame, o](const LatestTask<Computed>::Token& token) {
     Computed c;
     try {
       for (const auto& [k, image] : todo) {
@@ -198,6 +218,13 @@ void MetricsPanel::compute(Inputs inputs) {
         const Rect region{k.x, k.y, k.w, k.h};
         if (region != image->bounds()) ko.roi = region;
         c.scores[k] = {image, metrics::compare(*image, *reference, ko)};
+      }
+      for (auto [k, known] : pairs) {  // the mean of the map core's `eval` on a sequence averages too
+        if (token.superseded()) break;
+        metrics::CompensatedTemporalRelMse m(o.eps);
+        m.add_map(compensated_temporal_map(*frame, *known.image, *previous_frame, *known.previous, o.eps));
+        known.value = m.value();
+        c.temporal[k] = known;
       }
     } catch (const std::exception& e) {
       c.scores.clear();
@@ -248,6 +275,8 @@ void MetricsPanel::showTable() {
   table_->setRowCount(static_cast<int>(in.rows.size()));
   const QString formula = QString::fromStdString(metrics::formula_text(o));
   int a_row = -1;
+  const bool temporal_on = in.frame && in.previous_frame && in.frame->motion && in.frame->reference &&
+                           in.previous_frame->reference;
   for (size_t i = 0; i < in.rows.size(); ++i) {
     const auto& row = in.rows[i];
     const int r = static_cast<int>(i);
@@ -279,13 +308,24 @@ void MetricsPanel::showTable() {
     put(kRoiRelMse, roi, &metrics::Scores::relmse, 5);
     put(kRoiSsim, roi, &metrics::Scores::ssim, 5);
     put(kRoiPsnr, roi, &metrics::Scores::psnr, 4);
+    {
+      const auto it = row.image && row.previous ? temporal_.find({row.image.get(), row.previous.get()}) : temporal_.end();
+      const bool known = it != temporal_.end();
+      auto* item = new NumberItem(known ? number(it->second.value, 4) : QString(row.previous && temporal_on ? "..." : "-"),
+                                  known ? it->second.value : kUnknown);
+      if (!row.previous) item->setToolTip(tr("No result with these settings on frame t-1"));
+      table_->setItem(r, kTemporal, item);
+    }
     table_->setItem(r, kTime, new NumberItem(row.seconds > 0 ? QString::number(row.seconds, 'f', 2) + " s" : "-",
                                              row.seconds > 0 ? row.seconds : kUnknown));
     if (row.a) a_row = r;
   }
   for (int c : {kRoiRelMse, kRoiSsim, kRoiPsnr}) table_->setColumnHidden(c, !in.roi);
+  table_->setColumnHidden(kTemporal, !temporal_on);
   table_->setSortingEnabled(true);
   table_->sortByColumn(sort_column, sort_order);
+  table_->resizeColumnToContents(kName);
+  table_->setColumnWidth(kName, std::clamp(table_->columnWidth(kName), 120, 260));
   // A stays selected, wherever the sort put it.
   table_->clearSelection();
   for (int r = 0; r < table_->rowCount(); ++r)

@@ -2,7 +2,9 @@
 // run and added file), with relMSE, SSIM and PSNR against the reference for the whole image and, when a region
 // is dragged, for the region; the run time; which result is A and which is B. Sortable by any column. Scores
 // come from core's metrics on a worker thread (the numbers residue-cli prints) and are kept per image, so a new
-// result or region only computes what is new. Picking rows asks the owner to show them (the session decides).
+// result or region only computes what is new. On a frame of a sequence with motion vectors, a temporal column
+// scores how each result's error changed since frame t-1, along the motion (core/temporal/warped_error.h).
+// Picking rows asks the owner to show them (the session decides).
 #pragma once
 
 #include <QWidget>
@@ -10,6 +12,7 @@
 #include <memory>
 #include <optional>
 
+#include "core/aov/aov_stack.h"
 #include "core/io/metrics_report.h"
 #include "ui/latest_task.h"
 
@@ -31,6 +34,7 @@ class MetricsPanel : public QWidget {
     int id = -1;  // the result's id; -1 for the noisy input
     QString name, file;
     std::shared_ptr<const Image> image;  // null while it is being made: the row shows its state
+    std::shared_ptr<const Image> previous;  // the same result on frame t-1 (sequences), for the temporal column
     double seconds = 0;
     QString state;
     bool a = false, b = false;
@@ -40,6 +44,9 @@ class MetricsPanel : public QWidget {
     std::shared_ptr<const Image> reference;
     QString reference_file;
     std::optional<Rect> roi;
+    // Frames t and t-1 (with references and t's motion) when the render is a frame of a sequence: the temporal
+    // column is shown.
+    std::shared_ptr<const AovStack> frame, previous_frame;
     int64_t noisy_nan = 0, noisy_inf = 0, reference_nan = 0, reference_inf = 0;  // whole-image value counts
   };
   // Recomputes what is not known yet on a worker thread (a computation in flight is superseded); computed()
@@ -84,10 +91,21 @@ class MetricsPanel : public QWidget {
     metrics::Scores scores;
   };
   std::map<Key, Known> known_;
+  struct Pair {  // one result's images on frames t and t-1: its temporal error
+    const Image* image;
+    const Image* previous;
+    bool operator<(const Pair& o) const { return std::tie(image, previous) < std::tie(o.image, o.previous); }
+  };
+  struct KnownTemporal {
+    std::shared_ptr<const Image> image, previous;  // keep the key's pointers from being reused
+    double value;
+  };
+  std::map<Pair, KnownTemporal> temporal_;
   const Image* known_reference_ = nullptr;
   metrics::Options known_options_;
   struct Computed {
     std::map<Key, Known> scores;
+    std::map<Pair, KnownTemporal> temporal;
     QString error;  // e.g. a reference of another size: shown instead of scores
   };
   std::unique_ptr<LatestTask<Computed>> task_;

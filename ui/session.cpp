@@ -29,12 +29,28 @@ QString display_name(AovRole role) {
 struct Session::LoadResult {
   int generation = 0;
   bool reference_only = false;
+  bool step = false;  // another frame of the sequence shown (showFrame), not a new render
   std::vector<std::filesystem::path> inputs;
   LoadOptions options;
   std::shared_ptr<AovStack> stack;
+  std::optional<FrameSequence> sequence;  // the sequence the render is a frame of
+  int64_t frame = 0;
+  std::map<int64_t, std::shared_ptr<const AovStack>> nearby;  // frames t-1 and t+1
   QString error;
   int error_kind = -1;
 };
+
+namespace {
+
+// What a result is across the frames of a sequence: the settings of a run, or a numbered file's pattern.
+QString series(const Result& r) {
+  if (!r.fromFile()) return "run:" + r.key;
+  if (const auto p = io::FramePattern::of_numbered_file(r.file.toStdString()))
+    return QString::fromStdString("file:" + p->to_string());
+  return "file:" + r.file;
+}
+
+}  // namespace
 
 Session::Session(QObject* parent) : QObject(parent) {
   qRegisterMetaType<residue::Rect>("residue::Rect");
@@ -59,7 +75,37 @@ void Session::reload() {
   if (!inputs_.empty()) startLoad(inputs_, options_, false);
 }
 
-void Session::startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only) {
+bool Session::showFrame(int64_t frame) {
+  if (!sequence_ || !sequence_->contains(frame) || !stack_) return false;
+  LoadOptions o = options_;
+  o.reference = sequence_->referenceFor(frame);
+  startLoad({sequence_->input(frame)}, o, false, frame);
+  return true;
+}
+
+std::shared_ptr<const AovStack> Session::frameStack(int64_t frame) const {
+  if (!sequence_) return nullptr;
+  if (frame == frame_) return stack_;
+  const auto it = nearby_.find(frame);
+  return it == nearby_.end() ? nullptr : it->second;
+}
+
+std::shared_ptr<const Image> Session::previousImage(const Result* r) const {
+  if (!sequence_) return nullptr;
+  if (!r) {
+    const auto prev = frameStack(frame_ - 1);
+    return prev ? std::shared_ptr<const Image>(prev, &prev->color.image) : nullptr;
+  }
+  const auto it = memories_.find(frame_ - 1);
+  if (it == memories_.end()) return nullptr;
+  const QString want = series(*r);
+  for (const Result& p : it->second.results)
+    if (p.image && p.complete && p.done() && series(p) == want) return p.image;
+  return nullptr;
+}
+
+void Session::startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only,
+                        std::optional<int64_t> frame) {
   const int generation = ++generation_;
   loading_ = true;
   QStringList names;
@@ -67,15 +113,50 @@ void Session::startLoad(std::vector<std::filesystem::path> inputs, LoadOptions o
   emit loadStarted(reference_only && options.reference
                        ? QString::fromStdString(options.reference->filename().string())
                        : names.join(", "));
+  // Frames a step can reuse instead of reading them again (not after another reference: theirs may change too).
+  std::map<int64_t, std::shared_ptr<const AovStack>> held;
+  if (frame && sequence_ && !reference_only) {
+    held = nearby_;
+    held[frame_] = stack_;
+  }
+  const std::optional<FrameSequence> known = frame ? sequence_ : std::nullopt;
+  const bool in_sequence = sequence_.has_value();
   // A superseded load still runs to its end (OpenImageIO reads cannot be interrupted); its result is dropped.
   watcher_->setFuture(QtConcurrent::run([=]() {
     auto r = std::make_shared<LoadResult>();
     r->generation = generation;
     r->reference_only = reference_only;
+    r->step = frame.has_value();
     r->inputs = inputs;
     r->options = options;
     try {
-      r->stack = std::make_shared<AovStack>(load_aov_stack(inputs, options));
+      // A new render finds its sequence; a reference opened for a frame of one may be a pattern for all of them.
+      if (known) {
+        r->sequence = known;
+        r->frame = *frame;
+      } else if (inputs.size() == 1 && (!reference_only || in_sequence)) {
+        r->sequence = FrameSequence::of(inputs.front(), options.reference);
+        if (r->sequence) {
+          r->frame = *r->sequence->pattern.frame_of(inputs.front().string());
+          if (!r->options.reference) r->options.reference = r->sequence->referenceFor(r->frame);
+        }
+      }
+      r->stack = std::make_shared<AovStack>(load_aov_stack(inputs, r->options));
+      if (r->sequence)
+        for (const int64_t f : {r->frame - 1, r->frame + 1}) {
+          if (!r->sequence->contains(f)) continue;
+          if (const auto it = held.find(f); it != held.end() && it->second) {
+            r->nearby[f] = it->second;
+            continue;
+          }
+          LoadOptions o = r->options;
+          o.reference = r->sequence->referenceFor(f);
+          try {
+            r->nearby[f] = std::make_shared<AovStack>(load_aov_stack({r->sequence->input(f)}, o));
+          } catch (const std::exception&) {
+            // a neighbour that cannot be read is one the frame does without
+          }
+        }
     } catch (const Error& e) {
       r->error = QString::fromStdString(e.what());
       r->error_kind = static_cast<int>(e.kind());
@@ -100,13 +181,68 @@ void Session::finishLoad() {
   inputs_ = r->inputs;
   live_name_.clear();
   options_ = r->options;
+  if (r->step && sequence_) {
+    enterFrame(*r);
+    emit loaded();
+    emit frameChanged();
+    return;
+  }
   stack_ = r->stack;
   if (r->reference_only && same_grid) {
+    if (sequence_ && r->sequence) sequence_->reference = r->sequence->reference;
+    nearby_ = r->nearby;
     emit referenceChanged();
     return;
   }
   clearResults();
+  sequence_ = r->sequence;
+  frame_ = r->frame;
+  nearby_ = r->nearby;
   emit loaded();
+}
+
+void Session::enterFrame(const LoadResult& r) {
+  // The frame shown keeps its results; the one coming back gets its own, if it was shown before.
+  const Result* old_a = result(a_);
+  const Result* old_b = result(b_);
+  const QString want_a = old_a ? series(*old_a) : QString(), want_b = old_b ? series(*old_b) : QString();
+  std::vector<QString> files;  // numbered files added on the frame shown: each follows to the new frame
+  for (const Result& x : results_)
+    if (x.fromFile()) files.push_back(x.file);
+  const int64_t left = frame_;
+  memories_[frame_] = FrameMemory{std::move(results_), a_, b_};
+  results_.clear();
+  a_ = b_ = -1;
+  frame_ = r.frame;
+  stack_ = r.stack;
+  nearby_ = r.nearby;
+  if (const auto it = memories_.find(frame_); it != memories_.end()) {
+    results_ = std::move(it->second.results);
+    a_ = it->second.a;
+    b_ = it->second.b;
+    memories_.erase(it);
+  }
+  ++results_epoch_;
+  // A and B show the same settings (or file series) as on the frame before, where this frame has them.
+  for (const Result& x : results_) {
+    if (!want_a.isEmpty() && series(x) == want_a) a_ = x.id;
+    if (!want_b.isEmpty() && series(x) == want_b && x.id != a_) b_ = x.id;
+  }
+  follow_a_ = want_a;
+  follow_b_ = want_b;
+  blended_.reset();
+  reblend();
+  // A numbered file added on the frame before brings its own file of this frame (at the same frame offset).
+  for (const QString& f : files) {
+    const auto p = io::FramePattern::of_numbered_file(f.toStdString());
+    const auto n = p ? p->frame_of(f.toStdString()) : std::nullopt;
+    if (!n) continue;
+    const std::filesystem::path here = p->path(frame_ + (*n - left));
+    std::error_code ec;
+    const QString name = QString::fromStdString("file:" + p->to_string());
+    const bool has = std::any_of(results_.begin(), results_.end(), [&](const Result& x) { return series(x) == name; });
+    if (!has && std::filesystem::is_regular_file(here, ec)) addResultFile(here);
+  }
 }
 
 void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& name) {
@@ -116,6 +252,8 @@ void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& na
   live_name_ = name;
   stack_ = std::move(stack);
   clearResults();
+  sequence_.reset();
+  nearby_.clear();
   emit loaded();
 }
 
@@ -156,6 +294,9 @@ const Image* Session::image(Source s, AovRole aov) const {
 
 void Session::clearResults() {
   results_.clear();
+  memories_.clear();
+  follow_a_.clear();
+  follow_b_.clear();
   a_ = b_ = -1;
   blended_.reset();
   ++results_epoch_;
@@ -282,8 +423,9 @@ void Session::addResultFile(const std::filesystem::path& file) {
     if (epoch != results_epoch_) return;  // the render changed meanwhile
     if (!error->isEmpty()) return emit resultFailed(*error);
     const int id = addResult(watcher->result());
-    if (a_ < 0) setA(id);
-    else if (b_ < 0) setB(id);
+    const QString s = series(*result(id));
+    if (a_ < 0 || s == follow_a_) setA(id);
+    else if (b_ < 0 || s == follow_b_) setB(id);
   });
   watcher->setFuture(QtConcurrent::run([file, w, h, error]() {
     Result r;

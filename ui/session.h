@@ -6,12 +6,14 @@
 #include <QObject>
 #include <QStringList>
 #include <functional>
+#include <map>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <vector>
 
 #include "core/aov/aov_loader.h"
+#include "ui/frame_sequence.h"
 #include "ui/result.h"
 
 namespace residue::ui {
@@ -52,6 +54,22 @@ class Session : public QObject {
   const std::vector<std::filesystem::path>& inputs() const { return inputs_; }
   const LoadOptions& loadOptions() const { return options_; }
   QString title() const;  // file name(s) for the window title
+
+  // Sequences (ui/frame_sequence.h): a render that is one frame of a sequence steps to the others. Each frame keeps
+  // its results while the render is open (a new render empties them all); A and B follow the same settings from
+  // frame to frame, and results added from numbered files follow the files' frames.
+  const std::optional<FrameSequence>& sequence() const { return sequence_; }
+  int64_t frame() const { return frame_; }  // the frame shown, when sequence()
+  // Loads that frame of the sequence, with its reference; loaded() then frameChanged() follow. False when there is
+  // no sequence or no such frame.
+  bool showFrame(int64_t frame);
+  // Frames t-1 and t+1 of the sequence, read beside frame t (with their references): null where the sequence has
+  // no such frame or it could not be read. A temporal method reads them as neighbours; the temporal column and map
+  // compare with frame t-1.
+  std::shared_ptr<const AovStack> frameStack(int64_t frame) const;
+  // What result `r` of this frame was on frame t-1: the run with the same settings, or the same numbered file's
+  // frame t-1, when that frame has it; else null. The noisy input's is frame t-1's colour.
+  std::shared_ptr<const Image> previousImage(const Result* r) const;
 
   // The reference colour, when known (from the stack or from another file).
   const Image* reference() const;
@@ -102,11 +120,14 @@ class Session : public QObject {
   void denoisedTileChanged(residue::Rect rect);  // a tile of A
   void resultsChanged();    // a result was added, removed, renamed or finished
   void resultFailed(QString message);  // addResultFile() could not use the file
+  void frameChanged();      // another frame of the sequence is shown (after loaded())
 
  private:
   struct LoadResult;
-  void startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only);
+  void startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only,
+                 std::optional<int64_t> frame = std::nullopt);
   void finishLoad();
+  void enterFrame(const LoadResult& r);  // a frame of the sequence replaces the shown one
 
   std::shared_ptr<const AovStack> stack_;
   std::vector<std::filesystem::path> inputs_;
@@ -118,6 +139,16 @@ class Session : public QObject {
   void clearResults();
 
   std::vector<Result> results_;
+  // The sequence's other frames: their results (kept while the render is open) and the stacks of t-1 and t+1.
+  struct FrameMemory {
+    std::vector<Result> results;
+    int a = -1, b = -1;
+  };
+  std::optional<FrameSequence> sequence_;
+  int64_t frame_ = 0;
+  std::map<int64_t, FrameMemory> memories_;
+  std::map<int64_t, std::shared_ptr<const AovStack>> nearby_;
+  QString follow_a_, follow_b_;  // what A and B showed on the frame before: a file of it arriving becomes A / B
   int next_id_ = 1;
   int a_ = -1, b_ = -1;
   int results_epoch_ = 0;  // a file added for an earlier render is dropped when it arrives

@@ -12,6 +12,7 @@
 #include "core/metrics/metrics.h"
 #include "core/metrics/temporal.h"
 #include "core/temporal/frame_window.h"
+#include "core/temporal/warped_error.h"
 #include "core/util/error.h"
 
 namespace residue::cli {
@@ -79,29 +80,6 @@ struct MaskedError {
   double value() const { return values > 0 ? sum / static_cast<double>(values) : 0.0; }
 };
 
-// Frame t-1's error and reference (6 channels) brought to frame t along t's motion, with where that is valid.
-Reprojected previous_error_at_t(const AovStack& t, const AovStack& prev, const Image& prev_x) {
-  const Image& r = prev.reference->image;
-  Image both(r.width(), r.height(), 6);
-  for (int64_t y = 0; y < r.height(); ++y)
-    for (int64_t x = 0; x < r.width(); ++x)
-      for (int c = 0; c < 3; ++c) {
-        both.at(x, y, c) = prev_x.at(x, y, c) - r.at(x, y, c);
-        both.at(x, y, 3 + c) = r.at(x, y, c);
-      }
-  auto img = [](const std::optional<Aov>& a) { return a ? &a->image : nullptr; };
-  return reproject(both, t.motion->image, MotionStep::Previous, img(t.depth), img(prev.depth), img(t.normal),
-                   img(prev.normal));
-}
-
-void add_compensated(metrics::CompensatedTemporalRelMse& m, const Image& x, const Image& r, const Reprojected& w) {
-  Image e(x.width(), x.height(), 3), rp(x.width(), x.height(), 3);
-  for (int64_t y = 0; y < x.height(); ++y)
-    for (int64_t px = 0; px < x.width(); ++px)
-      for (int c = 0; c < 3; ++c) e.at(px, y, c) = w.image.at(px, y, c), rp.at(px, y, c) = w.image.at(px, y, 3 + c);
-  m.add_pair(x, r, e, rp, w.valid);
-}
-
 }  // namespace
 
 int run_eval_sequence(const EvalSequenceOptions& o) {
@@ -152,8 +130,8 @@ int run_eval_sequence(const EvalSequenceOptions& o) {
     noisy_t.add(stack.color.image, r);
     const bool follows = prev && prev_f == f - 1 && prev->width() == stack.width() && prev->height() == stack.height();
     if (follows && stack.motion) {
-      add_compensated(noisy_c, stack.color.image, r, previous_error_at_t(stack, *prev, prev->color.image));
-      if (den) add_compensated(denoised_c, d, r, previous_error_at_t(stack, *prev, prev_d));
+      noisy_c.add_map(compensated_temporal_map(stack, stack.color.image, *prev, prev->color.image, o.eps));
+      if (den) denoised_c.add_map(compensated_temporal_map(stack, d, *prev, prev_d, o.eps));
     }
     const Image mask = disocclusion_mask(stack, in, f, o.input.load_options(), follows ? &*prev : nullptr);
     if (!mask.empty()) {

@@ -59,6 +59,18 @@ std::optional<FramePattern> FramePattern::parse(const std::string& text) {
   return found;
 }
 
+std::optional<FramePattern> FramePattern::of_numbered_file(const std::string& file) {
+  const auto slash = file.rfind('/');
+  const size_t name_start = slash == std::string::npos ? 0 : slash + 1;
+  size_t end = file.size();
+  while (end > name_start && !std::isdigit(static_cast<unsigned char>(file[end - 1]))) --end;
+  if (end == name_start) return std::nullopt;
+  size_t begin = end;
+  while (begin > name_start && std::isdigit(static_cast<unsigned char>(file[begin - 1]))) --begin;
+  if (end - begin > 9) return std::nullopt;  // a date or an id, not a frame
+  return FramePattern{file.substr(0, begin), file.substr(end), static_cast<int>(end - begin)};
+}
+
 fs::path FramePattern::path(int64_t frame) const {
   std::string digits = std::to_string(frame);
   if (static_cast<int>(digits.size()) < width) digits.insert(0, static_cast<size_t>(width) - digits.size(), '0');

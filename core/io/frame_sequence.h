@@ -20,6 +20,10 @@ struct FramePattern {
   // The pattern of `text`, or nullopt when it names no frame (a plain file name). Error(Usage) for a name with
   // two frame fields.
   static std::optional<FramePattern> parse(const std::string& text);
+  // The pattern a frame's own file belongs to, as image viewers find sequences: the last run of digits in the
+  // file name is the frame number ("shot.0042.exr" -> "shot.####.exr", "beauty_7.exr" -> "beauty_#.exr"); nullopt
+  // when the name has no digits.
+  static std::optional<FramePattern> of_numbered_file(const std::string& file);
   std::filesystem::path path(int64_t frame) const;
   std::string to_string() const;  // with '#'s, e.g. "out/shot.####.exr"
   // The frame number of `file` (a path written by path()), or nullopt when it does not match.

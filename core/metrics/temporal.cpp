@@ -57,13 +57,16 @@ double TemporalRelMse::value_symmetric() const {
   return pixels_ > 0 ? sum_symmetric_ / static_cast<double>(pixels_) : std::numeric_limits<double>::quiet_NaN();
 }
 
-void CompensatedTemporalRelMse::add_pair(const Image& frame, const Image& reference, const Image& previous_error_warped,
-                                         const Image& previous_reference_warped, const Image& valid) {
+Image compensated_temporal_map(const Image& frame, const Image& reference, const Image& previous_error_warped,
+                               const Image& previous_reference_warped, const Image& valid, double eps) {
   for (const Image* im : {&reference, &previous_error_warped, &previous_reference_warped, &valid})
     if (im->width() != frame.width() || im->height() != frame.height())
       throw Error(ErrorKind::Usage, "compensated temporal relMSE: the images of a pair differ in size");
+  Image map(frame.width(), frame.height(), 1);
   for (int64_t y = 0; y < frame.height(); ++y)
     for (int64_t x = 0; x < frame.width(); ++x) {
+      float& out = map.at(x, y);
+      out = std::numeric_limits<float>::quiet_NaN();
       if (valid.at(x, y) == 0.0f) continue;
       double term = 0;
       bool finite = true;
@@ -71,10 +74,22 @@ void CompensatedTemporalRelMse::add_pair(const Image& frame, const Image& refere
         const double rt = reference.at(x, y, c), rp = previous_reference_warped.at(x, y, c);
         const double d = (double{frame.at(x, y, c)} - rt) - previous_error_warped.at(x, y, c);
         finite = finite && std::isfinite(d) && std::isfinite(rt) && std::isfinite(rp);
-        term += d * d / (0.5 * (rt * rt + rp * rp) + eps_);
+        term += d * d / (0.5 * (rt * rt + rp * rp) + eps);
       }
-      if (!finite) continue;
-      sum_ += term / 3.0;
+      if (finite) out = static_cast<float>(term / 3.0);
+    }
+  return map;
+}
+
+void CompensatedTemporalRelMse::add_pair(const Image& frame, const Image& reference, const Image& previous_error_warped,
+                                         const Image& previous_reference_warped, const Image& valid) {
+  add_map(compensated_temporal_map(frame, reference, previous_error_warped, previous_reference_warped, valid, eps_));
+}
+
+void CompensatedTemporalRelMse::add_map(const Image& map) {
+  for (size_t i = 0; i < map.size(); ++i)
+    if (const float v = map.data()[i]; std::isfinite(v)) {
+      sum_ += v;
       ++pixels_;
     }
 }

@@ -57,6 +57,7 @@ class CompensatedTemporalRelMse {
   explicit CompensatedTemporalRelMse(double eps = 0.01) : eps_(eps) {}
   void add_pair(const Image& frame, const Image& reference, const Image& previous_error_warped,
                 const Image& previous_reference_warped, const Image& valid);
+  void add_map(const Image& map);  // a pair's compensated_temporal_map(): its finite pixels
   double value() const;  // NaN before a pair with a valid pixel
   int64_t pixels() const { return pixels_; }
 
@@ -65,5 +66,11 @@ class CompensatedTemporalRelMse {
   double sum_ = 0;
   int64_t pixels_ = 0;
 };
+
+// One pair's terms per pixel (1 channel): the mean over RGB of the term above where frame t-1 shows the same
+// surface and every value is finite, NaN elsewhere. The mean of its finite pixels is the pair's value; the viewer's
+// temporal error map. Error(Usage) when the sizes differ.
+Image compensated_temporal_map(const Image& frame, const Image& reference, const Image& previous_error_warped,
+                               const Image& previous_reference_warped, const Image& valid, double eps = 0.01);
 
 }  // namespace residue::metrics
