@@ -239,6 +239,7 @@ QImage HeatmapPanel::imageWithBar() const {
 bool HeatmapPanel::busy() const { return task_->busy(); }
 
 void HeatmapPanel::setKind(metrics::MapKind k) { kind_->setCurrentIndex(kind_->findData(static_cast<int>(k))); }
+void HeatmapPanel::setTemporal() { kind_->setCurrentIndex(kind_->findData(kTemporalKind)); }
 void HeatmapPanel::setOf(Of o) { of_->setCurrentIndex(of_->findData(static_cast<int>(o))); }
 void HeatmapPanel::setDisplay(Display d) { display_->setCurrentIndex(d == Display::Pane ? 0 : d == Display::Overlay ? 1 : 2); }
 void HeatmapPanel::setColormap(Colormap m) { colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(m))); }

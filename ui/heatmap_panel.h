@@ -79,6 +79,7 @@ class HeatmapPanel : public QWidget {
   bool busy() const;
 
   void setKind(metrics::MapKind kind);
+  void setTemporal();  // the temporal map (setKind picks one of the others)
   void setOf(Of of);
   void setDisplay(Display d);
   void setColormap(Colormap map);

@@ -21,7 +21,7 @@
 namespace residue::ui {
 
 namespace {
-enum Column { kAB, kName, kRelMse, kSsim, kPsnr, kTemporal, kTime, kRoiRelMse, kRoiSsim, kRoiPsnr, kColumns };
+enum Column { kAB, kName, kRelMse, kSsim, kTemporal, kPsnr, kTime, kRoiRelMse, kRoiSsim, kRoiPsnr, kColumns };
 
 QString number(double v, int precision) {
   if (std::isnan(v)) return QStringLiteral("n/a");
@@ -53,16 +53,16 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
 
   table_ = new QTableWidget(0, kColumns, this);
   table_->setObjectName("metricsTable");
-  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("PSNR"), tr("temporal"), tr("time"),
+  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("temporal"), tr("PSNR"), tr("time"),
                                      tr("ROI relMSE"), tr("ROI SSIM"), tr("ROI PSNR")});
   const QStringList tips = {tr("A: the denoised pane; B: the one compared with it"),
                             tr("What made the image: model and precision, or the file it came from"),
                             tr("relMSE = mean (x - r)\u00b2 / (r\u00b2 + eps) over the whole image (lower is better)"),
                             tr("SSIM over the whole image (higher is better)"),
-                            tr("PSNR in dB over the whole image (higher is better)"),
                             tr("Temporal error along the motion: how much the error changed since frame t-1 on the "
                                "same surfaces, relMSE-like (frame t-1's error warped to this frame; pixels it does "
                                "not show are left out). Lower is steadier. Needs this result on frame t-1 too."),
+                            tr("PSNR in dB over the whole image (higher is better)"),
                             tr("Seconds the run took here"),
                             tr("relMSE in the dragged region"),
                             tr("SSIM in the dragged region"),

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string_view>
 
 #include "core/util/openmp_env.h"
@@ -82,6 +83,10 @@ int main(int argc, char** argv) {
   const QCommandLineOption aov("aov", "The AOV the noisy pane shows: color, albedo, normal, depth, variance or motion.",
                                "aov");
   const QCommandLineOption heatmap_of("heatmap-of", "What the heatmap maps: a, b, noisy or a-vs-b.", "what");
+  const QCommandLineOption heatmap_kind("heatmap-kind", "The heatmap's map: rse, abs, se, ssim, or temporal (the error's "
+                                        "change since frame t-1 along the motion, on a sequence).", "kind");
+  const QCommandLineOption every_frame("every-frame", "With --denoise, on a frame of a sequence: denoise every frame in "
+                                       "turn (Denoise > Every Frame), then show the frame opened.");
   const QCommandLineOption export_all("export-all", "Once everything is done, export all into DIR (ask nothing: "
                                       "fails rather than replace files).", "dir");
   const QCommandLineOption heatmap("heatmap", "Heatmap display: pane, overlay or off.", "display");
@@ -107,7 +112,7 @@ int main(int argc, char** argv) {
                                       "MiB (default: a quarter of this machine's RAM).", "MiB");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
                         &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
-                        &ipc_port, &no_ipc, &ipc_memory, &aov})
+                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame})
     cli.addOption(*o);
   cli.process(app);
 
@@ -131,6 +136,9 @@ int main(int argc, char** argv) {
   checked.one_of(cli, pane, {"noisy", "denoised", "compare", "reference", "heatmap"});
   checked.one_of(cli, heatmap, {"pane", "overlay", "off"});
   checked.one_of(cli, heatmap_of, {"a", "b", "noisy", "a-vs-b"});
+  checked.one_of(cli, heatmap_kind, {"rse", "abs", "se", "ssim", "temporal"});
+  if (cli.isSet(every_frame) && !cli.isSet(denoise))
+    checked.errors << QStringLiteral("--every-frame needs --denoise: it says how --denoise runs");
   checked.one_of(cli, precision, {"fp32", "bf16"});
   checked.one_of(cli, tab, residue::ui::MainWindow::sideTabNames());
   checked.one_of(cli, aov, {"color", "albedo", "normal", "depth", "variance", "motion"});
@@ -186,6 +194,10 @@ int main(int argc, char** argv) {
     using Of = residue::ui::HeatmapPanel::Of;
     window.heatmapPanel()->setOf(o == "b" ? Of::B : o == "noisy" ? Of::Noisy : o == "a-vs-b" ? Of::AgainstB : Of::A);
   }
+  if (cli.isSet(heatmap_kind)) {
+    if (cli.value(heatmap_kind) == "temporal") window.heatmapPanel()->setTemporal();
+    else window.heatmapPanel()->setKind(*residue::metrics::map_kind_from_string(cli.value(heatmap_kind).toStdString()));
+  }
   if (cli.isSet(tile)) window.denoisePanel()->setTile(cli.value(tile).toLongLong());
   if (cli.isSet(heatmap)) {
     const QString h = cli.value(heatmap);
@@ -198,9 +210,10 @@ int main(int argc, char** argv) {
   // Applies the view options once the first images are on screen.
   bool configured = false;
   QStringList pending_models = models.isEmpty() ? QStringList{window.denoisePanel()->selectedModel()} : models;
-  // --denoise with several models: the next starts when one ends.
+  // --denoise with several models: the next starts when one ends (with --every-frame, once every frame has it).
+  std::optional<int64_t> opened_frame;  // --every-frame: the frame to show again at the end
   QObject::connect(window.denoisePanel(), &residue::ui::DenoisePanel::finished, &app, [&] {
-    if (!cli.isSet(denoise) || pending_models.isEmpty()) return;
+    if (!cli.isSet(denoise) || pending_models.isEmpty() || window.denoisingEveryFrame()) return;
     QTimer::singleShot(0, &app, [&] {
       window.denoisePanel()->selectModel(pending_models.takeFirst());
       window.denoisePanel()->start();
@@ -210,13 +223,19 @@ int main(int argc, char** argv) {
   bool finished_setup = false;
   auto export_done = std::make_shared<bool>(!cli.isSet(export_all));
   const auto allDone = [&] {
+    const bool every_done = !cli.isSet(every_frame) || (!window.denoisingEveryFrame() && opened_frame &&
+                                                        window.session()->frame() == *opened_frame);
     const bool runs_done = !cli.isSet(denoise) || (pending_models.isEmpty() && !window.denoisePanel()->running() &&
-                                                   window.session()->denoised());
+                                                   window.session()->denoised() && every_done);
     const size_t added = static_cast<size_t>(cli.values(add).size()) + (cli.isSet(denoise) ? static_cast<size_t>(models.size()) : 0);
     return configured && runs_done && window.session()->results().size() >= added && !window.busy();
   };
   auto* finisher = new QTimer(&app);
   QObject::connect(finisher, &QTimer::timeout, &app, [&, finisher] {
+    // --every-frame ends on the last frame: back to the one opened.
+    if (opened_frame && !window.denoisingEveryFrame() && !window.busy() && window.session()->frame() != *opened_frame &&
+        pending_models.isEmpty())
+      window.goToFrame(*opened_frame);
     if (!allDone()) return;
     if (!finished_setup) {
       finished_setup = true;
@@ -275,7 +294,13 @@ int main(int argc, char** argv) {
     if (!cli.values(add).isEmpty()) window.addResultFiles(cli.values(add));
     if (cli.isSet(denoise)) {
       window.denoisePanel()->selectModel(pending_models.takeFirst());
-      window.denoisePanel()->start();
+      if (cli.isSet(every_frame)) {
+        pending_models.clear();  // one model, on every frame
+        opened_frame = window.session()->frame();
+        window.denoiseEveryFrame();
+      } else {
+        window.denoisePanel()->start();
+      }
     }
   };
   QObject::connect(&window, &MainWindow::panesRendered, &app, configure);

@@ -43,6 +43,10 @@ if [ -f "$cornell/nfor.exr" ]; then
     --tab results
 fi
 
+# A sequence (the committed 6-frame Cycles shot): every frame denoised by the temporal model, the temporal map.
+shot viewer_sequence "$repo/tests/data/shot/noisy.0003.exr" --model multiscale-temporal --denoise --every-frame \
+  --heatmap-kind temporal --screenshot-when denoised --tab results
+
 # A denoise in progress needs a render that takes a while: the example repeated 8 x 8 (1536 x 1536; repeated,
 # not upscaled, so that the noise stays per-pixel), every channel and its name kept.
 tile_8x8() {
