@@ -179,9 +179,9 @@ int run(const Options& o) {
   const size_t slash = o.arch.find('/');
   const auto blocks = nn::parse_ints(o.arch.substr(0, slash), 1, 64);
   const auto widths = slash == std::string::npos ? std::nullopt : nn::parse_ints(o.arch.substr(slash + 1), 1, 4096);
-  if (!blocks || !widths || blocks->size() != widths->size() || blocks->size() > 6)
+  if (!blocks || !widths || blocks->size() != widths->size())
     throw Error(ErrorKind::Usage, "--arch: expected BLOCKS/WIDTH (e.g. 8/64), or per level BLOCKS,.../WIDTH,... for a "
-                                  "multi-scale network of 2-6 levels (e.g. 2,2,4/32,48,64)");
+                                  "multi-scale network (e.g. 2,2,4/32,48,64)");
   arch.blocks = blocks->front();
   arch.width = widths->front();
   if (blocks->size() > 1) {
@@ -200,20 +200,16 @@ int run(const Options& o) {
     throw Error(ErrorKind::Usage, "--exposure-key needs --autoexposure");
   arch.prior = o.prior;
   arch.temporal = o.temporal;
-  if (arch.temporal > 0 && (arch.features != FeatureSet::Full || o.demodulate || !o.prior.empty()))
-    throw Error(ErrorKind::Usage, "--temporal needs --features full, without --demodulate or --prior");
   if (arch.temporal > 0 && o.shots.empty()) throw Error(ErrorKind::Usage, "--temporal trains on shots: give --shots");
   if (o.data.empty() && o.shots.empty()) throw Error(ErrorKind::Usage, "give --data (scenes) or --shots (shots)");
-  if (!arch.prior.empty() && arch.features != FeatureSet::Full)
-    throw Error(ErrorKind::Usage, "--prior needs --features full");
   const int albedo_at = train::albedo_plane(arch.features);
-  if (arch.demodulate && albedo_at < 0)
-    throw Error(ErrorKind::Usage, "--demodulate needs a feature set with the albedo, not \"" + o.features + "\"");
   if (!o.dilations.empty()) {
     const auto d = nn::parse_dilations(o.dilations);
     if (!d) throw Error(ErrorKind::Usage, "--dilations: expected integers from 1 to 64, e.g. 1,2,4,8");
     arch.dilations = *d;
   }
+  // --arch, --features, --dilations, --demodulate, --prior and --temporal together (the rules model files obey).
+  if (const auto c = arch.contradiction()) throw Error(ErrorKind::Usage, "these options cannot go together: " + *c);
   const int normal_at = train::normal_plane(arch.features);
   if (o.edge_ssim_weight > 0 && (albedo_at < 0 || normal_at < 0))
     throw Error(ErrorKind::Usage, "--edge-ssim-weight needs a feature set with the albedo and the normal, not \"" +

@@ -181,8 +181,6 @@ Model load_model(const std::filesystem::path& path) {
     if (!levels || !widths || levels->size() != widths->size() || levels->size() < 2 || levels->size() > 6)
       throw Error(ErrorKind::Input, where + ": metadata \"residue.levels\" and \"residue.widths\" must list, for 2 to 6 "
                                     "levels, the ResBlocks (1-64) and the width (1-4096) of each (\"2,2,4\" and \"32,48,64\")");
-    if (!arch.dilations.empty())
-      throw Error(ErrorKind::Input, where + ": a multi-scale network has no dilations (metadata \"residue.dilations\")");
     arch.levels = *levels;
     arch.widths = *widths;
     arch.blocks = arch.levels.front();
@@ -207,14 +205,11 @@ Model load_model(const std::filesystem::path& path) {
     arch.exposure_key = key;
   }
   arch.demodulate = flag("residue.demodulate");
-  if (arch.demodulate && arch.features == FeatureSet::ColorOnly)
-    throw Error(ErrorKind::Input, where + ": a demodulated model needs the albedo, but its feature set is \"color\"");
   if (md.count("residue.prior")) {
     arch.prior = md.at("residue.prior");
-    if (arch.prior != "oidn" || arch.features != FeatureSet::Full)
+    if (arch.prior != "oidn")
       throw Error(ErrorKind::Input, where + ": metadata \"residue.prior\" must be \"oidn\" (a full-AOV model refining Open "
-                                    "Image Denoise's rt_hdr_alb_nrm), not \"" + arch.prior + "\" with feature set \"" +
-                                    to_string(arch.features) + "\"");
+                                    "Image Denoise's rt_hdr_alb_nrm), not \"" + arch.prior + "\"");
   }
   if (const auto it = md.find("residue.temporal"); it != md.end()) {
     const auto k = parse_ints(it->second, 1, 2);
@@ -222,10 +217,8 @@ Model load_model(const std::filesystem::path& path) {
       throw Error(ErrorKind::Input, where + ": metadata \"residue.temporal\" must be the radius of the frames it sees, 1 "
                                     "or 2, not \"" + it->second + "\"");
     arch.temporal = k->front();
-    if (arch.features != FeatureSet::Full || arch.demodulate || !arch.prior.empty())
-      throw Error(ErrorKind::Input, where + ": a temporal model reads the \"full\" feature set, not demodulated and with "
-                                    "no prior");
   }
+  if (const auto c = arch.contradiction()) throw Error(ErrorKind::Input, where + ": " + *c);
   const float eps = md.count("residue.bn_eps") ? metadata_eps(md.at("residue.bn_eps"), where) : kBnEps;
 
   Model m;

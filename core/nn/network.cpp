@@ -90,6 +90,20 @@ std::string exposure_key_string(float key) {
   }
 }
 
+std::optional<std::string> Architecture::contradiction() const {
+  if (multiscale() && (levels.size() != widths.size() || levels.size() < 2 || levels.size() > 6))
+    return "a multi-scale network has 2 to 6 levels, each with its number of ResBlocks and its width";
+  if (multiscale() && !dilations.empty()) return "a multi-scale network has no dilations";
+  if (demodulate && features == FeatureSet::ColorOnly)
+    return "demodulation needs the albedo, which the \"color\" feature set does not have";
+  if (!prior.empty() && features != FeatureSet::Full)
+    return "a post-correction model (a prior) reads the \"full\" feature set, not \"" + std::string(residue::to_string(features)) + "\"";
+  if (temporal < 0 || temporal > 2) return "a temporal model sees 1 or 2 frames each side, not " + std::to_string(temporal);
+  if (temporal > 0 && (features != FeatureSet::Full || demodulate || !prior.empty()))
+    return "a temporal model reads the \"full\" feature set, not demodulated and with no prior";
+  return std::nullopt;
+}
+
 std::string Architecture::autoexposure_string() const {
   if (!autoexposure) return "";
   return exposure_key == kOidnExposureKey ? " autoexposure" : " autoexposure " + exposure_key_string(exposure_key);

@@ -77,6 +77,10 @@ struct Architecture {
   double flops_per_pixel() const;
   std::string to_string() const;  // "16/128 full", "8/32 full dilated 1,2,4,8 input-skip", "ms 2,2,4/32,48,64 full"
   std::string autoexposure_string() const;  // "", " autoexposure" (OIDN's key) or " autoexposure 1"
+  // Why these settings cannot go together (a temporal model with a prior, demodulation without an albedo, ...),
+  // or nullopt. The one place the rules live: a model file's metadata and the trainer's options are both checked
+  // against it.
+  std::optional<std::string> contradiction() const;
 };
 
 // The network's input planes by name, in order: the feature set's (feature_planes), then a post-correction
