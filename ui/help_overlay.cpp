@@ -6,11 +6,15 @@
 
 namespace residue::ui {
 
-HelpOverlay::HelpOverlay(std::vector<std::pair<QString, QString>> shortcuts, QWidget* parent)
-    : QWidget(parent), shortcuts_(std::move(shortcuts)) {
+HelpOverlay::HelpOverlay(QWidget* parent) : QWidget(parent) {
   setObjectName("helpOverlay");
   if (parent) parent->installEventFilter(this);
   hide();
+}
+
+void HelpOverlay::setShortcuts(std::vector<std::pair<QString, QString>> shortcuts) {
+  shortcuts_ = std::move(shortcuts);
+  update();
 }
 
 void HelpOverlay::toggle() {
@@ -38,8 +42,9 @@ void HelpOverlay::paintEvent(QPaintEvent*) {
   }
   // As many rows as fit the height, in as many columns as that takes; descriptions shortened to the width.
   const int n = static_cast<int>(shortcuts_.size());
-  const int rows = std::clamp((height() - 20) / line - 2, 1, std::max(1, n));
-  const int columns = (n + rows - 1) / rows;
+  const int fit = std::clamp((height() - 20) / line - 2, 1, std::max(1, n));
+  const int columns = (n + fit - 1) / fit;
+  const int rows = (n + columns - 1) / columns;  // the columns filled evenly, not one full and one nearly empty
   const int column_width = std::min(key_width + 24 + what_width + 32, (width() - 20) / columns);
   const int x0 = std::max(10, (width() - columns * column_width) / 2);
   int y0 = std::max(10 + fm.ascent(), (height() - line * (std::min(rows, n) + 2)) / 2);

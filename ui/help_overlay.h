@@ -10,8 +10,8 @@ namespace residue::ui {
 class HelpOverlay : public QWidget {
   Q_OBJECT
  public:
-  // `shortcuts`: (keys, what they do), in display order.
-  HelpOverlay(std::vector<std::pair<QString, QString>> shortcuts, QWidget* parent);
+  explicit HelpOverlay(QWidget* parent);
+  void setShortcuts(std::vector<std::pair<QString, QString>> shortcuts);  // (keys, what they do), in display order
   void toggle();
 
  protected:

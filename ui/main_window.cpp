@@ -60,13 +60,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   canvas_ = new ImageCanvas(this);
   canvas_->setObjectName("canvas");
   setCentralWidget(canvas_);
-  help_ = new HelpOverlay(shortcuts(), canvas_);
+  help_ = new HelpOverlay(canvas_);
   render_ = std::make_unique<LatestTask<Rendered>>(this, [this](Rendered&& r) { showRendered(std::move(r)); });
 
   buildDocks();
   buildToolBar();
   buildActions();
   buildFrameBar();
+  help_->setShortcuts(shortcutRows());
 
   size_label_ = new QLabel(this);
   zoom_label_ = new QLabel(this);

@@ -117,7 +117,7 @@ class MainWindow : public QMainWindow {
   void keyPressEvent(QKeyEvent*) override;
 
  private:
-  static const std::vector<std::pair<QString, QString>>& shortcuts();  // key, what it does (main_window_actions.cpp)
+  std::vector<std::pair<QString, QString>> shortcutRows() const;  // the help overlay's (keys, what they do)
   void buildActions();
   void buildDocks();
   void buildToolBar();

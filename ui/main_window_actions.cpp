@@ -29,43 +29,25 @@
 
 namespace residue::ui {
 
-// The shortcuts, in one table: the actions use them and the help overlay lists them.
-const std::vector<std::pair<QString, QString>>& MainWindow::shortcuts() {
-  static const std::vector<std::pair<QString, QString>> table = {
-      {"1 - 9", "show result 1-9 (rows of the Results tab) as A"},
-      {"Ctrl+1 - 9", "show result 1-9 as B, beside A"},
-      {"Tab  Shift+Tab", "single layout: next / previous pane"},
-      {"A", "all panes, in a grid"},
-      {"S", "A and B side by side"},
-      {"W", "wipe between A and B (drag the line)"},
-      {"Space", "flip between A and B"},
-      {"D", "difference: the map of A against B"},
-      {"[  ]", "previous / next AOV of the noisy input"},
-      {"E  Shift+E", "exposure up / down half a stop"},
-      {"R", "reset exposure and offset"},
-      {"F", "fit"},
-      {"Ctrl+0", "1:1 (one image pixel per screen pixel)"},
-      {"+  -  wheel", "zoom (the wheel zooms about the cursor)"},
-      {"drag", "pan"},
-      {"Shift+drag, right-drag", "region of interest (metrics, ROI denoise)"},
-      {"Backspace", "clear the region of interest"},
-      {"H", "heatmap: own pane / overlay / off"},
-      {"Left  Right", "previous / next frame of a sequence"},
-      {"Home  End", "first / last frame"},
-      {"P", "play / pause the frames"},
-      {"Ctrl+D", "denoise with the selected model"},
-      {"Ctrl+Shift+D", "denoise every frame of the sequence"},
-      {"Esc", "stop playing, cancel the denoise (every frame too), close this help"},
-      {"Ctrl+O  Ctrl+Shift+O", "open render / open reference"},
-      {"Ctrl+Shift+A", "add a result to compare (or drop files on the image)"},
-      {"F5", "reload"},
-      {"Ctrl+E", "export the denoised EXR"},
-      {"Ctrl+Shift+S", "export the comparison sheet (PNG)"},
-      {"Ctrl+Shift+E", "export all: results, heatmaps, metrics, sheet"},
-      {"F9", "hide / show the side bar"},
-      {"?  F1", "this help"},
-  };
-  return table;
+// The help overlay's rows come from the actions themselves: each action's `help` text, with its shortcuts (actions
+// that share a text share a row: "E  Shift+E"), then what the mouse does. A key is written once, where it is bound.
+std::vector<std::pair<QString, QString>> MainWindow::shortcutRows() const {
+  std::vector<std::pair<QString, QString>> rows;
+  for (const QAction* a : actions()) {
+    const QString what = a->property("help").toString();
+    if (what.isEmpty()) continue;
+    QString keys = a->property("helpKeys").toString();
+    if (keys.isEmpty()) keys = a->shortcut().toString(QKeySequence::NativeText);
+    const auto it = std::find_if(rows.begin(), rows.end(), [&](const auto& r) { return r.second == what; });
+    if (it == rows.end()) rows.emplace_back(keys, what);
+    else if (!a->property("helpKeys").isValid() && !it->first.contains(keys)) it->first += "  " + keys;
+  }
+  for (const auto& [keys, what] : std::initializer_list<std::pair<QString, QString>>{
+           {tr("Esc"), tr("stop playing, cancel, close help")},
+           {tr("drag"), tr("pan")},
+           {tr("Shift+drag, right-drag"), tr("region of interest")}})
+    rows.emplace_back(keys, what);
+  return rows;
 }
 
 void MainWindow::buildDocks() {
@@ -156,6 +138,16 @@ void MainWindow::buildToolBar() {
   view_box_->setToolTip(display_box_->toolTip());
 }
 
+namespace {
+// Lists an action's shortcut in the help overlay as `help`; `keys`, when given, is what it shows for the keys (a
+// range of actions: "1 - 9").
+QAction* listed(QAction* a, const QString& help, const QString& keys = QString()) {
+  a->setProperty("help", help);
+  if (!keys.isEmpty()) a->setProperty("helpKeys", keys);
+  return a;
+}
+}  // namespace
+
 void MainWindow::buildActions() {
   const auto action = [this](QMenu* menu, const QString& text, const QKeySequence& key, auto slot) {
     auto* a = new QAction(text, this);
@@ -167,23 +159,23 @@ void MainWindow::buildActions() {
     return a;
   };
   auto* file = menuBar()->addMenu(tr("&File"));
-  action(file, tr("&Open..."), QKeySequence::Open, [this] {
+  listed(action(file, tr("&Open..."), QKeySequence::Open, [this] {
     const QStringList files = QFileDialog::getOpenFileNames(this, tr("Open a render (AOV stack)"), QString(),
                                                             tr("OpenEXR (*.exr);;All files (*)"));
     if (!files.isEmpty()) openFiles(files);
-  });
-  action(file, tr("Open &Reference..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O), [this] {
+  }), tr("open a render / open its reference"));
+  listed(action(file, tr("Open &Reference..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O), [this] {
     const QString f = QFileDialog::getOpenFileName(this, tr("Open a reference image"), QString(),
                                                    tr("OpenEXR (*.exr);;All files (*)"));
     if (!f.isEmpty()) openReferenceFile(f);
-  });
-  action(file, tr("&Add Result..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_A), [this] {
+  }), tr("open a render / open its reference"));
+  listed(action(file, tr("&Add Result..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_A), [this] {
     const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), QString(),
                                                             tr("Images (*.exr *.hdr *.pfm *.tif *.tiff *.png);;All files (*)"));
     addResultFiles(files);
-  });
+  }), tr("add a result to compare (or drop it)"));
   recent_menu_ = file->addMenu(tr("Open Re&cent"));
-  action(file, tr("Re&load"), QKeySequence(Qt::Key_F5), [this] { session_->reload(); });
+  listed(action(file, tr("Re&load"), QKeySequence(Qt::Key_F5), [this] { session_->reload(); }), tr("reload"));
   auto_reload_ = action(file, tr("Reload When the Files Change"), QKeySequence(), [this] { watchInputs(); });
   auto_reload_->setCheckable(true);
   auto_reload_->setChecked(true);
@@ -192,9 +184,9 @@ void MainWindow::buildActions() {
   live_denoise_->setChecked(true);
   file->addSeparator();
   auto* exp = file->addMenu(tr("&Export"));
-  action(exp, tr("Export &All..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_E), [this] { exportAllDialog(); });
+  listed(action(exp, tr("Export &All..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_E), [this] { exportAllDialog(); }), tr("export all"));
   exp->addSeparator();
-  action(exp, tr("Denoised image (EXR)..."), QKeySequence(Qt::CTRL | Qt::Key_E), [this] {
+  listed(action(exp, tr("Denoised image (EXR)..."), QKeySequence(Qt::CTRL | Qt::Key_E), [this] {
     if (!session_->denoised()) return void(QMessageBox::information(this, tr("Export"), tr("Denoise first.")));
     // Pixel type and compression, as residue-cli offers them.
     QDialog dlg(this);
@@ -215,7 +207,7 @@ void MainWindow::buildActions() {
     const QString path = askSavePath(tr("Export the denoised image"), tr("OpenEXR (*.exr)"), "exr");
     if (!path.isEmpty())
       runExport(tr("denoised EXR"), exportDenoisedExr(path, true, type->currentIndex() == 0, comp->currentText()));
-  });
+  }), tr("export the denoised EXR"));
   action(exp, tr("Heatmap (PNG)..."), QKeySequence(), [this] {
     const QString path = askSavePath(tr("Export the heatmap"), tr("PNG (*.png)"), "png");
     if (!path.isEmpty()) runExport(tr("heatmap PNG"), exportHeatmap(path, true));
@@ -224,37 +216,37 @@ void MainWindow::buildActions() {
     const QString path = askSavePath(tr("Export the heatmap values"), tr("OpenEXR (*.exr)"), "exr");
     if (!path.isEmpty()) runExport(tr("heatmap EXR"), exportHeatmap(path, true));
   });
-  action(exp, tr("Comparison sheet (PNG)..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S), [this] {
+  listed(action(exp, tr("Comparison sheet (PNG)..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S), [this] {
     const QString path = askSavePath(tr("Export the comparison"), tr("PNG (*.png)"), "png");
     if (!path.isEmpty()) runExport(tr("comparison PNG"), exportComparison(path, true));
-  });
+  }), tr("export the comparison sheet (PNG)"));
   action(exp, tr("Metrics (JSON or CSV)..."), QKeySequence(), [this] {
     const QString path = askSavePath(tr("Export the metrics"), tr("JSON (*.json);;CSV (*.csv)"), "json");
     if (!path.isEmpty()) runExport(tr("metrics"), exportMetrics(path, true));
   });
   file->addSeparator();
-  action(file, tr("&Quit"), QKeySequence::Quit, [this] { close(); });
+  listed(action(file, tr("&Quit"), QKeySequence::Quit, [this] { close(); }), tr("quit"));
 
   auto* view = menuBar()->addMenu(tr("&View"));
-  action(view, tr("All panes"), QKeySequence(Qt::Key_A), [this] { layout_box_->setCurrentIndex(0); });
-  action(view, tr("A | B side by side"), QKeySequence(Qt::Key_S), [this] { layout_box_->setCurrentIndex(2); });
-  action(view, tr("Wipe A | B"), QKeySequence(Qt::Key_W), [this] { layout_box_->setCurrentIndex(3); });
-  action(view, tr("Flip A / B"), QKeySequence(Qt::Key_Space), [this] {
+  listed(action(view, tr("All panes"), QKeySequence(Qt::Key_A), [this] { layout_box_->setCurrentIndex(0); }), tr("all panes, in a grid"));
+  listed(action(view, tr("A | B side by side"), QKeySequence(Qt::Key_S), [this] { layout_box_->setCurrentIndex(2); }), tr("A and B side by side"));
+  listed(action(view, tr("Wipe A | B"), QKeySequence(Qt::Key_W), [this] { layout_box_->setCurrentIndex(3); }), tr("wipe A | B (drag the line)"));
+  listed(action(view, tr("Flip A / B"), QKeySequence(Qt::Key_Space), [this] {
     if (canvas_->layout() != ImageCanvas::Layout::Single) canvas_->setCurrent(canvas_->wipeA());
     layout_box_->setCurrentIndex(1);
     canvas_->flipAB();
-  });
-  action(view, tr("Difference: A against B"), QKeySequence(Qt::Key_D), [this] {
+  }), tr("flip between A and B"));
+  listed(action(view, tr("Difference: A against B"), QKeySequence(Qt::Key_D), [this] {
     if (session_->b() < 0) return statusBar()->showMessage(tr("Pick a result B first (Ctrl+1-9)"), 5000);
     heatmap_->setOf(HeatmapPanel::Of::AgainstB);
     heatmap_->setDisplay(HeatmapPanel::Display::Pane);
     tabs_->setCurrentWidget(heatmap_);
     if (paneIndex(Source::Heatmap) >= 0) showPane(Source::Heatmap);
     else pending_pane_ = Source::Heatmap;  // once the panes are drawn with it
-  });
-  auto* next = action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); });
+  }), tr("difference: the map of A against B"));
+  auto* next = listed(action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
   next->setShortcutContext(Qt::ApplicationShortcut);
-  auto* prev = action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Backtab), [this] { cyclePane(-1); });
+  auto* prev = listed(action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Backtab), [this] { cyclePane(-1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
   prev->setShortcuts({QKeySequence(Qt::SHIFT | Qt::Key_Backtab), QKeySequence(Qt::Key_Backtab)});
   auto* pick = view->addMenu(tr("Wipe pair"));
   const Source pairable[] = {Source::Noisy, Source::Denoised, Source::Compare, Source::Reference};
@@ -272,54 +264,56 @@ void MainWindow::buildActions() {
   view->addSeparator();
   auto* results = view->addMenu(tr("Results"));
   for (int i = 1; i <= 9; ++i) {
-    action(results, tr("Result %1 as A").arg(i), QKeySequence(Qt::Key_0 + i), [this, i] { pickResult(i - 1, false); });
-    action(results, tr("Result %1 as B").arg(i), QKeySequence(Qt::CTRL | (Qt::Key_0 + i)), [this, i] { pickResult(i - 1, true); });
+    listed(action(results, tr("Result %1 as A").arg(i), QKeySequence(Qt::Key_0 + i), [this, i] { pickResult(i - 1, false); }), tr("result 1-9 (Results tab rows) as A"), tr("1 - 9"));
+    listed(action(results, tr("Result %1 as B").arg(i), QKeySequence(Qt::CTRL | (Qt::Key_0 + i)), [this, i] { pickResult(i - 1, true); }), tr("result 1-9 as B"), tr("Ctrl+1 - 9"));
   }
-  action(view, tr("Side Bar"), QKeySequence(Qt::Key_F9), [this] {
+  listed(action(view, tr("Side Bar"), QKeySequence(Qt::Key_F9), [this] {
     if (auto* d = findChild<QDockWidget*>("sideDock")) d->setVisible(!d->isVisible());
-  });
+  }), tr("hide / show the side bar"));
   view->addSeparator();
-  action(view, tr("Fit"), QKeySequence(Qt::Key_F), [this] { canvas_->fit(); });
-  action(view, tr("1:1"), QKeySequence(Qt::CTRL | Qt::Key_0), [this] { canvas_->oneToOne(); });
-  auto* zin = action(view, tr("Zoom in"), QKeySequence(Qt::Key_Plus), [this] { canvas_->zoomBy(2.0); });
+  listed(action(view, tr("Fit"), QKeySequence(Qt::Key_F), [this] { canvas_->fit(); }), tr("fit"));
+  listed(action(view, tr("1:1"), QKeySequence(Qt::CTRL | Qt::Key_0), [this] { canvas_->oneToOne(); }), tr("1:1 (a pixel per screen pixel)"));
+  auto* zin = listed(action(view, tr("Zoom in"), QKeySequence(Qt::Key_Plus), [this] { canvas_->zoomBy(2.0); }),
+                     tr("zoom (the wheel: about the cursor)"), tr("+  -  wheel"));
   zin->setShortcuts({QKeySequence(Qt::Key_Plus), QKeySequence(Qt::Key_Equal), QKeySequence::ZoomIn});
-  auto* zout = action(view, tr("Zoom out"), QKeySequence(Qt::Key_Minus), [this] { canvas_->zoomBy(0.5); });
+  auto* zout = listed(action(view, tr("Zoom out"), QKeySequence(Qt::Key_Minus), [this] { canvas_->zoomBy(0.5); }),
+                      tr("zoom (the wheel: about the cursor)"), tr("+  -  wheel"));
   zout->setShortcuts({QKeySequence(Qt::Key_Minus), QKeySequence::ZoomOut});
   view->addSeparator();
-  action(view, tr("Exposure +1/2 stop"), QKeySequence(Qt::Key_E), [this] { setExposure(exposure() + 0.5); });
-  action(view, tr("Exposure -1/2 stop"), QKeySequence(Qt::SHIFT | Qt::Key_E), [this] { setExposure(exposure() - 0.5); });
-  action(view, tr("Reset exposure and offset"), QKeySequence(Qt::Key_R), [this] {
+  listed(action(view, tr("Exposure +1/2 stop"), QKeySequence(Qt::Key_E), [this] { setExposure(exposure() + 0.5); }), tr("exposure up / down half a stop"));
+  listed(action(view, tr("Exposure -1/2 stop"), QKeySequence(Qt::SHIFT | Qt::Key_E), [this] { setExposure(exposure() - 0.5); }), tr("exposure up / down half a stop"));
+  listed(action(view, tr("Reset exposure and offset"), QKeySequence(Qt::Key_R), [this] {
     setExposure(0);
     offset_box_->setValue(0);
-  });
-  action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); });
-  action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); });
-  action(view, tr("Heatmap: pane / overlay / off"), QKeySequence(Qt::Key_H), [this] {
+  }), tr("reset exposure and offset"));
+  listed(action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); }), tr("previous / next AOV"));
+  listed(action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); }), tr("previous / next AOV"));
+  listed(action(view, tr("Heatmap: pane / overlay / off"), QKeySequence(Qt::Key_H), [this] {
     const auto d = heatmap_->display();
     heatmap_->setDisplay(d == HeatmapPanel::Display::Pane      ? HeatmapPanel::Display::Overlay
                          : d == HeatmapPanel::Display::Overlay ? HeatmapPanel::Display::Off
                                                                : HeatmapPanel::Display::Pane);
-  });
-  action(view, tr("Clear region of interest"), QKeySequence(Qt::Key_Backspace), [this] { setRoi(std::nullopt); });
+  }), tr("heatmap: own pane / overlay / off"));
+  listed(action(view, tr("Clear region of interest"), QKeySequence(Qt::Key_Backspace), [this] { setRoi(std::nullopt); }), tr("clear the region of interest"));
 
   auto* den = menuBar()->addMenu(tr("&Denoise"));
-  action(den, tr("&Denoise"), QKeySequence(Qt::CTRL | Qt::Key_D), [this] { denoise_->start(); });
-  action(den, tr("Denoise &Every Frame"), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_D), [this] { denoiseEveryFrame(); });
+  listed(action(den, tr("&Denoise"), QKeySequence(Qt::CTRL | Qt::Key_D), [this] { denoise_->start(); }), tr("denoise with the selected model"));
+  listed(action(den, tr("Denoise &Every Frame"), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_D), [this] { denoiseEveryFrame(); }), tr("denoise every frame"));
   action(den, tr("&Cancel"), QKeySequence(), [this] { denoise_->cancel(); });
 
   auto* frames = menuBar()->addMenu(tr("F&rames"));
-  action(frames, tr("&Previous Frame"), QKeySequence(Qt::Key_Left), [this] { stepFrame(-1); });
-  action(frames, tr("&Next Frame"), QKeySequence(Qt::Key_Right), [this] { stepFrame(+1); });
-  action(frames, tr("&First Frame"), QKeySequence(Qt::Key_Home), [this] {
+  listed(action(frames, tr("&Previous Frame"), QKeySequence(Qt::Key_Left), [this] { stepFrame(-1); }), tr("previous / next frame"));
+  listed(action(frames, tr("&Next Frame"), QKeySequence(Qt::Key_Right), [this] { stepFrame(+1); }), tr("previous / next frame"));
+  listed(action(frames, tr("&First Frame"), QKeySequence(Qt::Key_Home), [this] {
     if (const auto& s = session_->sequence()) goToFrame(s->frames.front());
-  });
-  action(frames, tr("&Last Frame"), QKeySequence(Qt::Key_End), [this] {
+  }), tr("first / last frame"));
+  listed(action(frames, tr("&Last Frame"), QKeySequence(Qt::Key_End), [this] {
     if (const auto& s = session_->sequence()) goToFrame(s->frames.back());
-  });
-  action(frames, tr("P&lay / Pause"), QKeySequence(Qt::Key_P), [this] { setPlaying(!playing_); });
+  }), tr("first / last frame"));
+  listed(action(frames, tr("P&lay / Pause"), QKeySequence(Qt::Key_P), [this] { setPlaying(!playing_); }), tr("play / pause the frames"));
 
   auto* help = menuBar()->addMenu(tr("&Help"));
-  auto* keys = action(help, tr("Keyboard shortcuts"), QKeySequence(Qt::Key_Question), [this] { help_->toggle(); });
+  auto* keys = listed(action(help, tr("Keyboard shortcuts"), QKeySequence(Qt::Key_Question), [this] { help_->toggle(); }), tr("this help"), tr("?  F1"));
   // "?" arrives as Shift+? on most layouts and platforms; F1 is the usual help key.
   keys->setShortcuts({QKeySequence(Qt::Key_Question), QKeySequence(Qt::SHIFT | Qt::Key_Question), QKeySequence(Qt::Key_F1)});
   action(help, tr("About Residue"), QKeySequence(), [this] {

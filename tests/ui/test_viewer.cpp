@@ -13,6 +13,7 @@
 #include <QTableWidget>
 #include <QTemporaryDir>
 #include <QtTest>
+#include <map>
 #include <QWheelEvent>
 #include <OpenImageIO/imageio.h>
 #include <cmath>
@@ -56,6 +57,20 @@ class TestViewer : public QObject {
   void initTestCase() {
     QStandardPaths::setTestModeEnabled(true);  // QSettings (recent files, mappings) in a test location
     QSettings().clear();
+  }
+
+  // The help overlay lists the actions' own shortcuts: a key bound without a line there fails here, and no key is
+  // bound twice.
+  void everyKeyIsInTheHelpAndBoundOnce() {
+    MainWindow w;
+    std::map<QString, QString> bound;  // key -> the action it runs
+    for (const QAction* a : w.actions())
+      for (const QKeySequence& k : a->shortcuts()) {
+        QVERIFY2(!a->property("help").toString().isEmpty(), qPrintable(a->text() + " (" + k.toString() + ") is not in the help"));
+        const auto [it, fresh] = bound.emplace(k.toString(), a->text());
+        QVERIFY2(fresh, qPrintable(k.toString() + " runs both " + it->second + " and " + a->text()));
+      }
+    QVERIFY(bound.count("Left") && bound.count("P") && bound.count("Ctrl+Shift+D"));
   }
 
   void opensMultilayerExrAndMapsAovs() {
