@@ -32,6 +32,40 @@ TEST(NnArchitecture, PaperModelCounts) {
   for (const char* bad : {"", "1,,2", "0", "65", "1,x", "1, 2", "-1"}) EXPECT_FALSE(nn::parse_dilations(bad)) << bad;
 }
 
+// The rules on which settings go together, one case each, and the shipped kinds of network pass them.
+TEST(NnArchitecture, SettingsThatCannotGoTogetherAreNamed) {
+  const auto why = [](const nn::Architecture& a) { return a.contradiction().value_or(""); };
+  nn::Architecture flat;
+  EXPECT_FALSE(flat.contradiction());
+  nn::Architecture ms;
+  ms.levels = {2, 2, 2, 2};
+  ms.widths = {24, 40, 56, 80};
+  EXPECT_FALSE(ms.contradiction());
+  nn::Architecture temporal = ms;
+  temporal.temporal = 1;
+  EXPECT_FALSE(temporal.contradiction());
+  temporal.prior = "oidn";
+  EXPECT_NE(why(temporal).find("temporal"), std::string::npos);
+  nn::Architecture seven = ms;
+  seven.levels = {1, 1, 1, 1, 1, 1, 1};
+  seven.widths = {8, 8, 8, 8, 8, 8, 8};
+  EXPECT_NE(why(seven).find("2 to 6 levels"), std::string::npos);
+  nn::Architecture dilated = ms;
+  dilated.dilations = {1, 2};
+  EXPECT_NE(why(dilated).find("no dilations"), std::string::npos);
+  nn::Architecture demodulated;
+  demodulated.features = FeatureSet::ColorOnly;
+  demodulated.demodulate = true;
+  EXPECT_NE(why(demodulated).find("albedo"), std::string::npos);
+  nn::Architecture prior;
+  prior.features = FeatureSet::ColorAlbedoNormal;
+  prior.prior = "oidn";
+  EXPECT_NE(why(prior).find("full"), std::string::npos);
+  nn::Architecture far = ms;
+  far.temporal = 3;
+  EXPECT_NE(why(far).find("1 or 2 frames"), std::string::npos);
+}
+
 TEST(NnBatchNorm, FoldingEqualsExplicitBatchNorm) {
   nn::Network net = nn::random_network({1, 8, FeatureSet::ColorOnly}, 3);
   nn::BatchNorm bn;
