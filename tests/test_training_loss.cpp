@@ -181,18 +181,20 @@ TEST_F(TrainLossOnARealRender, EdgeSsimTermIsTheEdgePixelsShareOfOneMinusSsim) {
 TEST(TrainLoss, SsimTermIsZeroAtTheTargetAndGrowsWithTheError) {
   torch::manual_seed(5);
   const auto target = torch::log1p(torch::rand({2, 3, 64, 64}) * 4.0);
-  EXPECT_NEAR(train::training_loss("l1-log+ssim", target, target).item<double>(), 0.0, 1e-6);
+  EXPECT_NEAR(train::training_loss(train::Loss::L1LogSsim, target, target).item<double>(), 0.0, 1e-6);
   const auto slightly = target + 0.02 * torch::randn_like(target);
   const auto more = target + 0.2 * torch::randn_like(target);
-  const double l1_slight = train::training_loss("l1-log", slightly, target).item<double>();
-  const double ssim_slight = train::training_loss("l1-log+ssim", slightly, target).item<double>() - l1_slight;
-  const double l1_more = train::training_loss("l1-log", more, target).item<double>();
-  const double ssim_more = train::training_loss("l1-log+ssim", more, target).item<double>() - l1_more;
+  const double l1_slight = train::training_loss(train::Loss::L1Log, slightly, target).item<double>();
+  const double ssim_slight = train::training_loss(train::Loss::L1LogSsim, slightly, target).item<double>() - l1_slight;
+  const double l1_more = train::training_loss(train::Loss::L1Log, more, target).item<double>();
+  const double ssim_more = train::training_loss(train::Loss::L1LogSsim, more, target).item<double>() - l1_more;
   EXPECT_GT(ssim_slight, 0.0);
   EXPECT_GT(ssim_more, 2.0 * ssim_slight);
-  EXPECT_NEAR(train::training_loss("l1-log+ssim", more, target, 3.0).item<double>(), l1_more + 3.0 * ssim_more, 1e-5)
+  EXPECT_NEAR(train::training_loss(train::Loss::L1LogSsim, more, target, 3.0).item<double>(), l1_more + 3.0 * ssim_more, 1e-5)
       << "the weight scales the SSIM term only";
-  EXPECT_THROW(train::training_loss("l2", more, target), std::invalid_argument);
+  EXPECT_FALSE(train::loss_from_name("l2"));
+  EXPECT_EQ(train::loss_from_name("l1-log+ssim"), train::Loss::L1LogSsim);
+  for (const auto& k : train::losses()) EXPECT_EQ(train::loss_from_name(k.name), k.loss) << k.name;
 }
 
 // A demodulated network's output goes back to log colour as core multiplies it back: log(1 + c / f) -> log(1 + c)
@@ -214,13 +216,13 @@ TEST(TrainLoss, FiniteWithFiniteGradientsAtExtremes) {
   auto target = torch::zeros({1, 3, 32, 32}, torch::kFloat32);
   target.index_put_({0, 0}, std::log1p(1e4f));  // a light in one channel
   target.index_put_({0, 1, torch::indexing::Slice(0, 16)}, std::log1p(11.2f));
-  for (const char* kind : {"l1-log+ssim", "l1-pu+ssim"}) {
+  for (const train::Loss kind : {train::Loss::L1LogSsim, train::Loss::L1PuSsim}) {
     for (const float fill : {0.0f, 1e-7f, 2.5f, 40.0f, -3.0f}) {
       auto prediction = torch::full({1, 3, 32, 32}, fill, torch::requires_grad());
       const auto loss = train::training_loss(kind, prediction, target);
       loss.backward();
-      EXPECT_TRUE(std::isfinite(loss.item<double>())) << kind << ", prediction " << fill;
-      EXPECT_TRUE(torch::isfinite(prediction.grad()).all().item<bool>()) << kind << ", prediction " << fill;
+      EXPECT_TRUE(std::isfinite(loss.item<double>())) << train::loss_kind(kind).name << ", prediction " << fill;
+      EXPECT_TRUE(torch::isfinite(prediction.grad()).all().item<bool>()) << train::loss_kind(kind).name << ", prediction " << fill;
     }
   }
 }
@@ -247,19 +249,19 @@ TEST(TrainLoss, PuTransferIsCoresCurve) {
 TEST(TrainLoss, PuLossIsTheL1OfThePuTransferPlusTheSsimTerm) {
   torch::manual_seed(6);
   const auto target = torch::log1p(torch::rand({2, 3, 64, 64}, torch::kFloat64) * 4.0);
-  EXPECT_NEAR(train::training_loss("l1-pu+ssim", target, target).item<double>(), 0.0, 1e-9);
+  EXPECT_NEAR(train::training_loss(train::Loss::L1PuSsim, target, target).item<double>(), 0.0, 1e-9);
   const auto prediction = target + 0.1 * torch::randn_like(target);
-  const double ssim_term = train::training_loss("l1-log+ssim", prediction, target).item<double>() -
-                           train::training_loss("l1-log", prediction, target).item<double>();
+  const double ssim_term = train::training_loss(train::Loss::L1LogSsim, prediction, target).item<double>() -
+                           train::training_loss(train::Loss::L1Log, prediction, target).item<double>();
   const double l1_pu =
       (train::pu_transfer(torch::expm1(prediction)) - train::pu_transfer(torch::expm1(target))).abs().mean().item<double>();
-  EXPECT_NEAR(train::training_loss("l1-pu+ssim", prediction, target).item<double>(), l1_pu + ssim_term, 1e-9);
-  EXPECT_NEAR(train::training_loss("l1-pu+ssim", prediction, target, 0.0).item<double>(), l1_pu, 1e-9);
+  EXPECT_NEAR(train::training_loss(train::Loss::L1PuSsim, prediction, target).item<double>(), l1_pu + ssim_term, 1e-9);
+  EXPECT_NEAR(train::training_loss(train::Loss::L1PuSsim, prediction, target, 0.0).item<double>(), l1_pu, 1e-9);
   // Dark pixels weigh more than in log(1 + c): the same relative error costs PU's L1 more at c = 0.3 than log's.
   const auto dark = torch::full({1, 3, 16, 16}, std::log1p(0.3), torch::kFloat64);
   const auto dark_off = torch::full({1, 3, 16, 16}, std::log1p(0.33), torch::kFloat64);
-  EXPECT_GT(train::training_loss("l1-pu+ssim", dark_off, dark, 0.0).item<double>(),
-            2.0 * train::training_loss("l1-log", dark_off, dark).item<double>());
+  EXPECT_GT(train::training_loss(train::Loss::L1PuSsim, dark_off, dark, 0.0).item<double>(),
+            2.0 * train::training_loss(train::Loss::L1Log, dark_off, dark).item<double>());
 }
 
 }  // namespace

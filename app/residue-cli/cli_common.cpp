@@ -1,5 +1,7 @@
 #include "cli_common.h"
 
+#include "app/common/cli_enum.h"
+
 #include <map>
 
 #include <cmath>
@@ -129,8 +131,7 @@ std::string display_path(const std::string& path) {
 }
 
 CLI::Option* add_on_off(CLI::App* cmd, const std::string& name, bool& value, const std::string& help) {
-  const std::map<std::string, bool> names{{"on", true}, {"off", false}};
-  return cmd->add_option(name, value, help)->transform(CLI::CheckedTransformer(names))->default_str(on_off(value));
+  return add_enum_option<bool>(cmd, name, value, {{"on", true}, {"off", false}}, help);
 }
 
 }  // namespace residue::cli

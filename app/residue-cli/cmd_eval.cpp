@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "cli_common.h"
+#include "app/common/cli_enum.h"
 #include "commands.h"
 #include "core/io/atomic_file.h"
 #include "core/io/frame_sequence.h"
@@ -28,7 +29,7 @@ struct EvalOptions {
   std::string metrics_out;
   std::string maps_dir;
   std::string colormap = "viridis";
-  std::string map_format = "png";
+  enum class MapFormat { Png, Exr, Both } map_format = MapFormat::Png;
   bool force = false;
   std::string frames;
 };
@@ -40,7 +41,7 @@ void write_maps(const EvalOptions& o, const std::string& name, const Image& test
                                 metrics::MapKind::RelativeSquaredError, metrics::MapKind::Ssim}) {
     const Image map = metrics::error_map(test, reference, kind, mopts);
     const std::filesystem::path base = std::filesystem::path(o.maps_dir) / (name + "_" + metrics::to_string(kind));
-    if (o.map_format == "png" || o.map_format == "both") {
+    if (o.map_format != EvalOptions::MapFormat::Exr) {
       io::MapPngOptions p;
       p.colormap = *colormap;
       p.overwrite = o.force;
@@ -49,7 +50,7 @@ void write_maps(const EvalOptions& o, const std::string& name, const Image& test
       else p.scale.log = true;
       io::write_map_png(base.string() + ".png", map, p);
     }
-    if (o.map_format == "exr" || o.map_format == "both") io::write_map_exr(base.string() + ".exr", map, o.force);
+    if (o.map_format != EvalOptions::MapFormat::Png) io::write_map_exr(base.string() + ".exr", map, o.force);
   }
 }
 
@@ -134,9 +135,10 @@ Command add_eval_command(CLI::App& app) {
   cmd->add_option("--colormap", o->colormap, "Colormap of PNG maps")
       ->capture_default_str()
       ->check(CLI::IsMember({"viridis", "inferno", "magma", "turbo"}));
-  cmd->add_option("--map-format", o->map_format, "png (colour-mapped), exr (float values) or both")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"png", "exr", "both"}));
+  using MapFormat = EvalOptions::MapFormat;
+  add_enum_option<MapFormat>(cmd, "--map-format", o->map_format,
+                             {{"png", MapFormat::Png}, {"exr", MapFormat::Exr}, {"both", MapFormat::Both}},
+                             "png (colour-mapped), exr (float values) or both");
   cmd->add_flag("-f,--force", o->force, "Replace output files that already exist");
   return {cmd, [o]() { return run(*o); }};
 }

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_common.h"
+#include "app/common/cli_enum.h"
 #include "commands.h"
 #include "core/aov/dataset.h"
 #include "core/denoise/method_registry.h"
@@ -301,10 +302,8 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("--blend-tau", o->blend_tau, "The variance blend's tau for every model (tools/models/fit_blend_tau.py)")
       ->check(positive_finite());
   using Energy = EvalSetOptions::Energy;
-  cmd->add_option("--energy-correction", o->energy,
-                  "on, off, or both (a second column per model, labelled \"raw\", without the correction)")
-      ->transform(CLI::CheckedTransformer(std::map<std::string, Energy>{{"on", Energy::On}, {"off", Energy::Off}, {"both", Energy::Both}}))
-      ->default_str("on");
+  add_enum_option<Energy>(cmd, "--energy-correction", o->energy, {{"on", Energy::On}, {"off", Energy::Off}, {"both", Energy::Both}},
+                          "on, off, or both (a second column per model, labelled \"raw\", without the correction)");
   cmd->add_option("--md", o->out_md, "Write the table as Markdown");
   cmd->add_option("--json", o->out_json, "Write every number as JSON");
   cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include <CLI/CLI.hpp>
@@ -24,6 +25,7 @@
 #include "core/util/error.h"
 #include "core/util/openmp_env.h"
 #include "torch_network.h"
+#include "app/common/cli_enum.h"
 #include "training_loss.h"
 #include "training_set.h"
 
@@ -62,7 +64,7 @@ struct Options {
   uint32_t seed = 1;
   bool force = false;
   bool bf16 = false;  // CPU autocast: convolutions in bfloat16, weights, loss and optimiser in float
-  std::string loss = "l1-log";  // see training_loss.h
+  train::Loss loss = train::Loss::L1Log;  // see training_loss.h
   double ssim_weight = 1.0;      // for l1-log+ssim and l1-pu+ssim
   double relmse_weight = 0.0;    // adds relmse_weight x relMSE (eps 0.01) to the loss
   double temporal_weight = 0.0;  // adds temporal_weight x L1 of the change between consecutive frames' errors
@@ -428,7 +430,7 @@ int run(const Options& o) {
   net->eval();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   const std::string loss_text =
-      train::loss_description(o.loss) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "") +
+      std::string(train::loss_kind(o.loss).description) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "") +
       (o.lowband_weight > 0 ? " + w * relMSE of " + std::to_string(o.lowband_width) + "-px box means" : "") +
       (o.edge_ssim_weight > 0 ? " + w * (1 - SSIM) on albedo/normal edge pixels" : "") +
       (o.temporal_weight > 0 ? " + w * L1 of the change of the log error from frame t - 1 to t" : "") +
@@ -441,7 +443,7 @@ int run(const Options& o) {
                              {"precision", o.bf16 ? "bf16 autocast" : "fp32"}, {"features", o.features},
                              {"precise_bn_batches", o.precise_bn}, {"freeze_bn_after", o.freeze_bn_after}};
   if (!init_from_name.empty()) training["init_from"] = init_from_name;
-  if (o.loss == "l1-log+ssim" || o.loss == "l1-pu+ssim") training["ssim_weight"] = o.ssim_weight;
+  if (train::loss_kind(o.loss).ssim_term) training["ssim_weight"] = o.ssim_weight;
   if (o.relmse_weight > 0) training["relmse_weight"] = o.relmse_weight;
   if (o.temporal_weight > 0) training["temporal_weight"] = o.temporal_weight;
   if (o.lowband_weight > 0) {
@@ -518,11 +520,12 @@ int main(int argc, char** argv) {
   app.add_option("--threads", o.threads, "Threads")->capture_default_str();
   app.add_option("--seed", o.seed, "Random seed")->capture_default_str();
   app.add_flag("-f,--force", o.force, "Replace the output model file");
-  app.add_option("--loss", o.loss,
-                 "l1-log (the paper's), l1-log+mean (adds the L1 of the log patch means), l1-log+ssim (adds "
+  std::vector<std::pair<std::string, train::Loss>> loss_names;
+  for (const auto& k : train::losses()) loss_names.emplace_back(k.name, k.loss);
+  cli::add_enum_option(&app, "--loss", o.loss, loss_names,
+                       "l1-log (the paper's), l1-log+mean (adds the L1 of the log patch means), l1-log+ssim (adds "
                  "--ssim-weight x (1 - SSIM) over 3 scales, on the SSIM metric's tonemap) or l1-pu+ssim (the same, "
-                 "its L1 on OIDN's PU transfer instead of log(1 + c))")
-      ->capture_default_str()->check(CLI::IsMember(train::loss_names()));
+                 "its L1 on OIDN's PU transfer instead of log(1 + c))");
   app.add_option("--temporal-weight", o.temporal_weight,
                  "Adds this x the L1 of the change of the (log) error between consecutive frames of a shot at each "
                  "pixel: patches come in pairs, frame t and t - 1 (--shots; --batch counts both)")

@@ -65,21 +65,6 @@ torch::Tensor steps_above(const torch::Tensor& planes, double threshold) {
 
 }  // namespace
 
-const std::vector<std::string>& loss_names() {
-  static const std::vector<std::string> names = {"l1-log", "l1-log+mean", "l1-log+ssim", "l1-pu+ssim"};
-  return names;
-}
-
-std::string loss_description(const std::string& kind) {
-  if (kind == "l1-log+mean") return "L1 on log(1+c) + L1 of the log patch means";
-  if (kind == "l1-log+ssim")
-    return "L1 on log(1+c) + w * (1 - SSIM averaged over 3 scales) on the metric's filmic-sRGB tonemap";
-  if (kind == "l1-pu+ssim")
-    return "L1 on OIDN's PU transfer of 0.18 c (in units of its log slope) + w * (1 - SSIM averaged over 3 scales) "
-           "on the metric's filmic-sRGB tonemap";
-  return "L1 on log(1+c)";
-}
-
 torch::Tensor remodulate(const torch::Tensor& prediction, const torch::Tensor& albedo_planes) {
   const auto factor = torch::expm1(albedo_planes).clamp_min(0.0) + 0.01;
   return torch::log1p((torch::expm1(prediction.clamp_max(20.0)) * factor).clamp_min(-0.99));
@@ -143,22 +128,64 @@ torch::Tensor multiscale_ssim(const torch::Tensor& x, const torch::Tensor& y, in
 // "l1-pu+ssim" is the same with the L1 measured in the PU transfer OIDN trains in (lever 1's transfer): log(1 + c)
 // weighs an error relatively only above c ~ 1 (the image's log-average, autoexposed), PU above c ~ 0.2 and as a
 // power (0.43) below it: nearer relMSE, which is relative down to c ~ 0.1.
-torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target,
+namespace {
+
+torch::Tensor l1_log(const torch::Tensor& prediction, const torch::Tensor& target, double) {
+  return torch::l1_loss(prediction, target);
+}
+
+torch::Tensor l1_log_mean(const torch::Tensor& prediction, const torch::Tensor& target, double) {
+  const auto mp = torch::log1p(torch::expm1(prediction.clamp_max(20.0)).mean({2, 3}).clamp_min(0.0));
+  const auto mt = torch::log1p(torch::expm1(target).mean({2, 3}));
+  return torch::l1_loss(prediction, target) + (mp - mt).abs().mean();
+}
+
+torch::Tensor ssim_term(const torch::Tensor& p, const torch::Tensor& t, double ssim_weight) {
+  return ssim_weight * (1.0 - multiscale_ssim(tonemap_filmic_srgb(p), tonemap_filmic_srgb(t), 3));
+}
+
+torch::Tensor l1_log_ssim(const torch::Tensor& prediction, const torch::Tensor& target, double ssim_weight) {
+  return torch::l1_loss(prediction, target) +
+         ssim_term(torch::expm1(prediction.clamp_max(20.0)), torch::expm1(target), ssim_weight);
+}
+
+torch::Tensor l1_pu_ssim(const torch::Tensor& prediction, const torch::Tensor& target, double ssim_weight) {
+  const auto p = torch::expm1(prediction.clamp_max(20.0));
+  const auto t = torch::expm1(target);
+  return torch::l1_loss(pu_transfer(p), pu_transfer(t)) + ssim_term(p, t, ssim_weight);
+}
+
+}  // namespace
+
+const std::vector<LossKind>& losses() {
+  static const std::vector<LossKind> table = {
+      {Loss::L1Log, "l1-log", "L1 on log(1+c)", false, l1_log},
+      {Loss::L1LogMean, "l1-log+mean", "L1 on log(1+c) + L1 of the log patch means", false, l1_log_mean},
+      {Loss::L1LogSsim, "l1-log+ssim",
+       "L1 on log(1+c) + w * (1 - SSIM averaged over 3 scales) on the metric's filmic-sRGB tonemap", true, l1_log_ssim},
+      {Loss::L1PuSsim, "l1-pu+ssim",
+       "L1 on OIDN's PU transfer of 0.18 c (in units of its log slope) + w * (1 - SSIM averaged over 3 scales) on the "
+       "metric's filmic-sRGB tonemap",
+       true, l1_pu_ssim},
+  };
+  return table;
+}
+
+const LossKind& loss_kind(Loss loss) {
+  for (const LossKind& k : losses())
+    if (k.loss == loss) return k;
+  throw std::invalid_argument("a loss without an entry in losses()");
+}
+
+std::optional<Loss> loss_from_name(const std::string& name) {
+  for (const LossKind& k : losses())
+    if (name == k.name) return k.loss;
+  return std::nullopt;
+}
+
+torch::Tensor training_loss(Loss loss, const torch::Tensor& prediction, const torch::Tensor& target,
                             double ssim_weight) {
-  torch::Tensor loss = torch::l1_loss(prediction, target);
-  if (kind == "l1-log+mean") {
-    const auto mp = torch::log1p(torch::expm1(prediction.clamp_max(20.0)).mean({2, 3}).clamp_min(0.0));
-    const auto mt = torch::log1p(torch::expm1(target).mean({2, 3}));
-    loss = loss + (mp - mt).abs().mean();
-  } else if (kind == "l1-log+ssim" || kind == "l1-pu+ssim") {
-    const auto p = torch::expm1(prediction.clamp_max(20.0));
-    const auto t = torch::expm1(target);
-    if (kind == "l1-pu+ssim") loss = torch::l1_loss(pu_transfer(p), pu_transfer(t));
-    loss = loss + ssim_weight * (1.0 - multiscale_ssim(tonemap_filmic_srgb(p), tonemap_filmic_srgb(t), 3));
-  } else if (kind != "l1-log") {
-    throw std::invalid_argument("unknown loss '" + kind + "'");
-  }
-  return loss;
+  return loss_kind(loss).function(prediction, target, ssim_weight);
 }
 
 // The metric the goal is scored on, as a loss term (issue 16, lever 1): L1 on log colour weighs a relative error

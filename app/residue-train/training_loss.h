@@ -1,6 +1,7 @@
 // The training losses. Predictions and targets are log(1 + c) of linear colour (N x 3 x H x W, float).
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -8,17 +9,27 @@
 
 namespace residue::train {
 
-// The names --loss accepts, in the order --help lists them.
-const std::vector<std::string>& loss_names();
+// The main loss (--loss). The terms --relmse-weight, --lowband-weight, ... add are separate functions below.
+enum class Loss { L1Log, L1LogMean, L1LogSsim, L1PuSsim };
 
-// A sentence for the model file's training metadata.
-std::string loss_description(const std::string& kind);
+struct LossKind {
+  Loss loss;
+  const char* name;         // what --loss takes
+  const char* description;  // the model file's training metadata
+  bool ssim_term;           // has the (1 - SSIM) term --ssim-weight weighs
+  // The loss of log(1 + c) predictions against targets.
+  torch::Tensor (*function)(const torch::Tensor& prediction, const torch::Tensor& target, double ssim_weight);
+};
+// Every loss, in the order --help lists them:
+//   l1-log       the paper's L1 on log colour;
+//   l1-log+mean  adds the L1 of the log patch means (see the .cpp);
+//   l1-log+ssim  adds ssim_weight * (1 - multi-scale SSIM) on the tonemap the SSIM metric uses;
+//   l1-pu+ssim   the same SSIM term, the L1 on pu_transfer of the linear colour instead of on log(1 + c).
+const std::vector<LossKind>& losses();
+const LossKind& loss_kind(Loss loss);
+std::optional<Loss> loss_from_name(const std::string& name);
 
-// "l1-log": the paper's L1 on log colour.
-// "l1-log+mean": adds the L1 of the log patch means (see the .cpp).
-// "l1-log+ssim": adds ssim_weight * (1 - multi-scale SSIM) on the tonemap the SSIM metric uses.
-// "l1-pu+ssim": the same SSIM term, the L1 on pu_transfer of the linear colour instead of on log(1 + c).
-torch::Tensor training_loss(const std::string& kind, const torch::Tensor& prediction, const torch::Tensor& target,
+torch::Tensor training_loss(Loss loss, const torch::Tensor& prediction, const torch::Tensor& target,
                             double ssim_weight = 1.0);
 
 // The relMSE metric (core/metrics) on the linear values of log(1 + c) predictions and targets: the mean of
