@@ -206,9 +206,9 @@ void Session::enterFrame(const LoadResult& r) {
   const Result* old_a = result(a_);
   const Result* old_b = result(b_);
   const QString want_a = old_a ? series(*old_a) : QString(), want_b = old_b ? series(*old_b) : QString();
-  std::vector<QString> files;  // numbered files added on the frame shown: each follows to the new frame
+  std::vector<std::pair<QString, QString>> files;  // files added on the frame shown, with their series
   for (const Result& x : results_)
-    if (x.fromFile()) files.push_back(x.file);
+    if (x.fromFile()) files.emplace_back(x.file, series(x));
   const int64_t left = frame_;
   memories_[frame_] = FrameMemory{std::move(results_), a_, b_};
   results_.clear();
@@ -233,13 +233,12 @@ void Session::enterFrame(const LoadResult& r) {
   blended_.reset();
   reblend();
   // A numbered file added on the frame before brings its own file of this frame (at the same frame offset).
-  for (const QString& f : files) {
+  for (const auto& [f, name] : files) {
     const auto p = io::FramePattern::of_numbered_file(f.toStdString());
     const auto n = p ? p->frame_of(f.toStdString()) : std::nullopt;
     if (!n) continue;
     const std::filesystem::path here = p->path(frame_ + (*n - left));
     std::error_code ec;
-    const QString name = QString::fromStdString("file:" + p->to_string());
     const bool has = std::any_of(results_.begin(), results_.end(), [&](const Result& x) { return series(x) == name; });
     if (!has && std::filesystem::is_regular_file(here, ec)) addResultFile(here);
   }
