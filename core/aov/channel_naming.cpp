@@ -193,12 +193,7 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
           aov.role = rule.role;
           aov.layer = stored_layer(found.front().name, layer.empty());
           aov.channels = std::move(found);
-          aov.normal_space = rule.normal_space;
-          aov.flip_normal_z = rule.flip_normal_z;
-          aov.depth_kind = rule.depth_kind;
-          aov.depth_from_position = rule.depth_from_position;
-          aov.samples_variance = rule.samples_variance;
-          aov.cycles_vector = rule.cycles_vector;
+          aov.meaning = rule.meaning;
           rec.aovs.push_back(std::move(aov));
           if (!rule.note.empty()) rec.notes.push_back(rule.note);
           break;

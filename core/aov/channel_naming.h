@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/aov/aov_stack.h"
+#include "core/aov/pass_meaning.h"
 
 namespace residue {
 
@@ -23,12 +24,7 @@ struct RecognisedAov {
   AovRole role = AovRole::Color;
   std::string layer;                 // the pass name it matched, e.g. "Denoising Normal"
   std::vector<ChannelRef> channels;  // in the order the stack wants them (R,G,B / X,Y,Z / Z)
-  NormalSpace normal_space = NormalSpace::Unknown;
-  bool flip_normal_z = false;        // the file's camera space has +z along the view direction
-  DepthKind depth_kind = DepthKind::Unknown;
-  bool depth_from_position = false;  // the z of a camera-space position pass (PassRule)
-  bool samples_variance = false;     // the samples' variance, not the estimate's (PassRule)
-  bool cycles_vector = false;        // Cycles' Vector pass (PassRule)
+  PassMeaning meaning;               // the matching rule's
 };
 
 struct Recognition {

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "core/aov/aov_stack.h"
+#include "core/aov/pass_meaning.h"
 
 namespace residue {
 
@@ -32,18 +33,8 @@ namespace residue {
 struct PassRule {
   AovRole role = AovRole::Color;
   std::vector<std::string> layers;  // lower case, in order of preference; "" = the root layer
-  NormalSpace normal_space = NormalSpace::Unknown;
-  bool flip_normal_z = false;       // the renderer's camera space has +z along the view direction
-  DepthKind depth_kind = DepthKind::Unknown;
+  PassMeaning meaning;
   std::string note;                 // said when this rule is used
-  // Depth read as the z of a camera-space position pass (pbrt-v4's P): right only while that pass, which shares
-  // the normals' space, is in camera space.
-  bool depth_from_position = false;
-  // The pass is the variance of the samples (pbrt-v4's Variance), not of the pixel's estimate: read divided by the
-  // header's samplesPerPixel, and left out when the header does not say it.
-  bool samples_variance = false;
-  // The motion is Cycles' Vector pass (its own convention), turned into Residue's (core/temporal/reprojection.h).
-  bool cycles_vector = false;
 };
 
 // A renderer that writes its AOVs as named layers of one file.

@@ -110,9 +110,9 @@ AovStack live_aov_stack(const std::string& name, const LiveImage& image) {
       aov.source.channels.push_back(ch.name);
       aov.source.pixel_types.push_back("float");
     }
-    stack.depth_background_pixels += normalise_aov(r.role, r.flip_normal_z, kDepthBackgroundThreshold, aov);
-    if (r.role == AovRole::Normal) stack.normal_space = r.normal_space;
-    if (r.role == AovRole::Depth) stack.depth_kind = r.depth_kind;
+    stack.depth_background_pixels += normalise_aov(r.role, r.meaning.flip_normal_z, kDepthBackgroundThreshold, aov);
+    if (r.role == AovRole::Normal) stack.normal_space = r.meaning.normal_space;
+    if (r.role == AovRole::Depth) stack.depth_kind = r.meaning.depth_kind;
   }
   return stack;
 }

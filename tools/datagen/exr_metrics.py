@@ -1,8 +1,11 @@
-"""EXR reading, tonemapping, the metrics stored in scene.json and the box mean that splits an image into spatial
-frequency bands (numpy + OpenImageIO only).
+"""The project's metrics in Python, one definition for every tool: EXR reading, the filmic tonemap, relMSE, MSE
+and PSNR as residue-cli eval computes them (tests/tools/test_exr_metrics.py pins them to its numbers), the
+metrics stored in scene.json and the box mean that splits an image into spatial frequency bands (numpy +
+OpenImageIO only). SSIM and the temporal metrics are core's alone: call `residue-cli eval --json`.
 
-Shared by make_scene.py (inside Blender, whose Python on Debian is the system Python 3.11 and sees the
-system's numpy and OpenImageIO), render_dataset.py and contact_sheet.py (/usr/bin/python3).
+Used by make_scene.py (inside Blender, whose Python on Debian is the system Python 3.11 and sees the system's
+numpy and OpenImageIO), render_dataset.py, contact_sheet.py and the studies under tools/research
+(/usr/bin/python3).
 
 relMSE here is the project's definition (docs/METRICS.md, residue-cli eval): mean over pixels and RGB channels
 of (x - r)^2 / (r^2 + eps) with eps = 0.01, on linear values; pixels where the test or the reference is NaN or
@@ -47,9 +50,31 @@ def layer_rgb(img, layer=COMBINED):
     return img["pixels"][:, :, idx].astype(np.float64)
 
 
+def finite_pixels(x, r):
+    """The pixels that enter every metric: test and reference finite in all three RGB channels."""
+    return np.isfinite(x[..., :3]).all(axis=2) & np.isfinite(r[..., :3]).all(axis=2)
+
+
 def relmse(x, r, eps=EPS):
-    ok = np.isfinite(x).all(axis=2) & np.isfinite(r).all(axis=2)
-    return float(np.mean(((x - r) ** 2 / (r * r + eps))[ok]))
+    """relMSE as residue-cli eval scores it (linear RGB; non-finite pixels left out)."""
+    ok = finite_pixels(x, r)
+    x, r = x[..., :3].astype(np.float64), r[..., :3].astype(np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):  # the left-out pixels' inf - inf
+        return float(np.mean(((x - r) ** 2 / (r * r + eps))[ok]))
+
+
+def mse(x, r):
+    """MSE on linear RGB, as residue-cli eval's "mse"."""
+    ok = finite_pixels(x, r)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return float(np.mean(((x[..., :3].astype(np.float64) - r[..., :3]) ** 2)[ok]))
+
+
+def psnr(x, r):
+    """PSNR in dB on tonemapped values (tonemap() at exposure 1), as residue-cli eval's "psnr"."""
+    ok = finite_pixels(x, r)
+    e = np.mean(((tonemap(x[..., :3].astype(np.float64)) - tonemap(r[..., :3].astype(np.float64))) ** 2)[ok])
+    return float("inf") if e == 0 else float(10.0 * math.log10(1.0 / e))
 
 
 def box_mean(e, w):
@@ -73,7 +98,7 @@ def tonemap(rgb, exposure=1.0):
     """Hable/Uncharted-2 filmic curve normalised so linear 11.2 maps to 1, then the sRGB OETF (as eval's SSIM)."""
     x = np.nan_to_num(np.maximum(rgb * exposure, 0.0), nan=0.0, posinf=1e4)
     y = np.clip(_hable(x) / _hable(11.2), 0.0, 1.0)
-    return np.where(y <= 0.0031308, 12.92 * y, 1.055 * np.power(y, 1.0 / 2.4) - 0.055)
+    return np.where(y < 0.0031308, 12.92 * y, 1.055 * np.power(y, 1.0 / 2.4) - 0.055)
 
 
 def log_average_luminance(rgb, delta=1e-4):

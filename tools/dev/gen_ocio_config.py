@@ -23,9 +23,10 @@ import sys
 
 import numpy as np
 
-# Hable's filmic curve, constants as in core/metrics/tonemap.cpp.
-A, B, C, D, E, F = 0.15, 0.50, 0.10, 0.20, 0.02, 0.30
-WHITE = 11.2
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "datagen"))
+from exr_metrics import tonemap as tonemap_filmic_srgb  # noqa: E402  the metric's curve, one definition
+
+WHITE = 11.2  # the curve's white point: linear 11.2 maps to 1
 
 LUT_NAME = "hable_filmic_srgb.spi1d"
 LUT_SIZE = 4096
@@ -33,24 +34,6 @@ EPS = 2.0 ** -12  # shaper offset: log2(x + EPS) is finite at x = 0 and linear-i
 LOG_MIN = float(np.log2(EPS))
 LOG_MAX = float(np.log2(WHITE + EPS))
 MAX_ERROR = 1e-5  # the generator refuses to write a LUT worse than this
-
-
-def hable(x):
-    return (x * (A * x + C * B) + D * E) / (x * (A * x + B) + D * F) - E / F
-
-
-def srgb_oetf(t):
-    t = np.clip(t, 0.0, 1.0)
-    v = np.where(t < 0.0031308, 12.92 * t, 1.055 * np.power(t, 1.0 / 2.4) - 0.055)
-    return np.clip(v, 0.0, 1.0)
-
-
-def tonemap_filmic_srgb(x):
-    """residue::tonemap_filmic_srgb_f64, vectorised (x <= 0 -> 0, x >= WHITE -> 1)."""
-    x = np.asarray(x, dtype=np.float64)
-    pos = np.maximum(x, 0.0)
-    t = np.where(pos >= WHITE, 1.0, hable(np.minimum(pos, WHITE)) / hable(WHITE))
-    return srgb_oetf(t)
 
 
 def lut_values():

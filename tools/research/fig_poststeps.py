@@ -5,12 +5,15 @@ one (the energy correction), crops of the noisy input, the network's raw output,
 
   /usr/bin/python3 tools/research/fig_poststeps.py DATASET OUT.png [--model small]
 """
-import argparse, os, subprocess, tempfile
+import argparse, os, subprocess, sys, tempfile
 import numpy as np
 import OpenImageIO as oiio
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "datagen"))
+from exr_metrics import relmse  # noqa: E402  the metric, one definition
 
 CLI = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "build", "release", "app", "residue-cli", "residue-cli")
 
@@ -32,7 +35,8 @@ def write_rgb(path, img):
     out.close()
 
 
-def tonemap(x, exposure):
+def display_curve(x, exposure):
+    """A brighter curve for the figure's panels only (Reinhard x 1.6, sRGB): not the metric's tonemap."""
     x = np.clip(x * exposure, 0, None)
     return np.clip(np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x / (1 + x) * 1.6, 1 / 2.4) - 0.055), 0, 1)
 
@@ -41,10 +45,6 @@ def denoise(scene_noisy, out, model, extra):
     subprocess.run([CLI, "denoise", scene_noisy, "-m", model, "-o", out, "--float", "-f"] + extra, check=True,
                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return read_rgb(out)
-
-
-def relmse(x, r):
-    return float(np.mean((x - r) ** 2 / (r ** 2 + 1e-2)))
 
 
 def main():
@@ -78,7 +78,7 @@ def main():
         for c, (name, img) in enumerate((("noisy", noisy), (f"{a.model}, raw", raw), ("with the post-step", post),
                                          ("reference", ref))):
             ax = axes[r][c]
-            ax.imshow(tonemap(img, exposure))
+            ax.imshow(display_curve(img, exposure))
             label = name if name == "reference" else f"{name}\nrelMSE {relmse(img, ref):.4f}, mean {img.mean() / ref.mean():.3f}"
             ax.set_title((title + "\n" if c == 0 else "\n") + label, fontsize=8)
             ax.axis("off")
