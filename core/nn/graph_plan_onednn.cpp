@@ -1,0 +1,274 @@
+#include "core/nn/graph_plan_onednn.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include "core/util/error.h"
+
+namespace residue::nn::onednn {
+namespace {
+
+using dt = dnnl::memory::data_type;
+using tag = dnnl::memory::format_tag;
+using dims = dnnl::memory::dims;
+
+dnnl::memory::dims nchw(int64_t c, int64_t h, int64_t w) { return {1, c, h, w}; }
+
+class Planner {
+ public:
+  Planner(const Graph& graph, std::vector<ConvLayer>& layers, Precision precision, const dnnl::engine& engine,
+          dnnl::stream& stream)
+      : graph_(graph), layers_(layers), precision_(precision), engine_(engine), stream_(stream) {}
+
+  Plan plan(int64_t h, int64_t w) {
+    Plan p;
+    const int n = graph_.size();
+    p.values.resize(static_cast<size_t>(n));
+    p.user_in = dnnl::memory::desc(nchw(graph_.input_channels(), h, w), dt::f32, tag::nhwc);
+    p.user_out = dnnl::memory::desc(nchw(graph_.output_channels(), h, w), dt::f32, tag::nhwc);
+    auto dims_of = [&](int i) {
+      const GraphOp& o = graph_.op(i);
+      return nchw(o.channels, h >> o.level, w >> o.level);
+    };
+    auto out_type = [&](int i) { return i == graph_.output() ? dt::f32 : act_type(); };
+    // Steps are made in two passes: descriptors first (they fix every value's layout and size), then, once the
+    // arena is planned, nothing else is needed: bindings name values, resolved at run time.
+    double costliest = -1;
+    for (int i = 0; i < n; ++i) {
+      const GraphOp& op = graph_.op(i);
+      const auto u = static_cast<size_t>(i);
+      switch (op.kind) {
+        case OpKind::Input: {
+          // The layout the first conv reading the input prefers.
+          dnnl::memory::desc chosen = dnnl::memory::desc(dims_of(i), act_type(), tag::nhwc);
+          for (int j = i + 1; j < n; ++j) {
+            const GraphOp& c = graph_.op(j);
+            if (c.kind != OpKind::Conv || c.inputs.front() != i) continue;
+            const ConvLayer& l = layers_[static_cast<size_t>(j)];
+            chosen = conv_pd(c, l.parts.front(), l, dnnl::memory::desc(dims_of(i), act_type(), tag::any),
+                             dnnl::memory::desc(dims_of(j), out_type(j), tag::any), false, true, false)
+                         .src_desc();
+            break;
+          }
+          p.values[u] = chosen;
+          p.input_direct = chosen == p.user_in;
+          if (!p.input_direct) add_reorder(p, p.user_in, chosen, {DNNL_ARG_FROM, -1, true, false}, {DNNL_ARG_TO, i});
+          break;
+        }
+        case OpKind::Conv: {
+          const ConvLayer& l = layers_[u];
+          const bool residual = op.residual >= 0;
+          dnnl::memory::desc dst = residual ? p.values[static_cast<size_t>(op.residual)]
+                                            : dnnl::memory::desc(dims_of(i), out_type(i), tag::any);
+          if (residual && i == graph_.output() && dst.data_type() != dt::f32)
+            dst = dnnl::memory::desc(dims_of(i), dt::f32, tag::any);
+          const bool prelu_separate = l.separate_prelu;
+          if (prelu_separate && residual)
+            throw Error(ErrorKind::Usage, "conv " + op.name + ": per-channel PReLU followed by a residual add is not "
+                                          "supported by the onednn backend; use --backend eigen");
+          const bool sum_residual = residual && !prelu_separate;
+          for (size_t k = 0; k < l.parts.size(); ++k) {
+            const ConvPart& part = l.parts[k];
+            const bool first = k == 0, last = k + 1 == l.parts.size();
+            const auto pd = conv_pd(op, part, l, p.values[static_cast<size_t>(part.value)], dst, !first, last,
+                                    last && sum_residual);
+            if (first) {
+              dst = pd.dst_desc();
+              p.values[u] = dst;
+              // A residual read again later cannot be overwritten: it is copied into this op's output first
+              // (the copy is dropped below where the arena plan lets the conv run in place).
+              if (residual) {
+                add_reorder(p, p.values[static_cast<size_t>(op.residual)], dst, {DNNL_ARG_FROM, op.residual}, {DNNL_ARG_TO, i});
+                p.steps.back().residual_copy_for = i;
+              }
+            }
+            const double cost = static_cast<double>(op.channels) * part.in * op.kernel * op.kernel / (1 << (2 * op.level));
+            if (cost > costliest) {
+              costliest = cost;
+              p.impl = pd.impl_info_str();
+            }
+            p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+            p.steps.push_back({dnnl::convolution_forward(pd),
+                               {{DNNL_ARG_SRC, part.value}, {DNNL_ARG_DST, i}},
+                               {{DNNL_ARG_WEIGHTS, packed_weights(i, k, pd.weights_desc())},
+                                {DNNL_ARG_BIAS, first ? l.bias : l.zeros}},
+                               pd.scratchpad_desc()});
+            label(p.steps.back(), op.name);
+          }
+          if (prelu_separate) {
+            const dnnl::prelu_forward::desc d(dnnl::prop_kind::forward_inference, dst, l.slopes.get_desc());
+            const dnnl::prelu_forward::primitive_desc pd(d, user_scratchpad(), engine_);
+            p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+            p.steps.push_back({dnnl::prelu_forward(pd), {{DNNL_ARG_SRC, i}, {DNNL_ARG_DST, i}},  // in place
+                               {{DNNL_ARG_WEIGHTS, l.slopes}}, pd.scratchpad_desc()});
+            label(p.steps.back(), op.name + " prelu");
+          }
+          break;
+        }
+        case OpKind::Pool: {
+          const int x = op.inputs[0];
+          const dnnl::pooling_forward::desc d(dnnl::prop_kind::forward_inference, dnnl::algorithm::pooling_max,
+                                              p.values[static_cast<size_t>(x)],
+                                              dnnl::memory::desc(dims_of(i), act_type(), tag::any), {2, 2}, {2, 2},
+                                              {0, 0}, {0, 0});
+          const dnnl::pooling_forward::primitive_desc pd(d, user_scratchpad(), engine_);
+          p.values[u] = pd.dst_desc();
+          p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+          p.steps.push_back({dnnl::pooling_forward(pd), {{DNNL_ARG_SRC, x}, {DNNL_ARG_DST, i}}, {}, pd.scratchpad_desc()});
+          label(p.steps.back(), op.name);
+          break;
+        }
+        case OpKind::Upsample: {
+          const int x = op.inputs[0];
+          const dnnl::resampling_forward::desc d(dnnl::prop_kind::forward_inference, dnnl::algorithm::resampling_nearest,
+                                                 p.values[static_cast<size_t>(x)],
+                                                 dnnl::memory::desc(dims_of(i), out_type(i), tag::any));
+          const dnnl::resampling_forward::primitive_desc pd(d, user_scratchpad(), engine_);
+          p.values[u] = pd.dst_desc();
+          p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+          p.steps.push_back({dnnl::resampling_forward(pd), {{DNNL_ARG_SRC, x}, {DNNL_ARG_DST, i}}, {}, pd.scratchpad_desc()});
+          label(p.steps.back(), op.name);
+          break;
+        }
+        case OpKind::Add:
+          add_binary(p, op.inputs[0], op.inputs[1], i, dnnl::memory::desc(dims_of(i), out_type(i), tag::any));
+          break;
+      }
+    }
+    const int out = graph_.output();
+    p.output_direct = p.values[static_cast<size_t>(out)] == p.user_out;
+    if (!p.output_direct) add_reorder(p, p.values[static_cast<size_t>(out)], p.user_out, {DNNL_ARG_FROM, out}, {DNNL_ARG_TO, -1, false, true});
+
+    std::vector<size_t> bytes(static_cast<size_t>(n), 0);
+    for (int i = 0; i < n; ++i) bytes[static_cast<size_t>(i)] = p.values[static_cast<size_t>(i)].get_size();
+    for (int i = 0; i < n; ++i)
+      if (graph_.op(i).kind == OpKind::Input && p.input_direct) bytes[static_cast<size_t>(i)] = 0;
+    if (p.output_direct) bytes[static_cast<size_t>(out)] = 0;
+    p.arena = plan_arena(graph_, bytes);
+    std::erase_if(p.steps, [&](const Step& s) {
+      return s.residual_copy_for >= 0 && p.arena.in_place[static_cast<size_t>(s.residual_copy_for)] >= 0;
+    });
+    return p;
+  }
+
+
+ private:
+  dt act_type() const { return precision_ == Precision::BF16 ? dt::bf16 : dt::f32; }
+
+  static dnnl::primitive_attr user_scratchpad(dnnl::post_ops ops = {}) {
+    dnnl::primitive_attr attr;
+    attr.set_post_ops(ops);
+    attr.set_scratchpad_mode(dnnl::scratchpad_mode::user);
+    return attr;
+  }
+
+  // One part's conv: `accumulate` adds what dst holds (sum post-op) before the activation; `residual` adds it
+  // after; `act` applies the fused activation; `bias`: this part adds the bias.
+  dnnl::convolution_forward::primitive_desc conv_pd(const GraphOp& op, const ConvPart& part, const ConvLayer& l,
+                                                    const dnnl::memory::desc& src, const dnnl::memory::desc& dst,
+                                                    bool accumulate, bool act, bool residual) const {
+    dnnl::post_ops ops;
+    if (accumulate) ops.append_sum(1.0f);
+    if (act && l.fused_act) ops.append_eltwise(1.0f, dnnl::algorithm::eltwise_relu, l.alpha, 0.0f);
+    if (residual) ops.append_sum(1.0f);
+    const int k = op.kernel, d = op.dilation, pad = d * (k / 2);
+    const dnnl::memory::desc weights(dims{op.channels, part.in, k, k}, act_type(), tag::any);
+    const dnnl::memory::desc bias(dims{op.channels}, dt::f32, tag::a);
+    const dnnl::convolution_forward::desc desc(dnnl::prop_kind::forward_inference, dnnl::algorithm::convolution_direct,
+                                               src, weights, bias, dst, {1, 1}, {d - 1, d - 1}, {pad, pad}, {pad, pad});
+    return {desc, user_scratchpad(ops), engine_};
+  }
+
+  void add_reorder(Plan& p, const dnnl::memory::desc& from, const dnnl::memory::desc& to, Binding src, Binding dst) const {
+    const dnnl::reorder::primitive_desc pd(engine_, from, engine_, to, user_scratchpad());
+    p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+    p.steps.push_back({dnnl::reorder(pd), {src, dst}, {}, pd.scratchpad_desc()});
+    label(p.steps.back(), "reorder");
+  }
+
+  void add_binary(Plan& p, int a, int b, int dst, const dnnl::memory::desc& dst_desc) const {
+    const dnnl::binary::desc d(dnnl::algorithm::binary_add, p.values[static_cast<size_t>(a)],
+                               p.values[static_cast<size_t>(b)], dst_desc);
+    const dnnl::binary::primitive_desc pd(d, user_scratchpad(), engine_);
+    p.values[static_cast<size_t>(dst)] = pd.dst_desc();
+    p.scratchpad = std::max(p.scratchpad, pd.scratchpad_desc().get_size());
+    p.steps.push_back({dnnl::binary(pd), {{DNNL_ARG_SRC_0, a}, {DNNL_ARG_SRC_1, b}, {DNNL_ARG_DST, dst}}, {},
+                       pd.scratchpad_desc()});
+    label(p.steps.back(), "add");
+  }
+
+  // Part `k` of conv `op`'s weights in `desc`'s layout, reordered on first use.
+  dnnl::memory packed_weights(int op, size_t k, const dnnl::memory::desc& desc) {
+    ConvPart& part = layers_[static_cast<size_t>(op)].parts[k];
+    for (const auto& [d, m] : part.packed)
+      if (d == desc) return m;
+    const GraphOp& o = graph_.op(op);
+    const dnnl::memory::desc user(dims{o.channels, part.in, o.kernel, o.kernel}, dt::f32, tag::oihw);
+    dnnl::memory src(user, engine_, part.weight.data());
+    dnnl::memory dst(desc, engine_);
+    dnnl::reorder(src, dst).execute(stream_, src, dst);
+    stream_.wait();
+    part.packed.emplace_back(desc, dst);
+    return dst;
+  }
+
+  static void label(Step& s, const std::string& name) {
+    s.label = name;
+    const char* impl = nullptr;
+    if (dnnl_primitive_desc_query(s.primitive.get_primitive_desc(), dnnl_query_impl_info_str, 0, &impl) == dnnl_success && impl)
+      s.impl = impl;
+  }
+
+  const Graph& graph_;
+  std::vector<ConvLayer>& layers_;
+  Precision precision_;
+  const dnnl::engine& engine_;
+  dnnl::stream& stream_;
+};
+
+}  // namespace
+
+ConvLayer make_layer(const Graph& graph, const GraphOp& op, const dnnl::engine& engine) {
+  ConvLayer l;
+  int first = 0;
+  const int k = op.kernel;
+  for (int v : op.inputs) {
+    ConvPart p;
+    p.value = v;
+    p.in = graph.op(v).channels;
+    p.weight.resize(static_cast<size_t>(op.channels) * static_cast<size_t>(p.in * k * k));
+    for (int o = 0; o < op.channels; ++o)
+      for (int i = 0; i < p.in; ++i)
+        for (int t = 0; t < k * k; ++t)
+          p.weight[(static_cast<size_t>(o) * static_cast<size_t>(p.in) + static_cast<size_t>(i)) * static_cast<size_t>(k * k) +
+                   static_cast<size_t>(t)] = op.w(o, first + i, t / k, t % k);
+    first += p.in;
+    l.parts.push_back(std::move(p));
+  }
+  l.bias = dnnl::memory({{op.channels}, dt::f32, tag::a}, engine);
+  std::memcpy(l.bias.get_data_handle(), op.bias.data(), op.bias.size() * sizeof(float));
+  l.zeros = dnnl::memory({{op.channels}, dt::f32, tag::a}, engine);
+  std::memset(l.zeros.get_data_handle(), 0, op.bias.size() * sizeof(float));
+  if (op.activation == Activation::ReLU) {
+    l.fused_act = true;
+    l.alpha = 0.0f;
+  } else if (op.activation == Activation::PReLU) {
+    const bool uniform = std::all_of(op.slopes.begin(), op.slopes.end(), [&](float a) { return a == op.slopes.front(); });
+    if (uniform) {
+      l.fused_act = true;
+      l.alpha = op.slopes.front();
+    } else {
+      l.separate_prelu = true;
+      l.slopes = dnnl::memory({nchw(op.channels, 1, 1), dt::f32, tag::nchw}, engine);
+      std::memcpy(l.slopes.get_data_handle(), op.slopes.data(), op.slopes.size() * sizeof(float));
+    }
+  }
+  return l;
+}
+
+Plan make_plan(const Graph& graph, std::vector<ConvLayer>& layers, Precision precision, const dnnl::engine& engine,
+               dnnl::stream& stream, int64_t h, int64_t w) {
+  return Planner(graph, layers, precision, engine, stream).plan(h, w);
+}
+
+}  // namespace residue::nn::onednn
