@@ -20,6 +20,7 @@
 #include "core/io/exr_writer.h"
 #include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "core/util/error.h"
 #include "support/reference_network.h"
 #include "support/test_support.h"

@@ -10,6 +10,7 @@
 #include "core/denoise/denoiser.h"
 #include "core/denoise/energy_correction.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "tests/support/test_support.h"
 
 namespace residue {

@@ -21,6 +21,7 @@
 #include "core/nn/backend.h"
 #include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "core/nn/tza.h"
 #include "core/util/error.h"
 #include "support/naive_oidn.h"

@@ -52,7 +52,7 @@ TEST(Method, ANewMethodIsOneClassAndOneRegistryLine) {
   register_method({"test-halving", "halves the colour (a test)", false,
                    [](std::shared_ptr<const nn::Model>) { return std::make_unique<HalvingMethod>(); }});
   ASSERT_TRUE(is_model_free_method("test-halving"));
-  nn::ModelCache models;
+  nn::ModelRegistry models;
   const AovStack stack = testing::random_stack(20, 30, 7);
   // Resolved by name as -m resolves it, run by the entry point every caller uses.
   const std::unique_ptr<Method> method = resolve_method("test-halving", FeatureSet::Full, models);

@@ -9,6 +9,7 @@
 
 #include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
+#include "core/nn/model_registry.h"
 #include "core/util/error.h"
 #include "support/test_support.h"
 
@@ -90,6 +91,43 @@ TEST(ModelAlias, ResolvesToTheModelsVariantWithTheAliasSettings) {
   ASSERT_TRUE(same.validation && fam.validation);
   EXPECT_EQ(same.validation->relmse, 0.75);
   EXPECT_EQ(same.seconds_per_mp(nn::Precision::FP32), 1.5);
+}
+
+// The registry (core/nn/model_registry.h): one resolution says which file runs and with which settings; a loaded
+// model is read once per name and file and shared; a family with no variant for the AOVs present gets the cheapest
+// family that has one, never an alias.
+TEST(ModelRegistry, ResolvesLoadsOnceAndSubstitutes) {
+  TempDir tmp;
+  write_models(tmp, R"({"top": {"model": "fam", "ensemble": 4}})");
+  nn::write_safetensors(tmp / "rich.safetensors",
+                        nn::to_safetensors(nn::random_network({1, 4, FeatureSet::Full}, 3), {{"name", "rich"}}), false);
+  ModelPathFor path(tmp.path());
+  const nn::ModelChoice top = nn::resolve_model("top", FeatureSet::ColorOnly);
+  EXPECT_EQ(top.file, tmp / "fam-color.safetensors");
+  EXPECT_EQ(top.ensemble, 4);
+  ASSERT_TRUE(top.alias);
+  EXPECT_EQ(top.alias->model, "fam");
+  const nn::ModelChoice fam = nn::resolve_model("fam", FeatureSet::Full);
+  EXPECT_EQ(fam.file, tmp / "fam.safetensors");
+  EXPECT_EQ(fam.ensemble, 0);
+  EXPECT_FALSE(fam.alias);
+  EXPECT_EQ(nn::resolve_model((tmp / "fam.safetensors").string(), FeatureSet::ColorOnly).file, tmp / "fam.safetensors")
+      << "a path runs as named, whatever the AOVs";
+
+  nn::ModelRegistry registry;
+  const auto a = registry.load("top", FeatureSet::Full), b = registry.load("top", FeatureSet::Full);
+  const auto c = registry.load("fam", FeatureSet::Full);
+  EXPECT_EQ(a.get(), b.get()) << "loaded once";
+  EXPECT_NE(a.get(), c.get()) << "an alias and its model share a file, not their settings";
+  EXPECT_EQ(a->ensemble, 4);
+  EXPECT_EQ(c->ensemble, 1);
+
+  const std::vector<std::string> families = {"top", "rich", "fam", "bilateral"};  // in order of cost
+  EXPECT_FALSE(nn::ModelRegistry::substitute("rich", FeatureSet::Full, families)) << "it fits as it is";
+  EXPECT_EQ(nn::ModelRegistry::substitute("rich", FeatureSet::ColorOnly, families), std::optional<std::string>("fam"))
+      << "rich has no colour-only variant: the cheapest family that has one, skipping the alias top";
+  EXPECT_FALSE(nn::ModelRegistry::substitute("unknown", FeatureSet::ColorOnly, families));
+  EXPECT_THROW(nn::resolve_model("rich", FeatureSet::ColorOnly), Error);
 }
 
 TEST(ModelAlias, MalformedAliasesAreRefusedNamingTheFile) {

@@ -11,6 +11,7 @@
 #include "core/denoise/output_guard.h"
 #include "core/features/features.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "support/test_support.h"
 
 namespace residue {

@@ -22,6 +22,7 @@
 #include "core/io/atomic_file.h"
 #include "core/io/exr_writer.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
 

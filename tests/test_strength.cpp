@@ -8,6 +8,7 @@
 #include "core/denoise/strength.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "support/test_support.h"
 
 namespace residue {

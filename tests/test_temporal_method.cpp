@@ -11,6 +11,7 @@
 #include "core/denoise/method_registry.h"
 #include "core/features/features.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "core/temporal/frame_window.h"
 #include "support/test_support.h"
 

@@ -10,6 +10,7 @@
 #include "core/features/features.h"
 #include "core/nn/backend.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "core/nn/safetensors.h"
 #include "core/util/error.h"
 #include "support/test_support.h"

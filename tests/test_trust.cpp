@@ -18,6 +18,7 @@
 #include "core/io/frame_claim.h"
 #include "core/ipc/live_images.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
 

@@ -14,6 +14,7 @@
 #include "core/io/exr_writer.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "tests/support/test_support.h"
 
 namespace residue {

@@ -9,6 +9,7 @@
 #include "core/denoise/provenance_of.h"
 #include "core/features/features.h"
 #include "core/nn/model_alias.h"
+#include "core/nn/model_registry.h"
 #include "core/temporal/frame_window.h"
 #include "core/util/error.h"
 #include "ui/session.h"
@@ -84,27 +85,14 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
     if (is_model_free_method(req.model.toStdString())) {
       method = make_method(std::string_view(req.model.toStdString()));
     } else {
-      std::filesystem::path path;
-      try {
-        path = nn::find_model_for(req.model.toStdString(), feature_set_for(*stack));
-      } catch (const Error&) {
-        const bool known = std::any_of(models_.begin(), models_.end(), [&](const nn::ModelCard& m) { return m.family == req.model.toStdString(); });
-        if (!known) throw;
-        // The family has no variant for this render's AOVs (a stream with colour only, say): the cheapest
-        // family that has one runs instead, and its name says so.
-        for (const auto& m : models_) {
-          if (m.method != nn::Method::Residue) continue;
-          try {
-            path = nn::find_model_for(m.family, feature_set_for(*stack));
-            substitute = QString::fromStdString(m.family);
-            break;
-          } catch (const Error&) {
-          }
-        }
-        if (substitute.isEmpty()) throw;
-      }
-      variant = QString::fromStdString(path.stem().string());
+      // A family without a variant for this render's AOVs (a stream with colour only, say): the cheapest
+      // family that has one runs instead, and its name says so.
+      std::vector<std::string> families;
+      for (const auto& m : models_) families.push_back(m.family);
+      if (const auto other = nn::ModelRegistry::substitute(req.model.toStdString(), feature_set_for(*stack), families))
+        substitute = QString::fromStdString(*other);
       const QString name = substitute.isEmpty() ? req.model : substitute;
+      variant = QString::fromStdString(nn::find_model_for(name.toStdString(), feature_set_for(*stack)).stem().string());
       method = make_method(loaded_.load(name.toStdString(), feature_set_for(*stack)));
     }
   } catch (const std::exception& e) {

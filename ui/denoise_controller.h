@@ -12,7 +12,7 @@
 #include <optional>
 
 #include "core/denoise/denoise_job.h"
-#include "core/nn/model_cache.h"
+#include "core/nn/model_registry.h"
 #include "core/nn/model_card.h"
 #include "ui/result.h"
 
@@ -79,7 +79,7 @@ class DenoiseController : public QObject {
 
   Session* session_;
   std::vector<nn::ModelCard> models_;
-  nn::ModelCache loaded_;
+  nn::ModelRegistry loaded_;
   std::map<QString, double> measured_s_per_mp_;
   Request request_;
   QString description_;

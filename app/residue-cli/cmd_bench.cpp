@@ -19,6 +19,7 @@
 #include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "core/util/cpu_peak.h"
 #include "core/util/error.h"
 

@@ -169,7 +169,7 @@ int run(const EvalSetOptions& o) {
   std::vector<std::vector<Cell>> results(scenes.size(), std::vector<Cell>(columns.size()));
   nlohmann::json json_scenes = nlohmann::json::array();
   double megapixels_total = 0;
-  nn::ModelCache models;
+  nn::ModelRegistry models;
   for (size_t si = 0; si < scenes.size(); ++si) {
     AovStack stack = load_dataset_scene(scenes[si]);
     perturb_inputs(stack, o.perturb, static_cast<unsigned>(si) + 1);

@@ -30,6 +30,7 @@
 #include "core/io/frame_sequence.h"
 #include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "core/util/error.h"
 
 namespace residue::cli {

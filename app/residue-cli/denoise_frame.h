@@ -14,7 +14,7 @@
 
 #include "cli_common.h"
 #include "core/denoise/denoiser.h"
-#include "core/nn/model_cache.h"
+#include "core/nn/model_registry.h"
 #include "core/io/exr_writer.h"
 #include "core/io/metrics_report.h"
 #include "interrupt.h"
@@ -61,7 +61,7 @@ struct FrameContext {
   const DenoiseCliOptions& options;
   const InterruptScope& interrupt;
   bool show_progress = true;  // a progress bar (single renders) or nothing (sequences print a line per frame)
-  nn::ModelCache models;  // before the backends, which are keyed by the models: they go first
+  nn::ModelRegistry models;  // before the backends, which are keyed by the models: they go first
   BackendCache backends;
   // Frames read as a temporal method's neighbours, by their colour file, kept while the next frames need them.
   std::map<std::string, std::shared_ptr<const AovStack>> neighbour_frames;

@@ -22,6 +22,7 @@
 #include "core/denoise/denoiser.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_file.h"
+#include "core/nn/model_registry.h"
 #include "core/util/error.h"
 #include "core/util/openmp_env.h"
 #include "torch_network.h"

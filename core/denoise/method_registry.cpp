@@ -72,7 +72,7 @@ std::unique_ptr<Method> make_method(std::string_view family) {
   return e->make(nullptr);
 }
 
-std::unique_ptr<Method> resolve_method(const std::string& name_or_path, FeatureSet available, nn::ModelCache& models) {
+std::unique_ptr<Method> resolve_method(const std::string& name_or_path, FeatureSet available, nn::ModelRegistry& models) {
   if (is_model_free_method(name_or_path)) return make_method(std::string_view(name_or_path));
   return make_method(models.load(name_or_path, available));
 }

@@ -13,7 +13,7 @@
 
 #include "core/denoise/method.h"
 #include "core/features/feature_set.h"
-#include "core/nn/model_cache.h"
+#include "core/nn/model_registry.h"
 #include "core/nn/model_file.h"
 
 namespace residue {
@@ -43,7 +43,7 @@ bool is_model_free_method(std::string_view name);
 // The method `-m NAME` asks for on a render with `available` AOVs: a model-free method by its name, else the
 // model the name (a file, a family, an alias) selects for those AOVs, loaded through `models`. Throws
 // Error(Input) when no model file fits, listing what was looked for.
-std::unique_ptr<Method> resolve_method(const std::string& name_or_path, FeatureSet available, nn::ModelCache& models);
+std::unique_ptr<Method> resolve_method(const std::string& name_or_path, FeatureSet available, nn::ModelRegistry& models);
 
 // The factories of the built-in methods, one file each.
 std::unique_ptr<Method> make_residue_method(std::shared_ptr<const nn::Model> model);

@@ -4,6 +4,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "core/nn/model_registry.h"
 #include "core/util/error.h"
 
 namespace residue::nn {
@@ -72,13 +73,6 @@ std::optional<ModelAlias> find_model_alias(const std::string& name) {
     for (auto& a : read_aliases(file))
       if (a.name == name) return a;
   return std::nullopt;
-}
-
-Model load_model_for(const std::string& name_or_path, FeatureSet available) {
-  Model m = load_model(find_model_for(name_or_path, available));
-  if (!std::filesystem::is_regular_file(name_or_path))
-    if (const auto alias = find_model_alias(name_or_path); alias && alias->ensemble > 0) m.ensemble = alias->ensemble;
-  return m;
 }
 
 }  // namespace residue::nn

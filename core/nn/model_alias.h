@@ -35,8 +35,4 @@ std::optional<ModelAlias> find_model_alias(const std::string& name);
 // Every alias, the first definition of each name; unreadable files are left out with a line in `problems`.
 std::vector<ModelAlias> list_model_aliases(std::vector<std::string>* problems = nullptr);
 
-// Loads what `name_or_path` selects for a render with `available` AOVs: a file, a family's variant
-// (find_model_for), or an alias's model with the alias's settings applied.
-Model load_model_for(const std::string& name_or_path, FeatureSet available);
-
 }  // namespace residue::nn

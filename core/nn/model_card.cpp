@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/nn/model_alias.h"
+#include "core/nn/model_registry.h"
 #include "core/nn/oidn_network.h"
 
 namespace residue::nn {

@@ -5,12 +5,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "core/nn/model_alias.h"
+#include "core/nn/model_registry.h"
 #include "core/nn/oidn_network.h"
 #include "core/nn/tza.h"
 #include "core/util/error.h"
-#include "core/util/input_file.h"
-#include "core/util/resources.h"
 
 namespace residue::nn {
 namespace {
@@ -277,90 +275,6 @@ Model load_model(const std::filesystem::path& path) {
     }
   }
   return m;
-}
-
-std::vector<std::filesystem::path> model_dirs() {
-  std::vector<std::filesystem::path> dirs;
-  if (const char* env = std::getenv("RESIDUE_MODEL_PATH")) dirs.emplace_back(env);
-  for (const auto& d : resource_dirs()) dirs.push_back(d / "models");
-  return dirs;
-}
-
-std::filesystem::path find_model(const std::string& name_or_path) {
-  if (std::filesystem::is_regular_file(name_or_path)) return name_or_path;
-  std::string looked;
-  for (const auto& d : model_dirs()) {
-    const auto candidate = d / (name_or_path + ".safetensors");
-    if (std::filesystem::is_regular_file(candidate)) return candidate;
-    looked += " " + d.string();
-  }
-  throw Error(ErrorKind::Input, "model \"" + name_or_path + "\" is neither a file nor a model name found in:" + looked);
-}
-
-std::string model_variant_name(const std::string& family, FeatureSet set) {
-  switch (set) {
-    case FeatureSet::Full: return family;
-    case FeatureSet::ColorAlbedoNormal: return family + "-albedo-normal";
-    case FeatureSet::ColorOnly: return family + "-color";
-    case FeatureSet::FullVariance: return family + "-variance";
-  }
-  return family;
-}
-
-std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available) {
-  std::error_code ec;
-  if (std::filesystem::is_regular_file(name_or_path, ec)) return name_or_path;
-  // A path (a folder in it, or a model file's extension) is a file the user named: say what is wrong with it
-  // rather than looking for a model of that name.
-  const std::string extension = std::filesystem::path(name_or_path).extension().string();
-  if (name_or_path.find('/') != std::string::npos || extension == ".safetensors" || extension == ".tza")
-    check_input_file(name_or_path, "model file");
-  if (const auto alias = find_model_alias(name_or_path)) {
-    // One level only: an alias of an alias could loop, and what runs should be one lookup away from the name.
-    if (find_model_alias(alias->model))
-      throw Error(ErrorKind::Input, alias->file.string() + ": alias \"" + alias->name + "\" stands for \"" +
-                                        alias->model + "\", which is itself an alias; name a model");
-    return find_model_for(alias->model, available);
-  }
-  if (name_or_path == "oidn" || name_or_path == "oidn-cleanaux") {
-    const bool aux = feature_channels(available) >= feature_channels(FeatureSet::ColorAlbedoNormal);
-    std::string file = aux ? "rt_hdr_alb_nrm" : "rt_hdr";
-    if (name_or_path == "oidn-cleanaux") {
-      if (!aux)
-        throw Error(ErrorKind::Input, "model \"oidn-cleanaux\" needs albedo and normal AOVs, which this render lacks");
-      file = "rt_hdr_calb_cnrm_large";
-    }
-    std::string looked;
-    for (const auto& d : model_dirs()) {
-      if (std::filesystem::is_regular_file(d / "oidn" / (file + ".tza"))) return d / "oidn" / (file + ".tza");
-      looked += " " + (d / "oidn").string();
-    }
-    throw Error(ErrorKind::Input, "Open Image Denoise's network " + file + ".tza is not installed (looked in:" +
-                                      looked + "); tools/dev/fetch_oidn_weights.sh --install fetches it");
-  }
-  std::vector<FeatureSet> usable;
-  for (FeatureSet s : {FeatureSet::FullVariance, FeatureSet::Full, FeatureSet::ColorAlbedoNormal, FeatureSet::ColorOnly})
-    if (feature_channels(s) <= feature_channels(available)) usable.push_back(s);  // the sets nest: 10 > 9 > 8 > 3
-  std::string tried;
-  for (FeatureSet s : usable) {
-    const std::string name = model_variant_name(name_or_path, s);
-    for (const auto& d : model_dirs())
-      if (std::filesystem::is_regular_file(d / (name + ".safetensors"))) return d / (name + ".safetensors");
-    tried += (tried.empty() ? "" : ", ") + name;
-  }
-  std::string looked;
-  for (const auto& d : model_dirs()) looked += " " + d.string();
-  auto has = [&](FeatureSet s) {
-    switch (s) {
-      case FeatureSet::FullVariance: return "colour, albedo, normal, depth and variance";
-      case FeatureSet::Full: return "colour, albedo, normal and depth";
-      case FeatureSet::ColorAlbedoNormal: return "colour, albedo and normal (no depth)";
-      case FeatureSet::ColorOnly: return "colour only (no complete albedo and normal)";
-    }
-    return "";
-  };
-  throw Error(ErrorKind::Input, "no model \"" + name_or_path + "\" for the AOVs this render has: " + has(available) +
-                                    "; tried " + tried + " in:" + looked);
 }
 
 void write_architecture_metadata(const Architecture& arch, std::map<std::string, std::string>& metadata) {

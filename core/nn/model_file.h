@@ -71,21 +71,7 @@ inline constexpr const char* kDefaultModel = "multiscale";
 // What `denoise --temporal` runs unless -m names another temporal model (docs/TEMPORAL.md).
 inline constexpr const char* kDefaultTemporalModel = "multiscale-temporal";
 
-// `name_or_path`: an existing file, or a model name looked up in $RESIDUE_MODEL_PATH, the source tree's
-// resources/models and <prefix>/share/residue/models. Throws Error(Input) listing where it looked.
-std::filesystem::path find_model(const std::string& name_or_path);
-// Where model names are looked up, in order: $RESIDUE_MODEL_PATH, then each shipped data folder's models/.
-std::vector<std::filesystem::path> model_dirs();
-
-// A model *name* names a family of variants, one per feature set: NAME (full), NAME-albedo-normal, NAME-color.
-// Returns the richest variant that exists and that a stack able to feed `available` can use, so a render
-// without depth (or without any AOV) gets the model trained for what it has instead of zeros.
-// "oidn" picks OIDN's rt_hdr_alb_nrm (with albedo and normal) or rt_hdr; "oidn-cleanaux" its final-frame
-// network rt_hdr_calb_cnrm_large (albedo and normal needed), both from <model dir>/oidn/.
-// An alias (core/nn/model_alias.h, e.g. "best") resolves to its model's variant; load_model_for also applies its
-// settings. A path is returned as is. Throws Error(Input) listing what was looked for.
-std::filesystem::path find_model_for(const std::string& name_or_path, FeatureSet available);
-std::string model_variant_name(const std::string& family, FeatureSet set);
+// Finding a model by name (model folders, variants, aliases) and loading it once: model_registry.h.
 
 // A network as a model file's tensors (batch norm written as identity: the weights are already folded).
 SafetensorsFile to_safetensors(const Network& network, std::map<std::string, std::string> metadata = {});

@@ -19,6 +19,7 @@
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
 #include "core/metrics/metrics.h"
+#include "core/nn/model_registry.h"
 #include "ui/comparison_sheet.h"
 #include "ui/denoise_controller.h"
 #include "ui/denoise_panel.h"

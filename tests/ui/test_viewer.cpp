@@ -26,6 +26,7 @@
 #include "core/features/features.h"
 #include "core/image/colormap.h"
 #include "core/metrics/metrics.h"
+#include "core/nn/model_registry.h"
 #include "support/exr_fixture.h"
 #include "ui/canvas.h"
 #include "ui/denoise_panel.h"
