@@ -188,7 +188,8 @@ bool DenoiseController::start(const Request& req, const QString& asked) {
   // Tiles arrive on the worker thread and are handed to the GUI thread; poll() delivers the queued ones before
   // it ends a job, so none of an old job lands in a new one.
   const int id = result_id_;
-  job_ = std::make_unique<DenoiseJob>(run_stack, method, options, [this, id](const Rect& r, const Image& pixels) {
+  job_ = std::make_unique<DenoiseJob>(run_stack, method, options, [this, id, gate = tile_gate_](const Rect& r, const Image& pixels) {
+    if (gate) gate();
     QMetaObject::invokeMethod(
         this, [this, id, r, pixels] { if (job_) session_->setResultTile(id, r, pixels); }, Qt::QueuedConnection);
   });

@@ -7,6 +7,7 @@
 
 #include <QElapsedTimer>
 #include <QObject>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -65,6 +66,9 @@ class DenoiseController : public QObject {
   double expectedSecondsPerMp(const QString& model, nn::Precision precision) const;
   std::optional<double> measuredSecondsPerMp(const QString& model) const;
   const std::vector<nn::ModelCard>& models() const { return models_; }
+  // Called on the worker thread after each tile of the result, before it is handed to the GUI thread (the next
+  // tile waits for it): lets a test hold a run at a tile, cancel it there and let it go, instead of racing it.
+  void setTileGate(std::function<void()> gate) { tile_gate_ = std::move(gate); }
 
  signals:
   void started(QString description);
@@ -80,6 +84,7 @@ class DenoiseController : public QObject {
   Session* session_;
   std::vector<nn::ModelCard> models_;
   nn::ModelRegistry loaded_;
+  std::function<void()> tile_gate_;
   std::map<QString, double> measured_s_per_mp_;
   Request request_;
   QString description_;

@@ -8,6 +8,8 @@
 
 #include <array>
 #include <fstream>
+#include <iterator>
+#include <sstream>
 #include <thread>
 #include <cstdio>
 #include <random>
@@ -131,6 +133,29 @@ bool ChildProcess::wait_until_handling(int sig, std::chrono::milliseconds timeou
     std::ifstream status("/proc/" + std::to_string(pid_) + "/status");
     for (std::string line; std::getline(status, line);)
       if (line.rfind("SigCgt:", 0) == 0 && (std::stoull(line.substr(7), nullptr, 16) >> (sig - 1) & 1u) != 0) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return false;
+}
+
+bool ChildProcess::wait_until_cpu(double cpu_seconds, std::chrono::milliseconds timeout) const {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  const double tick = static_cast<double>(::sysconf(_SC_CLK_TCK));
+  while (pid_ > 0 && std::chrono::steady_clock::now() < deadline) {
+    std::ifstream stat("/proc/" + std::to_string(pid_) + "/stat");
+    std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+    // Fields after the command name (which may hold spaces, so it is skipped to its closing parenthesis):
+    // state is field 3, utime 14, stime 15.
+    const size_t close = text.rfind(')');
+    if (close == std::string::npos) return false;  // the process is gone
+    std::istringstream fields(text.substr(close + 2));
+    std::string field;
+    unsigned long long utime = 0, stime = 0;
+    for (int i = 3; i <= 15 && fields >> field; ++i) {
+      if (i == 14) utime = std::stoull(field);
+      if (i == 15) stime = std::stoull(field);
+    }
+    if (static_cast<double>(utime + stime) / tick >= cpu_seconds) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
   return false;

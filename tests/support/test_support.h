@@ -65,6 +65,9 @@ class ChildProcess {
   // Waits until the process has installed a handler for `sig` (its SigCgt mask in /proc), so that a signal sent
   // next meets the program's handling and not the default action; false after `timeout`.
   bool wait_until_handling(int sig, std::chrono::milliseconds timeout) const;
+  // Whether the child has used `cpu_seconds` of CPU time (user + system, all its threads) within `timeout`: that
+  // it is at work, however loaded the machine, where a wall-clock wait would only guess.
+  bool wait_until_cpu(double cpu_seconds, std::chrono::milliseconds timeout) const;
   double wait();         // waits for the exit; the seconds since signal()
   int wait_status() const { return wait_status_; }  // waitpid's status, after wait()
 

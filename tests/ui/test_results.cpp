@@ -330,8 +330,12 @@ class TestResults : public QObject {
     x8.ensemble = 8;
     QCOMPARE(DenoiseController::name(x8), QString("small bf16 x8"));
     QVERIFY(DenoiseController::key(x8) != DenoiseController::key(r));
-    QVERIFY(c.start(r));
-    c.cancel();
+    {
+      HeldAtFirstTile held(&c);  // cancelled at its first tile, so it cannot finish first
+      QVERIFY(c.start(r));
+      QVERIFY(held.reached());
+      c.cancel();
+    }
     QVERIFY(QTest::qWaitFor([&] { return finished.count() == 3; }, 60000));
     QCOMPARE(session.results().size(), size_t(2));
     // Cancelled: kept in the list, said so, never taken for a finished run.

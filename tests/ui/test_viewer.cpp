@@ -263,9 +263,13 @@ class TestViewer : public QObject {
     QVERIFY(w.denoisePanel()->selectModel("small"));
     w.denoisePanel()->setTile(64);  // 9 tiles
     QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+    // The run is held at its first tile while it is cancelled, then let go: it stops at the next tile.
+    HeldAtFirstTile held(w.denoisePanel()->controller());
     w.denoisePanel()->start();
     QVERIFY(w.denoisePanel()->running());
+    QVERIFY(held.reached());
     w.denoisePanel()->cancel();
+    held.release();
     QVERIFY(settle(w, [&] { return finished.count() == 1; }));
     QCOMPARE(finished.at(0).at(0).toBool(), false);
     QVERIFY(finished.at(0).at(1).toString().contains("cancelled"));

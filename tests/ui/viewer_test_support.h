@@ -6,11 +6,16 @@
 #include <QtTest>
 #include <OpenImageIO/imageio.h>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <functional>
+#include <memory>
+#include <mutex>
 
 #include "core/aov/aov_loader.h"
+#include "ui/denoise_controller.h"
 #include "ui/main_window.h"
 
 namespace residue::ui::viewer_test {
@@ -21,6 +26,46 @@ inline const std::filesystem::path kExample = std::filesystem::path(RESIDUE_SOUR
 inline bool settle(MainWindow& w, const std::function<bool()>& done, int ms = 60000) {
   return QTest::qWaitFor([&] { return done() && !w.busy(); }, ms);
 }
+
+// Holds the next run of `controller` at its first tile until release(): start the run, wait until reached(),
+// cancel it (or look at it), release(). The run then goes on from a known point, so a test never races the
+// worker. Its state is shared with the worker's copy of the gate, which may outlive this object.
+class HeldAtFirstTile {
+ public:
+  explicit HeldAtFirstTile(DenoiseController* controller) : controller_(controller) {
+    controller->setTileGate([state = state_] {
+      std::unique_lock lock(state->mutex);
+      if (state->reached) return;
+      state->reached = true;
+      state->changed.notify_all();
+      state->changed.wait(lock, [&] { return state->released; });
+    });
+  }
+  ~HeldAtFirstTile() {
+    release();
+    controller_->setTileGate({});
+  }
+  bool reached(std::chrono::seconds timeout = std::chrono::seconds(60)) {
+    std::unique_lock lock(state_->mutex);
+    return state_->changed.wait_for(lock, timeout, [&] { return state_->reached; });
+  }
+  void release() {
+    {
+      std::lock_guard lock(state_->mutex);
+      state_->released = true;
+    }
+    state_->changed.notify_all();
+  }
+
+ private:
+  struct State {
+    std::mutex mutex;
+    std::condition_variable changed;
+    bool reached = false, released = false;
+  };
+  DenoiseController* controller_;
+  std::shared_ptr<State> state_ = std::make_shared<State>();
+};
 
 // Opens the example render with its reference (a failure is the calling test's).
 inline void openExample(MainWindow& w) {
