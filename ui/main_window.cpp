@@ -20,6 +20,7 @@
 #include <QStatusBar>
 #include <QTimer>
 #include <OpenImageIO/imageio.h>
+#include <algorithm>
 #include <cmath>
 
 #include "core/io/exr_writer.h"
@@ -246,6 +247,21 @@ void MainWindow::onLoaded() {
   }
   QStringList notes;
   for (const auto& n : stack->notes) notes << QString::fromStdString(n);
+  // A region drawn on the last render is kept where it lies inside this one (a reload, another frame), clipped
+  // to it otherwise, and dropped when none of it is inside: a region never reaches outside the image.
+  if (const auto roi = canvas_->roi()) {
+    const Rect& d = stack->data_window;
+    const int64_t x0 = std::max<int64_t>(roi->x, 0), y0 = std::max<int64_t>(roi->y, 0);
+    const int64_t x1 = std::min(roi->x + roi->width, d.width), y1 = std::min(roi->y + roi->height, d.height);
+    const Rect inside{x0, y0, x1 - x0, y1 - y0};
+    if (inside != *roi) {
+      notes << (inside.empty() ? tr("the region x %1, y %2, %3 x %4 lies outside this render: cleared")
+                                     .arg(roi->x).arg(roi->y).arg(roi->width).arg(roi->height)
+                               : tr("the region is clipped to this render: x %1, y %2, %3 x %4")
+                                     .arg(inside.x).arg(inside.y).arg(inside.width).arg(inside.height));
+      setRoi(inside.empty() ? std::nullopt : std::optional<Rect>(inside));
+    }
+  }
   statusBar()->showMessage(tr("Loaded %1 (%2)%3")
                                .arg(session_->title(), QString::fromStdString(stack->convention),
                                     notes.isEmpty() ? QString() : " - " + notes.join("; ")),

@@ -186,8 +186,10 @@ void MetricsPanel::compute(Inputs inputs) {
   std::vector<std::pair<Key, std::shared_ptr<const Image>>> todo;
   for (const auto& row : inputs.rows) {
     if (!row.image) continue;
+    // The whole image always; the region where it lies inside the image (so it can never blank the whole
+    // image's scores).
     std::vector<Rect> regions = {row.image->bounds()};
-    if (inputs.roi) regions.push_back(*inputs.roi);
+    if (inputs.roi && !inputs.roi->empty() && row.image->bounds().contains(*inputs.roi)) regions.push_back(*inputs.roi);
     for (const Rect& r : regions) {
       const Key k{row.image.get(), r.x, r.y, r.width, r.height};
       if (!known_.count(k)) todo.emplace_back(k, row.image);

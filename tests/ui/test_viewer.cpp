@@ -8,6 +8,7 @@
 #include <QMenu>
 #include <QPushButton>
 #include <QSlider>
+#include <QStatusBar>
 #include <QSignalSpy>
 #include <QStandardPaths>
 #include <QTableWidget>
@@ -363,6 +364,58 @@ class TestViewer : public QObject {
     QVERIFY2(sheet.width() >= 3 * 200 && sheet.width() < 4 * 200 && sheet.height() > 192 && sheet.height() < 2 * 192,
              qPrintable(QString("%1 x %2").arg(sheet.width()).arg(sheet.height())));
     QCOMPARE(sheet.pixel(2, 2), QColor(Qt::white).rgb());
+  }
+
+  // A region drawn on one render never reaches outside the next one (issue 53, item 1): it is clipped to a smaller
+  // render, cleared when none of it is inside, and the whole image's scores are there either way.
+  void aRegionIsClippedOrClearedWhenAnotherRenderOpens() {
+    QTemporaryDir dir;
+    const auto write = [&](const QString& name, float value) {
+      testing::FixturePart part;
+      part.width = part.height = 96;
+      for (const char* c : {"R", "G", "B"})
+        part.channels.push_back({c, false, [value](int x, int y) { return value + 0.002f * static_cast<float>((x * 7 + y * 3) % 40); }});
+      testing::write_fixture_exr(dir.filePath(name).toStdString(), {part});
+      return dir.filePath(name);
+    };
+    const QString small = write("small.exr", 0.3f), small_ref = write("small_ref.exr", 0.25f);
+    LoadOptions with_ref;
+    with_ref.reference = small_ref.toStdString();
+    const auto open_small = [&](MainWindow& w) {
+      w.openFiles({small}, with_ref);
+      QVERIFY2(settle(w, [&] { return w.session()->hasStack() && w.session()->stack()->data_window.width == 96 &&
+                                      !w.metricsPanel()->report().rows.empty(); }),
+               qPrintable(w.lastError()));
+    };
+    const auto whole = [&](MainWindow& w) {
+      const auto stack = w.session()->stack();
+      return metrics::compare(stack->color.image, stack->reference->image).relmse;
+    };
+
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    w.setRoi(Rect{40, 50, 100, 100});  // reaches x 140, y 150: past the 96 x 96 render
+    open_small(w);
+    QCOMPARE(w.canvas()->roi(), std::optional<Rect>(Rect{40, 50, 56, 46}));
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.roi == std::optional<Rect>(Rect{40, 50, 56, 46}); }));
+    QCOMPARE(w.metricsPanel()->report().rows[0].scores.pixels, int64_t(56 * 46));
+    QVERIFY2(w.statusBar()->currentMessage().contains("clipped"), qPrintable(w.statusBar()->currentMessage()));
+
+    openExample(w);
+    w.setRoi(Rect{120, 130, 50, 40});  // wholly outside the 96 x 96 render
+    open_small(w);
+    QVERIFY(!w.canvas()->roi());
+    QVERIFY(settle(w, [&] { return !w.metricsPanel()->report().options.roi; }));
+    QCOMPARE(w.metricsPanel()->report().rows[0].scores.relmse, whole(w));
+    QVERIFY2(w.statusBar()->currentMessage().contains("cleared"), qPrintable(w.statusBar()->currentMessage()));
+    auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
+    QVERIFY(table && table->item(0, 1));
+    bool shown = false;  // the whole image's relMSE is in the table, not "..."
+    for (int c = 0; c < table->columnCount(); ++c)
+      if (table->item(0, c) && table->item(0, c)->text() == QString::number(whole(w), 'g', 5)) shown = true;
+    QVERIFY(shown);
   }
 
   void unmappedChannelsGoThroughTheMappingDialogAndAreRemembered() {
