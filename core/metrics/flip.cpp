@@ -81,6 +81,14 @@ double colour_max() {
   return std::pow(hyab(a, b), kQc);
 }
 
+// fn(i) for every pixel index in [0, n), in parallel.
+template <typename F>
+void each_pixel(size_t n, F&& fn) {
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i != r.end(); ++i) fn(i);
+  });
+}
+
 // --- separable filters, borders clamped to the edge -----------------------------------------------------------
 
 struct Taps {
@@ -92,20 +100,35 @@ void scale_to_sum(std::vector<double>& w, double sum) {
   for (double& v : w) v /= sum;
 }
 
-// out(x, y) = sum over i of w(i) in(clamp(x + i), y): along x when `along_x`, else along y.
+// out(x, y) = sum over i of w(i) in(clamp(x + i), y): along x when `along_x`, else along y. Written as one
+// multiply-add of a whole row per tap, which the compiler vectorises; only the columns within the radius of the
+// left and right borders clamp.
 void filter(const Plane& in, Plane& out, int64_t width, int64_t height, const Taps& t, bool along_x) {
-  out.resize(in.size());
+  out.assign(in.size(), 0.0);
+  const int r = t.radius;
   tbb::parallel_for(tbb::blocked_range<int64_t>(0, height, 8), [&](const tbb::blocked_range<int64_t>& rows) {
     for (int64_t y = rows.begin(); y != rows.end(); ++y) {
       double* o = out.data() + y * width;
-      for (int64_t x = 0; x < width; ++x) {
-        double s = 0.0;
-        for (int i = -t.radius; i <= t.radius; ++i) {
-          const int64_t xx = along_x ? std::clamp<int64_t>(x + i, 0, width - 1) : x;
-          const int64_t yy = along_x ? y : std::clamp<int64_t>(y + i, 0, height - 1);
-          s += t.w[static_cast<size_t>(i + t.radius)] * in[static_cast<size_t>(yy * width + xx)];
+      if (!along_x) {
+        for (int i = -r; i <= r; ++i) {
+          const double wi = t.w[static_cast<size_t>(i + r)];
+          const double* src = in.data() + std::clamp<int64_t>(y + i, 0, height - 1) * width;
+          for (int64_t x = 0; x < width; ++x) o[x] += wi * src[x];
         }
-        o[x] = s;
+        continue;
+      }
+      const double* src = in.data() + y * width;
+      const int64_t lo = std::min<int64_t>(r, width), hi = std::max<int64_t>(lo, width - r);  // [lo, hi): no clamp
+      for (int i = -r; i <= r; ++i) {
+        const double wi = t.w[static_cast<size_t>(i + r)];
+        for (int64_t x = lo; x < hi; ++x) o[x] += wi * src[x + i];
+      }
+      for (int64_t x = 0; x < width; ++x) {
+        if (x == lo) x = hi;
+        if (x >= width) break;
+        double sum = 0.0;
+        for (int i = -r; i <= r; ++i) sum += t.w[static_cast<size_t>(i + r)] * src[std::clamp<int64_t>(x + i, 0, width - 1)];
+        o[x] = sum;
       }
     }
   });
@@ -196,32 +219,28 @@ Seen seen(const Rgb& img, const CsfTaps& csf, const FeatureTaps& ft) {
   const auto n = static_cast<size_t>(w * h);
   Plane ycc[3];
   for (Plane& p : ycc) p.resize(n);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      const double rgb[3] = {img.c[0][i], img.c[1][i], img.c[2][i]};
-      double o[3];
-      rgb_to_ycxcz(rgb, o);
-      for (int c = 0; c < 3; ++c) ycc[c][i] = o[c];
-    }
+  each_pixel(n, [&](size_t i) {
+    const double rgb[3] = {img.c[0][i], img.c[1][i], img.c[2][i]};
+    double o[3];
+    rgb_to_ycxcz(rgb, o);
+    for (int c = 0; c < 3; ++c) ycc[c][i] = o[c];
   });
   const Plane fy = separable(ycc[0], w, h, csf.y, csf.y), fcx = separable(ycc[1], w, h, csf.cx, csf.cx);
   Plane fcz = separable(ycc[2], w, h, csf.cz1, csf.cz1);
   const Plane fcz2 = separable(ycc[2], w, h, csf.cz2, csf.cz2);
-  for (size_t i = 0; i < n; ++i) fcz[i] += fcz2[i];
+  each_pixel(n, [&](size_t i) { fcz[i] += fcz2[i]; });
 
   Seen s;
   for (Plane& p : s.lab) p.resize(n);
   Plane lum(n);  // the unfiltered Y_o, normalised to [0, 1]
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 4096), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i != r.end(); ++i) {
-      const double f[3] = {fy[i], fcx[i], fcz[i]};
-      double rgb[3], lab[3];
-      ycxcz_to_rgb(f, rgb);
-      for (double& v : rgb) v = std::clamp(v, 0.0, 1.0);
-      rgb_to_lab_hunt(rgb, lab);
-      for (int c = 0; c < 3; ++c) s.lab[c][i] = lab[c];
-      lum[i] = (ycc[0][i] + 16.0) / 116.0;
-    }
+  each_pixel(n, [&](size_t i) {
+    const double f[3] = {fy[i], fcx[i], fcz[i]};
+    double rgb[3], lab[3];
+    ycxcz_to_rgb(f, rgb);
+    for (double& v : rgb) v = std::clamp(v, 0.0, 1.0);
+    rgb_to_lab_hunt(rgb, lab);
+    for (int c = 0; c < 3; ++c) s.lab[c][i] = lab[c];
+    lum[i] = (ycc[0][i] + 16.0) / 116.0;
   });
   Plane gx, ex, px;
   filter(lum, gx, w, h, ft.gauss, true);
@@ -234,10 +253,10 @@ Seen seen(const Rgb& img, const CsfTaps& csf, const FeatureTaps& ft) {
   filter(gx, point_y, w, h, ft.point, false);
   s.edge.resize(n);
   s.point.resize(n);
-  for (size_t i = 0; i < n; ++i) {
+  each_pixel(n, [&](size_t i) {
     s.edge[i] = std::sqrt(edge_x[i] * edge_x[i] + edge_y[i] * edge_y[i]);
     s.point[i] = std::sqrt(point_x[i] * point_x[i] + point_y[i] * point_y[i]);
-  }
+  });
   return s;
 }
 
@@ -248,14 +267,14 @@ Plane ldr_map(const Rgb& test, const Rgb& reference, double ppd) {
   const Seen r = seen(reference, csf, ft), t = seen(test, csf, ft);
   const double cmax = colour_max(), pccmax = kPc * cmax;
   Plane e(r.edge.size());
-  for (size_t i = 0; i < e.size(); ++i) {
+  each_pixel(e.size(), [&](size_t i) {
     const double a[3] = {r.lab[0][i], r.lab[1][i], r.lab[2][i]}, b[3] = {t.lab[0][i], t.lab[1][i], t.lab[2][i]};
     const double d = std::pow(hyab(a, b), kQc);
     const double colour = d < pccmax ? d * (kPt / pccmax) : kPt + ((d - pccmax) / (cmax - pccmax)) * (1.0 - kPt);
     const double feature = std::sqrt(std::max(std::abs(r.edge[i] - t.edge[i]), std::abs(r.point[i] - t.point[i])) /
                                      std::numbers::sqrt2);
     e[i] = std::pow(colour, 1.0 - feature);
-  }
+  });
   return e;
 }
 
@@ -397,8 +416,7 @@ FlipResult hdr_flip(const Image& test, const Image& reference, const FlipOptions
     const double scale = std::exp2(e.start + k * step);
     Rgb te = t, re = r;
     for (Rgb* p : {&te, &re})
-      for (Plane& c : p->c)
-        for (double& v : c) v = std::clamp(aces(v * scale), 0.0, 1.0);
+      for (Plane& c : p->c) each_pixel(n, [&](size_t i) { c[i] = std::clamp(aces(c[i] * scale), 0.0, 1.0); });
     const Plane map = ldr_map(te, re, options.pixels_per_degree);
     for (size_t i = 0; i < n; ++i)
       if (map[i] > worst[i]) {  // the first exposure that reaches the maximum keeps it
