@@ -62,6 +62,30 @@ TEST(Cli, EvalTableOnTungstenWithDenoised) {
   EXPECT_GT(j["rows"][1]["ssim"].get<double>(), j["rows"][0]["ssim"].get<double>());
 }
 
+// eval scores HDR-FLIP beside relMSE and SSIM: on the Cornell box, NVIDIA's reference code gives 0.1370818 for the
+// noisy render and 0.0572303 for NFOR (../shared/reference/flip/expected.json), and its tool's magma map of NFOR's
+// error is the one eval writes, to the colour table's rounding; --flip off leaves it out.
+TEST(Cli, EvalScoresHdrFlipAsNvidiasCodeDoes) {
+  const auto dir = testing::shared_dataset("tungsten-example/cornell-box");
+  RESIDUE_REQUIRE_SHARED(dir);
+  TempDir tmp;
+  const auto j = eval_json({(dir / "color.exr").string(), "-r", (dir / "reference.exr").string(), "--denoised",
+                            (dir / "nfor.exr").string(), "--maps-dir", tmp.path().string()});
+  EXPECT_NEAR(j["rows"][0]["hdr_flip"].get<double>(), 0.1370818, 1e-5);
+  EXPECT_NEAR(j["rows"][1]["hdr_flip"].get<double>(), 0.0572303, 1e-5);
+  EXPECT_EQ(j["flip"]["exposures"]["count"], 8);
+  const std::filesystem::path official =
+      std::filesystem::path(RESIDUE_SHARED_DIR) / "reference/flip/maps/cornell-box_nfor_hdrflip_magma.png";
+  if (std::filesystem::exists(official)) {
+    OIIO::ImageBuf ours((tmp / "denoised_flip.png").string()), theirs(official.string());
+    const auto diff = OIIO::ImageBufAlgo::compare(ours, theirs, 2.5f / 255, 2.5f / 255);
+    EXPECT_EQ(diff.nfail, 0u) << "largest difference " << diff.maxerror * 255 << " codes";
+  }
+  const auto off = eval_json({(dir / "color.exr").string(), "-r", (dir / "reference.exr").string(), "--flip", "off"});
+  EXPECT_TRUE(off["rows"][0]["hdr_flip"].is_null());
+  EXPECT_TRUE(off["flip"].is_null());
+}
+
 // libgomp reads OMP_WAIT_POLICY once, when it is loaded; the program sets it before that (core/util/openmp_env.h)
 // without starting a second time: OMP_DISPLAY_ENV makes libgomp print its settings once per process start.
 TEST(Cli, OpenMpWaitsPassivelyFromASingleStart) {

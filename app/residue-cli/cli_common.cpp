@@ -112,15 +112,18 @@ void print_metrics_table(const io::MetricsReport& report) {
               static_cast<long long>(report.width), static_cast<long long>(report.height));
   std::printf("region     %s\n\n",
               report.options.roi ? ("ROI " + report.options.roi->to_string()).c_str() : "whole image");
-  std::printf("%-10s %12s %12s %10s %9s %10s %10s\n", "image", "relMSE", "MSE", "PSNR dB", "SSIM", "pixels",
-              "excluded");
+  std::printf("%-10s %12s %12s %10s %9s %10s %10s%s\n", "image", "relMSE", "MSE", "PSNR dB", "SSIM", "pixels",
+              "excluded", report.flip ? "   HDR-FLIP" : "");
   for (const auto& row : report.rows) {
     const auto& s = row.scores;
-    std::printf("%-10s %12.6g %12.6g %10s %9.5f %10lld %10lld\n", row.name.c_str(), s.relmse, s.mse,
+    char flip[32] = "";
+    if (row.hdr_flip) std::snprintf(flip, sizeof flip, " %10.5f", *row.hdr_flip);
+    std::printf("%-10s %12.6g %12.6g %10s %9.5f %10lld %10lld%s\n", row.name.c_str(), s.relmse, s.mse,
                 format_psnr(s.psnr).c_str(), s.ssim, static_cast<long long>(s.pixels),
-                static_cast<long long>(s.excluded_test + s.excluded_reference));
+                static_cast<long long>(s.excluded_test + s.excluded_reference), flip);
   }
   std::printf("\n%s\n", metrics::formula_text(report.options).c_str());
+  if (report.flip) std::printf("\n%s\n", metrics::flip_formula_text(*report.flip).c_str());
 }
 
 std::string display_path(const std::string& path) {

@@ -13,6 +13,7 @@
 #include "eval_sequence.h"
 #include "core/io/map_writer.h"
 #include "core/io/metrics_report.h"
+#include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 #include "core/util/error.h"
 
@@ -31,12 +32,25 @@ struct EvalOptions {
   std::string colormap = "viridis";
   enum class MapFormat { Png, Exr, Both } map_format = MapFormat::Png;
   bool force = false;
+  bool flip = true;  // HDR-FLIP beside relMSE and SSIM
   std::string frames;
 };
 
 void write_maps(const EvalOptions& o, const std::string& name, const Image& test, const Image& reference,
-                const metrics::Options& mopts) {
+                const metrics::Options& mopts, const Image* flip_map) {
   const auto colormap = colormap_from_string(o.colormap);
+  if (flip_map) {  // FLIP's own presentation: magma over [0, 1], as NVIDIA's tool draws it
+    const Image map = mopts.roi ? crop(*flip_map, *mopts.roi) : *flip_map;
+    const std::filesystem::path base = std::filesystem::path(o.maps_dir) / (name + "_flip");
+    if (o.map_format != EvalOptions::MapFormat::Exr) {
+      io::MapPngOptions p;
+      p.colormap = Colormap::Magma;
+      p.overwrite = o.force;
+      p.scale = {false, 0.0, 1.0};
+      io::write_map_png(base.string() + ".png", map, p);
+    }
+    if (o.map_format != EvalOptions::MapFormat::Png) io::write_map_exr(base.string() + ".exr", map, o.force);
+  }
   for (metrics::MapKind kind : {metrics::MapKind::AbsoluteError, metrics::MapKind::SquaredError,
                                 metrics::MapKind::RelativeSquaredError, metrics::MapKind::Ssim}) {
     const Image map = metrics::error_map(test, reference, kind, mopts);
@@ -86,7 +100,18 @@ int run(const EvalOptions& o) {
   report.options = mopts;
   report.notes = stack.notes;
   const Image& reference = stack.reference->image;
-  report.rows.push_back({"noisy", stack.color.source.file, metrics::compare(stack.color.image, reference, mopts)});
+  // HDR-FLIP is a whole-image map (its filters and exposures see the whole image); a region takes its mean there.
+  std::vector<metrics::FlipResult> flips;
+  const auto score = [&](const std::string& name, const std::string& file, const Image& test) {
+    io::MetricsRow row{name, file, metrics::compare(test, reference, mopts)};
+    if (o.flip) {
+      flips.push_back(metrics::hdr_flip(test, reference));
+      row.hdr_flip = metrics::flip_mean(flips.back().map, mopts.roi);
+      report.flip = flips.back().exposures;
+    }
+    report.rows.push_back(std::move(row));
+  };
+  score("noisy", stack.color.source.file, stack.color.image);
 
   std::optional<Aov> denoised;
   if (!o.denoised.empty()) {
@@ -97,12 +122,12 @@ int run(const EvalOptions& o) {
       throw Error(ErrorKind::Input, "'" + o.denoised + "' is " + std::to_string(denoised->image.width()) + "x" +
                                         std::to_string(denoised->image.height()) + " but the noisy input is " +
                                         std::to_string(stack.width()) + "x" + std::to_string(stack.height()));
-    report.rows.push_back({"denoised", o.denoised, metrics::compare(denoised->image, reference, mopts)});
+    score("denoised", o.denoised, denoised->image);
   }
 
   if (!o.maps_dir.empty()) {
-    write_maps(o, "noisy", stack.color.image, reference, mopts);
-    if (denoised) write_maps(o, "denoised", denoised->image, reference, mopts);
+    write_maps(o, "noisy", stack.color.image, reference, mopts, o.flip ? &flips[0].map : nullptr);
+    if (denoised) write_maps(o, "denoised", denoised->image, reference, mopts, o.flip ? &flips[1].map : nullptr);
   }
   if (!o.metrics_out.empty()) io::write_metrics(o.metrics_out, report, o.force);
 
@@ -115,7 +140,7 @@ int run(const EvalOptions& o) {
 
 Command add_eval_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("eval", "Score noisy (and denoised) images against a reference: relMSE, MSE, "
-                                         "PSNR, SSIM; optionally write per-pixel maps and a metrics file");
+                                         "PSNR, SSIM, HDR-FLIP; optionally write per-pixel maps and a metrics file");
   auto o = std::make_shared<EvalOptions>();
   o->input.add_to(*cmd, true);
   cmd->add_option("-d,--denoised", o->denoised, "A denoised image to score as well (for a sequence: a pattern)");
@@ -131,7 +156,9 @@ Command add_eval_command(CLI::App& app) {
   cmd->add_flag("--json", o->json, "Print JSON instead of a table");
   cmd->add_option("--metrics-out", o->metrics_out, "Also write the metrics to FILE (.json or .csv)");
   cmd->add_option("--maps-dir", o->maps_dir,
-                  "Write per-pixel maps (abs, se, rse, ssim) of each scored image into this folder");
+                  "Write per-pixel maps (abs, se, rse, ssim, and flip in magma) of each scored image into this folder");
+  add_on_off(cmd, "--flip", o->flip, "Score HDR-FLIP too (NVIDIA's FLIP over the reference's exposures; about 2 s per "
+                                     "megapixel on 2 cores)");
   cmd->add_option("--colormap", o->colormap, "Colormap of PNG maps")
       ->capture_default_str()
       ->check(CLI::IsMember({"viridis", "inferno", "magma", "turbo"}));

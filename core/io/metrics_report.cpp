@@ -74,7 +74,8 @@ std::string to_json(const MetricsReport& report) {
                     {"ssim", json_number(s.ssim)},
                     {"pixels", s.pixels},
                     {"excluded_test", s.excluded_test},
-                    {"excluded_reference", s.excluded_reference}});
+                    {"excluded_reference", s.excluded_reference},
+                    {"hdr_flip", row.hdr_flip ? json_number(*row.hdr_flip) : ordered_json(nullptr)}});
   }
 
   ordered_json doc;
@@ -84,19 +85,27 @@ std::string to_json(const MetricsReport& report) {
   doc["options"] = std::move(options);
   doc["formula"] = metrics::formula_text(report.options);
   doc["rows"] = std::move(rows);
+  if (report.flip)
+    doc["flip"] = {{"exposures", {{"start", json_number(report.flip->start)}, {"stop", json_number(report.flip->stop)},
+                                  {"count", report.flip->count}}},
+                   {"pixels_per_degree", metrics::kFlipPixelsPerDegree},
+                   {"definition", metrics::flip_formula_text(*report.flip)}};
+  else
+    doc["flip"] = nullptr;
   doc["notes"] = report.notes;
   // Replace invalid UTF-8 in file names rather than throwing.
   return doc.dump(2, ' ', false, ordered_json::error_handler_t::replace) + "\n";
 }
 
 std::string to_csv(const MetricsReport& report) {
-  std::string out = "name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference\n";
+  std::string out = "name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip\n";
   for (const MetricsRow& row : report.rows) {
     const metrics::Scores& s = row.scores;
     out += csv_field(row.name) + "," + csv_field(row.test_file) + "," + format_double(s.mse) + "," +
            format_double(s.relmse) + "," + format_double(s.psnr) + "," + format_double(s.ssim) + "," +
            std::to_string(s.pixels) + "," + std::to_string(s.excluded_test) + "," +
-           std::to_string(s.excluded_reference) + "\n";
+           std::to_string(s.excluded_reference) + "," + (row.hdr_flip ? format_double(*row.hdr_flip) : std::string()) +
+           "\n";
   }
   return out;
 }

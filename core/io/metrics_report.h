@@ -3,9 +3,11 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 
 namespace residue::io {
@@ -14,6 +16,7 @@ struct MetricsRow {
   std::string name;        // "noisy", "denoised", ...
   std::string test_file;   // the image that was scored
   metrics::Scores scores;
+  std::optional<double> hdr_flip;  // HDR-FLIP's mean (core/metrics/flip.h) over the scores' region, when computed
 };
 
 struct MetricsReport {
@@ -22,13 +25,16 @@ struct MetricsReport {
   metrics::Options options;
   std::vector<MetricsRow> rows;
   std::vector<std::string> notes;  // what the loader assumed or left out (e.g. pixels the reference lacks)
+  std::optional<metrics::FlipExposures> flip;  // the exposures HDR-FLIP used, when the rows have it
 };
 
 // Pretty-printed: reference_file, width, height, options {eps, ssim_space, roi (null or {x,y,width,height})},
-// formula (metrics::formula_text), rows and notes. Finite numbers parse back to the same double. JSON has no infinity
+// formula (metrics::formula_text), rows (hdr_flip: a number, or null when not computed), flip (null, or its
+// exposures and definition) and notes. Finite numbers parse back to the same double. JSON has no infinity
 // or NaN: a non-finite score (PSNR of identical images is +inf) is written as the string "inf", "-inf" or "nan".
 std::string to_json(const MetricsReport& report);
-// Header `name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference`, one line per row;
+// Header `name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip`, one line per row
+// (hdr_flip empty when not computed);
 // doubles as the shortest text that parses back to the same value (inf, -inf, nan when not finite); fields with
 // a comma, quote or line break are quoted ("" for a quote).
 std::string to_csv(const MetricsReport& report);

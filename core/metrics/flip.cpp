@@ -1,6 +1,7 @@
 #include "core/metrics/flip.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -214,9 +215,11 @@ struct Seen {
   Plane lab[3], edge, point;
 };
 
+// Planes are released as soon as they are used, so that the peak stays near a dozen planes per image.
 Seen seen(const Rgb& img, const CsfTaps& csf, const FeatureTaps& ft) {
   const int64_t w = img.width, h = img.height;
   const auto n = static_cast<size_t>(w * h);
+  const auto release = [](Plane& p) { Plane().swap(p); };
   Plane ycc[3];
   for (Plane& p : ycc) p.resize(n);
   each_pixel(n, [&](size_t i) {
@@ -225,38 +228,46 @@ Seen seen(const Rgb& img, const CsfTaps& csf, const FeatureTaps& ft) {
     rgb_to_ycxcz(rgb, o);
     for (int c = 0; c < 3; ++c) ycc[c][i] = o[c];
   });
-  const Plane fy = separable(ycc[0], w, h, csf.y, csf.y), fcx = separable(ycc[1], w, h, csf.cx, csf.cx);
-  Plane fcz = separable(ycc[2], w, h, csf.cz1, csf.cz1);
-  const Plane fcz2 = separable(ycc[2], w, h, csf.cz2, csf.cz2);
-  each_pixel(n, [&](size_t i) { fcz[i] += fcz2[i]; });
+  Plane lum(n);  // the unfiltered Y_o, normalised to [0, 1]: the features' input
+  each_pixel(n, [&](size_t i) { lum[i] = (ycc[0][i] + 16.0) / 116.0; });
+  Plane f[3];
+  f[0] = separable(ycc[0], w, h, csf.y, csf.y);
+  release(ycc[0]);
+  f[1] = separable(ycc[1], w, h, csf.cx, csf.cx);
+  release(ycc[1]);
+  f[2] = separable(ycc[2], w, h, csf.cz1, csf.cz1);
+  {
+    const Plane second = separable(ycc[2], w, h, csf.cz2, csf.cz2);
+    each_pixel(n, [&](size_t i) { f[2][i] += second[i]; });
+  }
+  release(ycc[2]);
 
   Seen s;
   for (Plane& p : s.lab) p.resize(n);
-  Plane lum(n);  // the unfiltered Y_o, normalised to [0, 1]
   each_pixel(n, [&](size_t i) {
-    const double f[3] = {fy[i], fcx[i], fcz[i]};
+    const double filtered[3] = {f[0][i], f[1][i], f[2][i]};
     double rgb[3], lab[3];
-    ycxcz_to_rgb(f, rgb);
+    ycxcz_to_rgb(filtered, rgb);
     for (double& v : rgb) v = std::clamp(v, 0.0, 1.0);
     rgb_to_lab_hunt(rgb, lab);
     for (int c = 0; c < 3; ++c) s.lab[c][i] = lab[c];
-    lum[i] = (ycc[0][i] + 16.0) / 116.0;
   });
-  Plane gx, ex, px;
+  for (Plane& p : f) release(p);
+
+  // Edges and points: (derivative along x, Gaussian along y) and (Gaussian along x, derivative along y).
+  Plane gx;
   filter(lum, gx, w, h, ft.gauss, true);
-  filter(lum, ex, w, h, ft.edge, true);
-  filter(lum, px, w, h, ft.point, true);
-  Plane edge_x, edge_y, point_x, point_y;
-  filter(ex, edge_x, w, h, ft.gauss, false);
-  filter(gx, edge_y, w, h, ft.edge, false);
-  filter(px, point_x, w, h, ft.gauss, false);
-  filter(gx, point_y, w, h, ft.point, false);
-  s.edge.resize(n);
-  s.point.resize(n);
-  each_pixel(n, [&](size_t i) {
-    s.edge[i] = std::sqrt(edge_x[i] * edge_x[i] + edge_y[i] * edge_y[i]);
-    s.point[i] = std::sqrt(point_x[i] * point_x[i] + point_y[i] * point_y[i]);
-  });
+  const auto magnitude = [&](const Taps& d, Plane& out) {
+    Plane dx, x_part, y_part;
+    filter(lum, dx, w, h, d, true);
+    filter(dx, x_part, w, h, ft.gauss, false);
+    release(dx);
+    filter(gx, y_part, w, h, d, false);
+    out.resize(n);
+    each_pixel(n, [&](size_t i) { out[i] = std::sqrt(x_part[i] * x_part[i] + y_part[i] * y_part[i]); });
+  };
+  magnitude(ft.edge, s.edge);
+  magnitude(ft.point, s.point);
   return s;
 }
 
@@ -433,6 +444,30 @@ FlipResult hdr_flip(const Image& test, const Image& reference, const FlipOptions
       result.exposure_map.at(x, y, 0) = keep[i] ? static_cast<float>(at[i]) : std::numeric_limits<float>::quiet_NaN();
     }
   return result;
+}
+
+double flip_mean(const Image& map, const std::optional<Rect>& region) {
+  const Rect r = region.value_or(map.bounds());
+  double sum = 0;
+  int64_t n = 0;
+  for (int64_t y = r.y; y < r.y + r.height; ++y)
+    for (int64_t x = r.x; x < r.x + r.width; ++x)
+      if (const float v = map.at(x, y, 0); !std::isnan(v)) {
+        sum += v;
+        ++n;
+      }
+  return n > 0 ? sum / static_cast<double>(n) : kNaN;
+}
+
+std::string flip_formula_text(const FlipExposures& e) {
+  char range[96];
+  std::snprintf(range, sizeof range, "%.4f to %.4f in %d steps", e.start, e.stop, e.count);
+  return std::string("HDR-FLIP (NVIDIA's FLIP, Andersson et al. 2020 and 2021, as its reference code v1.6 computes "
+                     "it): per pixel, the largest LDR-FLIP error over exposures 2^c of both images, c from ") +
+         range + " (set by the reference's maximum and median luminance), each tone mapped with ACES and clamped to "
+         "[0, 1]; LDR-FLIP is the HyAB colour difference of the images filtered by the eye's contrast sensitivity at "
+         "67.02 pixels per degree, raised to the power of one minus their edge and point difference; the score is the "
+         "mean of the map, pixels that are not finite left out.";
 }
 
 }  // namespace residue::metrics

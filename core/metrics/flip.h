@@ -17,6 +17,7 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include "core/image/image.h"
 
@@ -57,5 +58,11 @@ FlipResult hdr_flip(const Image& test, const Image& reference, const FlipOptions
 // upper middle one). A reference whose median luminance is not positive (half of it black) takes the median of
 // its pixels of positive luminance instead, where the reference code would give an infinite stop.
 FlipExposures flip_exposures(const Image& reference, const FlipOptions& options = {});
+
+// The mean of a FLIP map over `region` (the whole map when empty), its NaN pixels left out; NaN when none is left.
+double flip_mean(const Image& map, const std::optional<Rect>& region = std::nullopt);
+
+// What HDR-FLIP computes, as one sentence with the exposures used (for reports, as formula_text).
+std::string flip_formula_text(const FlipExposures& exposures);
 
 }  // namespace residue::metrics
