@@ -271,7 +271,17 @@ TEST(CliEvaluateSet, TableJsonSplitAndPerturbations) {
   for (const auto& s : j["scenes"]) {
     EXPECT_LT(s["results"]["tiny"]["relmse"].get<double>(), s["results"]["noisy"]["relmse"].get<double>());
     EXPECT_NEAR(s["results"]["tiny"]["mean_ratio"].get<double>(), 1.0, 0.05);
+    // HDR-FLIP beside them: the denoised image's is lower, and the noisy one's is eval's.
+    EXPECT_LT(s["results"]["tiny"]["hdr_flip"].get<double>(), s["results"]["noisy"]["hdr_flip"].get<double>());
   }
+  const auto eval = nlohmann::json::parse([&] {
+    std::string out;
+    EXPECT_EQ(run_cli({"eval", "--json", (starter / "s160" / "noisy_a.exr").string(), "-r",
+                       (starter / "s160" / "reference.exr").string()}, &out), 0);
+    return out;
+  }());
+  EXPECT_NEAR(j["scenes"][0]["results"]["noisy"]["hdr_flip"].get<double>(), eval["rows"][0]["hdr_flip"].get<double>(), 1e-12);
+  EXPECT_GT(j["summary"][0]["mean_hdr_flip"].get<double>(), 0);
   EXPECT_NE(text.find("Mean brightness ratio"), std::string::npos);
 
   // --split validation: the index's cut.

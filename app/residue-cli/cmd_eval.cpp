@@ -106,7 +106,7 @@ int run(const EvalOptions& o) {
     io::MetricsRow row{name, file, metrics::compare(test, reference, mopts)};
     if (o.flip) {
       flips.push_back(metrics::hdr_flip(test, reference));
-      row.hdr_flip = metrics::flip_mean(flips.back().map, mopts.roi);
+      row.hdr_flip = mopts.roi ? metrics::flip_mean(flips.back().map, mopts.roi) : flips.back().mean;
       report.flip = flips.back().exposures;
     }
     report.rows.push_back(std::move(row));

@@ -20,6 +20,7 @@
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
 #include "core/io/atomic_file.h"
+#include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
@@ -45,10 +46,12 @@ struct EvalSetOptions {
   std::string out_md, out_json;
   int threads = 0;
   bool force = false;
+  bool flip = true;  // HDR-FLIP beside relMSE and SSIM
 };
 
 struct Cell {
   double relmse = 0, ssim = 0, seconds = 0;
+  double hdr_flip = 0;  // when o.flip
   double mean_ratio = 1;  // mean of the output over the mean of the reference (brightness bias)
   int64_t guarded = 0;    // output values the guard clamped
   bool energy_corrected = false;  // the energy correction ran (Residue's networks, when on)
@@ -208,6 +211,12 @@ int run(const EvalSetOptions& o) {
       js["results"][columns[ci].label] = {{"relmse", s.relmse}, {"ssim", s.ssim}, {"seconds", cell.seconds},
                                          {"mean_ratio", cell.mean_ratio}, {"model_file", model_file}, {"guarded_values", cell.guarded},
                                          {"energy_correction", cell.energy_corrected}};
+      if (o.flip) {
+        const metrics::FlipResult f = metrics::hdr_flip(out, stack.reference->image);
+        cell.hdr_flip = f.mean;
+        js["results"][columns[ci].label]["hdr_flip"] = cell.hdr_flip;
+        js["flip_exposures"] = {{"start", f.exposures.start}, {"stop", f.exposures.stop}, {"count", f.exposures.count}};
+      }
     }
     json_scenes.push_back(js);
     std::fprintf(stderr, "evaluate-set: %zu/%zu %s\n", si + 1, scenes.size(), scenes[si].filename().string().c_str());
@@ -216,9 +225,11 @@ int run(const EvalSetOptions& o) {
   // Markdown: one row per scene, then the means.
   std::ostringstream md;
   md << "| scene |";
-  for (const auto& c : columns) md << " " << c.label << " relMSE | " << c.label << " SSIM |" << (c.model.empty() ? "" : " " + c.label + " s |");
+  for (const auto& c : columns)
+    md << " " << c.label << " relMSE | " << c.label << " SSIM |" << (o.flip ? " " + c.label + " FLIP |" : "")
+       << (c.model.empty() ? "" : " " + c.label + " s |");
   md << "\n|---|";
-  for (const auto& c : columns) md << "---|---|" << (c.model.empty() ? "" : "---|");
+  for (const auto& c : columns) md << "---|---|" << (o.flip ? "---|" : "") << (c.model.empty() ? "" : "---|");
   md << "\n";
   std::vector<Cell> mean(columns.size());
   for (auto& m : mean) m.mean_ratio = 0;
@@ -227,9 +238,11 @@ int run(const EvalSetOptions& o) {
     for (size_t ci = 0; ci < columns.size(); ++ci) {
       const Cell& c = results[si][ci];
       md << " " << fmt("%.4g", c.relmse) << " | " << fmt("%.4f", c.ssim) << " |"
+         << (o.flip ? " " + fmt("%.4f", c.hdr_flip) + " |" : "")
          << (columns[ci].model.empty() ? "" : " " + fmt("%.2f", c.seconds) + " |");
       mean[ci].relmse += c.relmse / static_cast<double>(scenes.size());
       mean[ci].ssim += c.ssim / static_cast<double>(scenes.size());
+      mean[ci].hdr_flip += c.hdr_flip / static_cast<double>(scenes.size());
       mean[ci].seconds += c.seconds;
       mean[ci].mean_ratio += c.mean_ratio / static_cast<double>(scenes.size());
       mean[ci].guarded += c.guarded;
@@ -239,6 +252,7 @@ int run(const EvalSetOptions& o) {
   md << "| **mean** |";
   for (size_t ci = 0; ci < columns.size(); ++ci)
     md << " **" << fmt("%.4g", mean[ci].relmse) << "** | **" << fmt("%.4f", mean[ci].ssim) << "** |"
+       << (o.flip ? " **" + fmt("%.4f", mean[ci].hdr_flip) + "** |" : "")
        << (columns[ci].model.empty() ? "" : " " + fmt("%.2f", mean[ci].seconds / megapixels_total) + " s/MP |");
   md << "\n\nMean brightness ratio (output / reference, 1 = unbiased):";
   for (size_t ci = 0; ci < columns.size(); ++ci) md << " " << columns[ci].label << " " << fmt("%.4f", mean[ci].mean_ratio);
@@ -249,16 +263,20 @@ int run(const EvalSetOptions& o) {
   md << "\n";
 
   nlohmann::json summary = nlohmann::json::array();
-  for (size_t ci = 0; ci < columns.size(); ++ci)
+  for (size_t ci = 0; ci < columns.size(); ++ci) {
     summary.push_back({{"label", columns[ci].label}, {"model", columns[ci].model}, {"precision", columns[ci].precision},
                        {"ensemble", columns[ci].ensemble},
                        {"mean_relmse", mean[ci].relmse}, {"mean_ssim", mean[ci].ssim},
                        {"mean_ratio", mean[ci].mean_ratio},
                        {"relmse_reduction", mean[0].relmse / mean[ci].relmse},
                        {"seconds_per_megapixel", mean[ci].seconds / megapixels_total}});
+    if (o.flip) summary.back()["mean_hdr_flip"] = mean[ci].hdr_flip;
+  }
   const nlohmann::json j = {{"dataset", o.dataset}, {"split", o.split}, {"perturb", o.perturb}, {"variance_blend", on_off(o.variance_blend)}, {"output_guard", on_off(o.output_guard)}, {"blend_tau", o.blend_tau},
                             {"scenes", json_scenes}, {"summary", summary},
-                            {"metrics", metrics::formula_text({})}};
+                            {"metrics", metrics::formula_text({})},
+                            {"flip", o.flip ? "HDR-FLIP (core/metrics/flip.h) over each scene's flip_exposures, set by its reference"
+                                            : "not computed (--flip off)"}};
 
   auto write_text = [&](const std::string& path, const std::string& text) {
     io::write_atomically(path, o.force, [&](const std::filesystem::path& tmp) {
@@ -307,6 +325,7 @@ Command add_evaluate_set_command(CLI::App& app) {
   cmd->add_option("--md", o->out_md, "Write the table as Markdown");
   cmd->add_option("--json", o->out_json, "Write every number as JSON");
   cmd->add_option("--threads", o->threads, "Threads (default: every core)")->check(CLI::Range(1, 1024));
+  add_on_off(cmd, "--flip", o->flip, "Score HDR-FLIP too (core/metrics/flip.h; about 2 s per megapixel on 2 cores)");
   cmd->add_flag("-f,--force", o->force, "Replace output files");
   return {cmd, [o]() { return run(*o); }};
 }
