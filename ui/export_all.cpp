@@ -45,7 +45,9 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
       // One map per result, made once for both files.
       auto map = std::make_shared<std::optional<Image>>();
       const auto make = [&in, r, map]() -> const Image& {
-        if (!*map) *map = metrics::error_map(*r.image, *in.reference, in.map_kind, in.options);
+        if (!*map)
+          *map = in.make_map ? in.make_map(*r.image, *in.reference)
+                             : metrics::error_map(*r.image, *in.reference, metrics::MapKind::RelativeSquaredError, in.options);
         return **map;
       };
       const QString stem = "heatmap-" + file_stem(r.name);

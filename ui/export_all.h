@@ -30,7 +30,8 @@ struct ExportAllInputs {
   std::vector<Result> results;
   std::shared_ptr<const Image> reference;  // null: no heatmaps
   metrics::Options options;
-  metrics::MapKind map_kind = metrics::MapKind::RelativeSquaredError;
+  // The heatmap of a result against the reference (HeatmapPanel::mapMaker); empty: relative squared error.
+  std::function<Image(const Image& test, const Image& against)> make_map;
   QString map_name;  // "Relative squared error", for the colour bar's title
   Colormap colormap = Colormap::Viridis;
   ColorScale scale;

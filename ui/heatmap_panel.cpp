@@ -1,5 +1,7 @@
 #include "ui/heatmap_panel.h"
 
+#include "core/metrics/flip.h"
+
 #include "ui/export_all.h"
 #include "ui/histogram.h"
 
@@ -17,6 +19,7 @@ namespace residue::ui {
 
 namespace {
 constexpr int kTemporalKind = 100;  // the kind box's item for the temporal map (not a metrics::MapKind)
+constexpr int kFlipKind = 101;      // HDR-FLIP's map
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -90,6 +93,11 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   kind_->addItem(tr("absolute error"), static_cast<int>(metrics::MapKind::AbsoluteError));
   kind_->addItem(tr("squared error"), static_cast<int>(metrics::MapKind::SquaredError));
   kind_->addItem(tr("SSIM"), static_cast<int>(metrics::MapKind::Ssim));
+  kind_->addItem(tr("HDR-FLIP"), kFlipKind);
+  kind_->setItemData(kind_->count() - 1,
+                     tr("NVIDIA's FLIP error: what a viewer notices when flipping between the images, over the "
+                        "reference's exposures (0 to 1)"),
+                     Qt::ToolTipRole);
   kind_->addItem(tr("temporal error (along the motion)"), kTemporalKind);
   kind_->setItemData(kind_->count() - 1,
                      tr("How much the error changed since frame t-1 on the same surfaces (frames of a sequence with "
@@ -141,8 +149,10 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   layout->addWidget(histogram_, 1);
 
   connect(kind_, &QComboBox::currentIndexChanged, this, [this] {
-    // SSIM lives in [-1, 1] and reads best on a linear scale; errors span decades.
+    // SSIM lives in [-1, 1] and FLIP in [0, 1]: they read best on a linear scale; errors span decades. FLIP is
+    // shown in magma, as NVIDIA's tool shows it.
     log_->setChecked(kind() != metrics::MapKind::Ssim);
+    if (flip()) colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(Colormap::Magma)));
     emit settingsChanged();
   });
   connect(of_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::settingsChanged);
@@ -179,9 +189,20 @@ HeatmapPanel::Display HeatmapPanel::display() const {
 }
 HeatmapPanel::Of HeatmapPanel::of() const { return static_cast<Of>(of_->currentData().toInt()); }
 metrics::MapKind HeatmapPanel::kind() const {
-  return temporal() ? metrics::MapKind::RelativeSquaredError : static_cast<metrics::MapKind>(kind_->currentData().toInt());
+  if (temporal()) return metrics::MapKind::RelativeSquaredError;
+  if (flip()) return metrics::MapKind::Ssim;
+  return static_cast<metrics::MapKind>(kind_->currentData().toInt());
 }
 bool HeatmapPanel::temporal() const { return kind_->currentData().toInt() == kTemporalKind; }
+bool HeatmapPanel::flip() const { return kind_->currentData().toInt() == kFlipKind; }
+
+std::function<Image(const Image&, const Image&)> HeatmapPanel::mapMaker(const metrics::Options& options) const {
+  metrics::Options o = options;
+  o.roi.reset();  // the map covers the whole image; the ROI only scopes the scores
+  if (flip()) return [](const Image& test, const Image& against) { return metrics::hdr_flip(test, against).map; };
+  const auto k = kind();
+  return [k, o](const Image& test, const Image& against) { return metrics::error_map(test, against, k, o); };
+}
 Colormap HeatmapPanel::colormap() const { return static_cast<Colormap>(colormap_->currentData().toInt()); }
 
 std::pair<double, double> HeatmapPanel::sharedRange(metrics::MapKind kind) {
@@ -222,6 +243,8 @@ QString HeatmapPanel::title() const {
     return tr("Temporal error along the motion of %1%2").arg(subject_.isEmpty() ? tr("nothing yet") : subject_,
                                                              scale().log ? tr(" (log)") : QString());
   }
+  if (flip())
+    return tr("HDR-FLIP of %1%2").arg(subject_.isEmpty() ? tr("nothing yet") : subject_, scale().log ? tr(" (log)") : QString());
   switch (kind()) {
     case metrics::MapKind::AbsoluteError: what = tr("Absolute error"); break;
     case metrics::MapKind::SquaredError: what = tr("Squared error"); break;
@@ -240,6 +263,7 @@ bool HeatmapPanel::busy() const { return task_->busy(); }
 
 void HeatmapPanel::setKind(metrics::MapKind k) { kind_->setCurrentIndex(kind_->findData(static_cast<int>(k))); }
 void HeatmapPanel::setTemporal() { kind_->setCurrentIndex(kind_->findData(kTemporalKind)); }
+void HeatmapPanel::setFlip() { kind_->setCurrentIndex(kind_->findData(kFlipKind)); }
 void HeatmapPanel::setOf(Of o) { of_->setCurrentIndex(of_->findData(static_cast<int>(o))); }
 void HeatmapPanel::setDisplay(Display d) { display_->setCurrentIndex(d == Display::Pane ? 0 : d == Display::Overlay ? 1 : 2); }
 void HeatmapPanel::setColormap(Colormap m) { colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(m))); }
@@ -253,10 +277,8 @@ void HeatmapPanel::setRange(std::optional<double> lo, std::optional<double> hi) 
 void HeatmapPanel::compute(std::shared_ptr<const Image> test, std::shared_ptr<const Image> against,
                            const QString& subject, const QString& missing, const metrics::Options& options) {
   if (!test || !against) return computeMap(nullptr, subject, missing);
-  metrics::Options o = options;
-  o.roi.reset();  // the map covers the whole image; the ROI only scopes the scores
-  const auto k = kind();
-  computeMap([=] { return metrics::error_map(*test, *against, k, o); }, subject, missing);
+  const auto make = mapMaker(options);
+  computeMap([=] { return make(*test, *against); }, subject, missing);
 }
 
 void HeatmapPanel::computeMap(std::function<Image()> make, const QString& subject, const QString& missing) {

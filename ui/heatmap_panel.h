@@ -61,6 +61,11 @@ class HeatmapPanel : public QWidget {
   void computeMap(std::function<Image()> make, const QString& subject, const QString& missing);
   // The map chosen is the temporal error along the motion (frames of a sequence), not one of kind().
   bool temporal() const;
+  // The map chosen is HDR-FLIP's (core/metrics/flip.h; magma over [0, 1] as NVIDIA's tool shows it).
+  bool flip() const;
+  // The map chosen, as a function of a test image and the image it is compared with (export writes it for every
+  // result); the temporal map, which needs the frames, is exported as relative squared error.
+  std::function<Image(const Image& test, const Image& against)> mapMaker(const metrics::Options& options) const;
   // The map as a picture to keep: the colour-mapped image with the colour bar, title and range below it.
   QImage imageWithBar() const;
   // The fixed range every result's map shares, per kind (what "the same for every result" uses).
@@ -68,7 +73,7 @@ class HeatmapPanel : public QWidget {
 
   Display display() const;
   Of of() const;
-  metrics::MapKind kind() const;  // the temporal map reads as relative squared error (its range and scale)
+  metrics::MapKind kind() const;  // the temporal map reads as relative squared error, FLIP's as SSIM's [0, 1]
   Colormap colormap() const;
   ColorScale scale() const;  // as set: log and the range (shared, typed, or unset for this map's own)
   bool sharedScale() const;  // the range is the fixed one every result shares
@@ -80,6 +85,7 @@ class HeatmapPanel : public QWidget {
 
   void setKind(metrics::MapKind kind);
   void setTemporal();  // the temporal map (setKind picks one of the others)
+  void setFlip();      // HDR-FLIP's map
   void setOf(Of of);
   void setDisplay(Display d);
   void setColormap(Colormap map);

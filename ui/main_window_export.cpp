@@ -190,7 +190,7 @@ QFuture<QString> MainWindow::exportAll(const QString& folder, bool overwrite) {
   }
   in.reference = shared(Source::Reference);
   in.options = metrics_->options();
-  in.map_kind = heatmap_->kind();
+  in.make_map = heatmap_->mapMaker(metrics_->options());
   in.map_name = heatmap_->title().section(" of ", 0, 0);
   in.colormap = heatmap_->colormap();
   in.scale = heatmap_->scale();

@@ -1,5 +1,7 @@
 #include "ui/metrics_panel.h"
 
+#include "core/metrics/flip.h"
+
 #include <QApplication>
 #include <QComboBox>
 #include <QDoubleSpinBox>
@@ -15,13 +17,14 @@
 #include <cmath>
 #include <limits>
 
+#include "core/metrics/flip.h"
 #include "core/metrics/temporal.h"
 #include "core/temporal/warped_error.h"
 
 namespace residue::ui {
 
 namespace {
-enum Column { kAB, kName, kRelMse, kSsim, kTemporal, kPsnr, kTime, kRoiRelMse, kRoiSsim, kRoiPsnr, kColumns };
+enum Column { kAB, kName, kRelMse, kSsim, kFlip, kTemporal, kPsnr, kTime, kRoiRelMse, kRoiSsim, kRoiFlip, kRoiPsnr, kColumns };
 
 QString number(double v, int precision) {
   if (std::isnan(v)) return QStringLiteral("n/a");
@@ -53,12 +56,15 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
 
   table_ = new QTableWidget(0, kColumns, this);
   table_->setObjectName("metricsTable");
-  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("temporal"), tr("PSNR"), tr("time"),
-                                     tr("ROI relMSE"), tr("ROI SSIM"), tr("ROI PSNR")});
+  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("HDR-FLIP"), tr("temporal"),
+                                     tr("PSNR"), tr("time"), tr("ROI relMSE"), tr("ROI SSIM"), tr("ROI FLIP"), tr("ROI PSNR")});
   const QStringList tips = {tr("A: the denoised pane; B: the one compared with it"),
                             tr("What made the image: model and precision, or the file it came from"),
                             tr("relMSE = mean (x - r)\u00b2 / (r\u00b2 + eps) over the whole image (lower is better)"),
                             tr("SSIM over the whole image (higher is better)"),
+                            tr("HDR-FLIP: NVIDIA's FLIP error, what a viewer notices when flipping between the result "
+                               "and the reference, over the reference's exposures (lower is better; computed after "
+                               "the other scores)"),
                             tr("Temporal error along the motion: how much the error changed since frame t-1 on the "
                                "same surfaces, relMSE-like (frame t-1's error warped to this frame; pixels it does "
                                "not show are left out). Lower is steadier. Needs this result on frame t-1 too."),
@@ -66,6 +72,7 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
                             tr("Seconds the run took here"),
                             tr("relMSE in the dragged region"),
                             tr("SSIM in the dragged region"),
+                            tr("HDR-FLIP in the dragged region (the whole image's map, averaged over the region)"),
                             tr("PSNR in the dragged region")};
   for (int c = 0; c < kColumns; ++c) table_->horizontalHeaderItem(c)->setToolTip(tips[c]);
   table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
@@ -140,6 +147,13 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
     known_.merge(r.scores);
     temporal_.merge(r.temporal);
     showTable();
+    computeFlip();  // the slow score once the others are shown
+    emit computed();
+  });
+  flip_task_ = std::make_unique<LatestTask<FlipComputed>>(this, [this](FlipComputed&& r) {
+    flips_.merge(r.flips);
+    flips_pending_.clear();
+    showTable();
     emit computed();
   });
   setToolTip(QString::fromStdString(metrics::formula_text(options())));
@@ -155,7 +169,7 @@ metrics::Options MetricsPanel::options() const {
 }
 
 // Until the newest result is shown, not only computed: a caller that waits on busy() then reads report().
-bool MetricsPanel::busy() const { return task_->busy(); }
+bool MetricsPanel::busy() const { return task_->busy() || flip_task_->busy(); }
 
 int MetricsPanel::selectedId() const {
   const auto rows = table_->selectionModel()->selectedRows();
@@ -172,11 +186,14 @@ void MetricsPanel::compute(Inputs inputs) {
       o.ssim_space != known_options_.ssim_space) {
     known_.clear();
     temporal_.clear();
+    if (inputs.reference.get() != known_reference_) flips_.clear();  // FLIP has no eps nor space
     known_reference_ = inputs.reference.get();
     known_options_ = o;
   }
   if (!inputs.reference) {
     task_->supersede();
+    flip_task_->supersede();
+    flips_pending_.clear();
     error_.clear();
     scope_->setText(tr("No reference: open one with File > Open Reference; the results are listed without scores"));
     showTable();
@@ -205,6 +222,7 @@ void MetricsPanel::compute(Inputs inputs) {
   showTable();  // the rows at once, scores as they are known
   if (todo.empty() && pairs.empty()) {
     task_->supersede();
+    computeFlip();
     emit computed();
     return;
   }
@@ -236,6 +254,42 @@ void MetricsPanel::compute(Inputs inputs) {
   });
 }
 
+// HDR-FLIP of every result that has none yet, one map each, on a worker thread; a job already computing the same
+// results is left to finish (a region dragged meanwhile only averages the maps again).
+void MetricsPanel::computeFlip() {
+  const auto& in = last_;
+  if (!in.reference) return;
+  std::vector<std::shared_ptr<const Image>> need;
+  std::vector<const Image*> keys;
+  for (const auto& row : in.rows)
+    if (row.image && !flips_.count(row.image.get()) && row.image->width() == in.reference->width() &&
+        row.image->height() == in.reference->height() &&
+        std::find(keys.begin(), keys.end(), row.image.get()) == keys.end()) {
+      need.push_back(row.image);
+      keys.push_back(row.image.get());
+    }
+  if (keys == flips_pending_ && flip_task_->busy()) return;
+  flips_pending_ = keys;
+  if (need.empty()) {
+    flip_task_->supersede();
+    return;
+  }
+  const auto reference = in.reference;
+  flip_task_->start([need, reference](const LatestTask<FlipComputed>::Token& token) {
+    FlipComputed c;
+    for (const auto& image : need) {
+      if (token.superseded()) break;
+      try {
+        metrics::FlipResult r = metrics::hdr_flip(*image, *reference);
+        c.flips[image.get()] = {image, std::make_shared<const Image>(std::move(r.map)), r.mean, r.exposures};
+      } catch (const std::exception&) {  // a reference without light has no exposures: no FLIP, shown as n/a
+        c.flips[image.get()] = {image, nullptr, kUnknown, {}};
+      }
+    }
+    return c;
+  });
+}
+
 void MetricsPanel::showTable() {
   const auto& in = last_;
   metrics::Options o = options();
@@ -255,6 +309,10 @@ void MetricsPanel::showTable() {
       if (it == known_.end()) continue;
       std::string name = row.id < 0 ? "noisy" : row.name.toStdString();
       report.rows.push_back({name, row.file.toStdString(), it->second.scores});
+      if (const auto f = flips_.find(row.image.get()); f != flips_.end() && f->second.map) {
+        report.rows.back().hdr_flip = roi ? metrics::flip_mean(*f->second.map, roi) : f->second.mean;
+        report.flip = f->second.exposures;
+      }
     }
   };
   fill(whole_, std::nullopt);
@@ -311,6 +369,21 @@ void MetricsPanel::showTable() {
     put(kRoiSsim, roi, &metrics::Scores::ssim, 5);
     put(kRoiPsnr, roi, &metrics::Scores::psnr, 4);
     {
+      const auto it = row.image ? flips_.find(row.image.get()) : flips_.end();
+      const bool known = it != flips_.end();
+      const auto put_flip = [&](int column, const std::optional<Rect>& region) {
+        double v = kUnknown;
+        if (known && it->second.map && (!region || it->second.map->bounds().contains(*region)))
+          v = region ? metrics::flip_mean(*it->second.map, region) : it->second.mean;
+        auto* item = new NumberItem(known ? number(v, 4) : QString(row.image && in.reference ? "..." : "-"), v);
+        if (known && it->second.map)
+          item->setToolTip(QString::fromStdString(metrics::flip_formula_text(it->second.exposures)));
+        table_->setItem(r, column, item);
+      };
+      put_flip(kFlip, std::nullopt);
+      put_flip(kRoiFlip, in.roi);
+    }
+    {
       const auto it = row.image && row.previous ? temporal_.find({row.image.get(), row.previous.get()}) : temporal_.end();
       const bool known = it != temporal_.end();
       auto* item = new NumberItem(known ? number(it->second.value, 4) : QString(row.previous && temporal_on ? "..." : "-"),
@@ -322,7 +395,7 @@ void MetricsPanel::showTable() {
                                              row.seconds > 0 ? row.seconds : kUnknown));
     if (row.a) a_row = r;
   }
-  for (int c : {kRoiRelMse, kRoiSsim, kRoiPsnr}) table_->setColumnHidden(c, !in.roi);
+  for (int c : {kRoiRelMse, kRoiSsim, kRoiFlip, kRoiPsnr}) table_->setColumnHidden(c, !in.roi);
   table_->setColumnHidden(kTemporal, !temporal_on);
   table_->setSortingEnabled(true);
   table_->sortByColumn(sort_column, sort_order);

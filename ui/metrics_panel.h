@@ -1,8 +1,9 @@
 // MetricsPanel: the result list with its scores. One row per result (the noisy input first, then every denoise
 // run and added file), with relMSE, SSIM and PSNR against the reference for the whole image and, when a region
-// is dragged, for the region; the run time; which result is A and which is B. Sortable by any column. Scores
-// come from core's metrics on a worker thread (the numbers residue-cli prints) and are kept per image, so a new
-// result or region only computes what is new. On a frame of a sequence with motion vectors, a temporal column
+// is dragged, for the region; HDR-FLIP (core/metrics/flip.h: whole image and region, from one map per result,
+// computed after the other scores because it is the slow one); the run time; which result is A and which is B.
+// Sortable by any column. Scores come from core's metrics on a worker thread (the numbers residue-cli prints) and
+// are kept per image, so a new result or region only computes what is new. On a frame of a sequence with motion vectors, a temporal column
 // scores how each result's error changed since frame t-1, along the motion (core/temporal/warped_error.h).
 // Picking rows asks the owner to show them (the session decides).
 #pragma once
@@ -101,6 +102,19 @@ class MetricsPanel : public QWidget {
     double value;
   };
   std::map<Pair, KnownTemporal> temporal_;
+  struct KnownFlip {  // one image's HDR-FLIP against the reference
+    std::shared_ptr<const Image> image;  // keeps the key's pointer from being reused
+    std::shared_ptr<const Image> map;
+    double mean;
+    metrics::FlipExposures exposures;
+  };
+  std::map<const Image*, KnownFlip> flips_;
+  std::vector<const Image*> flips_pending_;  // what the FLIP job in flight computes
+  struct FlipComputed {
+    std::map<const Image*, KnownFlip> flips;
+  };
+  std::unique_ptr<LatestTask<FlipComputed>> flip_task_;
+  void computeFlip();
   const Image* known_reference_ = nullptr;
   metrics::Options known_options_;
   struct Computed {

@@ -83,7 +83,7 @@ int main(int argc, char** argv) {
   const QCommandLineOption aov("aov", "The AOV the noisy pane shows: color, albedo, normal, depth, variance or motion.",
                                "aov");
   const QCommandLineOption heatmap_of("heatmap-of", "What the heatmap maps: a, b, noisy or a-vs-b.", "what");
-  const QCommandLineOption heatmap_kind("heatmap-kind", "The heatmap's map: rse, abs, se, ssim, or temporal (the error's "
+  const QCommandLineOption heatmap_kind("heatmap-kind", "The heatmap's map: rse, abs, se, ssim, flip (HDR-FLIP), or temporal (the error's "
                                         "change since frame t-1 along the motion, on a sequence).", "kind");
   const QCommandLineOption every_frame("every-frame", "With --denoise, on a frame of a sequence: denoise every frame in "
                                        "turn (Denoise > Every Frame), then show the frame opened.");
@@ -136,7 +136,7 @@ int main(int argc, char** argv) {
   checked.one_of(cli, pane, {"noisy", "denoised", "compare", "reference", "heatmap"});
   checked.one_of(cli, heatmap, {"pane", "overlay", "off"});
   checked.one_of(cli, heatmap_of, {"a", "b", "noisy", "a-vs-b"});
-  checked.one_of(cli, heatmap_kind, {"rse", "abs", "se", "ssim", "temporal"});
+  checked.one_of(cli, heatmap_kind, {"rse", "abs", "se", "ssim", "flip", "temporal"});
   if (cli.isSet(every_frame) && !cli.isSet(denoise))
     checked.errors << QStringLiteral("--every-frame needs --denoise: it says how --denoise runs");
   checked.one_of(cli, precision, {"fp32", "bf16"});
@@ -196,6 +196,7 @@ int main(int argc, char** argv) {
   }
   if (cli.isSet(heatmap_kind)) {
     if (cli.value(heatmap_kind) == "temporal") window.heatmapPanel()->setTemporal();
+    else if (cli.value(heatmap_kind) == "flip") window.heatmapPanel()->setFlip();
     else window.heatmapPanel()->setKind(*residue::metrics::map_kind_from_string(cli.value(heatmap_kind).toStdString()));
   }
   if (cli.isSet(tile)) window.denoisePanel()->setTile(cli.value(tile).toLongLong());

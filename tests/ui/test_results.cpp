@@ -18,6 +18,7 @@
 #include "core/denoise/denoiser.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
+#include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_registry.h"
 #include "ui/comparison_sheet.h"
@@ -142,6 +143,13 @@ class TestResults : public QObject {
     QCOMPARE(maxAbsDiff(*w.heatmapPanel()->map(), diff, 1), 0.0);
     QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Single);
     QCOMPARE(w.canvas()->current(), w.paneIndex(Source::Heatmap));
+    // HDR-FLIP's map of A against B: core's, in magma over [0, 1].
+    w.heatmapPanel()->setFlip();
+    QVERIFY(settle(w, [&] { return w.heatmapPanel()->map() && w.heatmapPanel()->title().startsWith("HDR-FLIP"); }));
+    QCOMPARE(maxAbsDiff(*w.heatmapPanel()->map(), metrics::hdr_flip(*results[0].image, *results[1].image).map, 1), 0.0);
+    QCOMPARE(w.heatmapPanel()->colormap(), Colormap::Magma);
+    QCOMPARE(w.heatmapPanel()->range(), (std::pair<double, double>{0.0, 1.0}));
+    w.heatmapPanel()->setKind(metrics::MapKind::RelativeSquaredError);
 
     // Removing a result drops its row; removing A makes the newest A.
     w.session()->removeResult(results[0].id);

@@ -26,6 +26,7 @@
 #include "core/denoise/strength.h"
 #include "core/features/features.h"
 #include "core/image/colormap.h"
+#include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_registry.h"
 #include "support/exr_fixture.h"
@@ -125,6 +126,17 @@ class TestViewer : public QObject {
       if (table->horizontalHeaderItem(c)->text() == "ROI relMSE") roi_column = c;
     QVERIFY(roi_column >= 0 && !table->isColumnHidden(roi_column));
     QCOMPARE(table->item(0, roi_column)->text(), QString::number(expected.relmse, 'g', 5));
+    // HDR-FLIP, after the other scores: core's, over the whole image and averaged over the region.
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->report().rows[0].hdr_flip.has_value(); }));
+    const metrics::FlipResult flip = metrics::hdr_flip(stack->color.image, stack->reference->image);
+    QCOMPARE(*w.metricsPanel()->wholeReport().rows[0].hdr_flip, flip.mean);
+    QCOMPARE(*w.metricsPanel()->report().rows[0].hdr_flip, metrics::flip_mean(flip.map, roi));
+    QVERIFY(w.metricsPanel()->report().flip && w.metricsPanel()->report().flip->count == flip.exposures.count);
+    int flip_column = -1;
+    for (int c = 0; c < table->columnCount(); ++c)
+      if (table->horizontalHeaderItem(c)->text() == "HDR-FLIP") flip_column = c;
+    QVERIFY(flip_column >= 0 && !table->isColumnHidden(flip_column));
+    QCOMPARE(table->item(0, flip_column)->text(), QString::number(flip.mean, 'g', 4));
     // The ROI differs from the whole image, and clearing it brings the whole image back.
     const auto whole = metrics::compare(stack->color.image, stack->reference->image);
     QVERIFY(std::abs(whole.relmse - expected.relmse) > 1e-6);

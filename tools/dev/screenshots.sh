@@ -41,6 +41,9 @@ cornell=$repo/../shared/datasets/tungsten-example/cornell-box
 if [ -f "$cornell/nfor.exr" ]; then
   shot viewer_compare_nfor "$cornell" --add "$cornell/nfor.exr" --model base,oidn --denoise --screenshot-when denoised \
     --tab results
+  # HDR-FLIP beside relMSE and SSIM, and its map of OIDN's result (magma, as NVIDIA's tool draws it).
+  shot viewer_flip "$cornell" --add "$cornell/nfor.exr" --model multiscale,oidn --denoise --screenshot-when denoised \
+    --layout all --heatmap pane --heatmap-kind flip --tab results
 fi
 
 # A sequence (the committed 6-frame Cycles shot): every frame denoised by the temporal model, the temporal map.
