@@ -1,8 +1,9 @@
 #!/usr/bin/python3
-"""Issue 16's goal, checked for one model: is its mean relMSE and mean SSIM at least as good as `oidn`'s on the
-project's validation scenes and on Tungsten's Cornell box, and is its SSIM above the bilateral filter's on every
-scene? Runs `residue-cli evaluate-set --split validation` on the data set and `residue-cli denoise` on the Cornell
-box, prints one table and a verdict, and writes everything as JSON.
+"""The quality goal (issue 16, with HDR-FLIP from issue 52), checked for one model: are its mean relMSE, SSIM and
+HDR-FLIP at least as good as `oidn`'s on the project's validation scenes and on Tungsten's Cornell box, and is its
+SSIM above the bilateral filter's on every scene? Runs `residue-cli evaluate-set --split validation` on the data set,
+and `residue-cli denoise` then `residue-cli eval --json` on the Cornell box, prints one table and a verdict, and
+writes everything as JSON.
 
   /usr/bin/python3 tools/research/goal_check.py MODEL [--ensemble N] [--dataset .cache/datasets/residue-v1]
       [--cornell ../shared/datasets/tungsten-example/cornell-box] [--json out.json] [--cli PATH]
@@ -22,11 +23,16 @@ def denoised_scores(cli_output):
 
 
 def cornell_scores(cli, folder, model, ensemble, tmp):
+    """relMSE, SSIM and HDR-FLIP of `model` on the Cornell box, as `residue-cli eval` scores its output."""
     out = os.path.join(tmp, "cornell.exr")
     cmd = [cli, "denoise", folder, "-m", model, "-o", out, "--force"]
     if ensemble:
         cmd += ["--ensemble", str(ensemble)]
-    return denoised_scores(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+    subprocess.run(cmd, check=True, capture_output=True, text=True)
+    ev = json.loads(subprocess.run([cli, "eval", "--json", folder, "--denoised", out], check=True, capture_output=True,
+                                   text=True).stdout)
+    row = ev["rows"][1]
+    return {"relmse": row["relmse"], "ssim": row["ssim"], "hdr_flip": row["hdr_flip"]}
 
 
 def main():
@@ -66,16 +72,20 @@ def main():
     checks = {
         "validation relMSE <= oidn": mean("model", "relmse") <= mean("oidn", "relmse"),
         "validation SSIM >= oidn": mean("model", "ssim") >= mean("oidn", "ssim"),
+        "validation HDR-FLIP <= oidn": mean("model", "hdr_flip") <= mean("oidn", "hdr_flip"),
         "Cornell relMSE <= oidn": cornell["model"]["relmse"] <= cornell["oidn"]["relmse"],
         "Cornell SSIM >= oidn": cornell["model"]["ssim"] >= cornell["oidn"]["ssim"],
+        "Cornell HDR-FLIP <= oidn": cornell["model"]["hdr_flip"] <= cornell["oidn"]["hdr_flip"],
         "no scene's SSIM below the bilateral filter's": not below,
     }
     name = a.model + (f" x{a.ensemble}" if a.ensemble else "")
     print(f"{'':34} {name[:24]:>24} {'oidn':>10}")
     print(f"{len(scenes)} validation scenes, mean relMSE   {mean('model', 'relmse'):>24.6f} {mean('oidn', 'relmse'):>10.6f}")
     print(f"{len(scenes)} validation scenes, mean SSIM     {mean('model', 'ssim'):>24.4f} {mean('oidn', 'ssim'):>10.4f}")
+    print(f"{len(scenes)} validation scenes, mean HDR-FLIP {mean('model', 'hdr_flip'):>24.4f} {mean('oidn', 'hdr_flip'):>10.4f}")
     print(f"Cornell box relMSE                 {cornell['model']['relmse']:>24.6f} {cornell['oidn']['relmse']:>10.6f}")
     print(f"Cornell box SSIM                   {cornell['model']['ssim']:>24.4f} {cornell['oidn']['ssim']:>10.4f}")
+    print(f"Cornell box HDR-FLIP               {cornell['model']['hdr_flip']:>24.4f} {cornell['oidn']['hdr_flip']:>10.4f}")
     print(f"scenes with SSIM below the bilateral filter's: {', '.join(below) if below else 'none'}")
     for what, ok in checks.items():
         print(f"  {'yes' if ok else 'NO ':3}  {what}")
