@@ -2,6 +2,7 @@
 
 #include <QObject>
 #include <QPainter>
+#include <cstring>
 
 #include "core/io/atomic_file.h"
 #include "core/io/exr_writer.h"
@@ -13,8 +14,15 @@
 namespace residue::ui {
 
 QString file_stem(const QString& name) {
+  // An added file is named by its file name: its extension is not part of the stem ("nfor.exr" -> "nfor").
+  QString base = name;
+  for (const char* ext : {".exr", ".png", ".jpg", ".jpeg", ".hdr", ".tif", ".tiff"})
+    if (base.endsWith(QLatin1String(ext), Qt::CaseInsensitive) && base.size() > static_cast<int>(std::strlen(ext))) {
+      base.chop(static_cast<int>(std::strlen(ext)));
+      break;
+    }
   QString out;
-  for (const QChar c : name) {
+  for (const QChar c : base) {
     if (c.isLetterOrNumber() || c == '.' || c == '-' || c == '_') out += c;
     else if (!out.endsWith('_')) out += '_';
   }
@@ -55,7 +63,9 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
                        const Image& m = make();
                        const auto range = resolve_range(m, in.scale);
                        const QImage pic = map_with_color_bar(colorize(m, in.colormap, in.scale), in.colormap, range,
-                                                             in.scale.log, QString("%1 of %2").arg(in.map_name, r.name));
+                                                             in.scale.log,
+                                                             QString("%1 of %2%3").arg(in.map_name, r.name,
+                                                                                       in.scale.log ? " (log)" : ""));
                        write_png(p, pic, overwrite, "heatmap PNG");
                      }});
       out.push_back({at(stem + ".exr"), [make](const std::filesystem::path& p, bool overwrite) {
@@ -64,13 +74,26 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
     }
   }
   if (in.metrics && !in.whole.rows.empty()) {
+    // Each row's test_file is the image scored: an added file's path, a run's EXR written beside (its name),
+    // else empty (a run whose EXR is not exported was never a file).
+    const auto with_files = [&in, at](io::MetricsReport report) {
+      for (io::MetricsRow& row : report.rows) {
+        if (!row.test_file.empty()) continue;
+        for (const auto& r : in.results)
+          if (r.name.toStdString() == row.name && in.results_exr && in.stack && r.image)
+            row.test_file = at(file_stem(r.name) + ".exr").string();
+      }
+      return report;
+    };
+    const auto whole = std::make_shared<io::MetricsReport>(with_files(in.whole));
+    const auto roi = std::make_shared<io::MetricsReport>(with_files(in.roi));
     for (const char* ext : {".json", ".csv"}) {
-      out.push_back({at(QString("metrics") + ext), [&in](const std::filesystem::path& p, bool overwrite) {
-                       io::write_metrics(p, in.whole, overwrite);
+      out.push_back({at(QString("metrics") + ext), [whole](const std::filesystem::path& p, bool overwrite) {
+                       io::write_metrics(p, *whole, overwrite);
                      }});
       if (!in.roi.rows.empty())
-        out.push_back({at(QString("metrics-roi") + ext), [&in](const std::filesystem::path& p, bool overwrite) {
-                         io::write_metrics(p, in.roi, overwrite);
+        out.push_back({at(QString("metrics-roi") + ext), [roi](const std::filesystem::path& p, bool overwrite) {
+                         io::write_metrics(p, *roi, overwrite);
                        }});
     }
   }

@@ -562,7 +562,8 @@ void MainWindow::refreshAnalysis() {
     MetricsPanel::Row row;
     row.id = r.id;
     row.name = session_->resultName(r.id);
-    row.file = r.description;
+    row.file = r.file;
+    row.description = r.description;
     // A result still being made is listed without scores: its pixels are half noisy.
     if (r.id != running) row.image = r.id == session_->a() ? session_->denoisedShared() : r.image;
     // A blended to a strength below 1 has no like on frame t-1 (that frame keeps its results at strength 1).

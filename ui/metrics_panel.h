@@ -33,7 +33,9 @@ class MetricsPanel : public QWidget {
 
   struct Row {
     int id = -1;  // the result's id; -1 for the noisy input
-    QString name, file;
+    QString name;
+    QString file;         // the image's file: the render, an added file; empty for a run
+    QString description;  // what made it, in full (the name's tooltip)
     std::shared_ptr<const Image> image;  // null while it is being made: the row shows its state
     std::shared_ptr<const Image> previous;  // the same result on frame t-1 (sequences), for the temporal column
     double seconds = 0;

@@ -282,6 +282,9 @@ class TestResults : public QObject {
     const auto j = nlohmann::json::parse(js);
     QCOMPARE(j["rows"].size(), size_t(3));
     QCOMPARE(j["rows"][2]["name"].get<std::string>(), std::string("small fp32"));
+    // Each row names the image it scored: the render, and each run's EXR written beside (not its description).
+    QCOMPARE(j["rows"][0]["test_file"].get<std::string>(), stack->color.source.file);
+    QCOMPARE(j["rows"][2]["test_file"].get<std::string>(), (out + "/small_fp32.exr").toStdString());
     QVERIFY(QFileInfo::exists(out + "/metrics.csv"));
     const QImage sheet(out + "/comparison.png");
     QVERIFY(sheet.width() > 2 * 192 && sheet.height() > 192);  // noisy, two results, reference: 4 images
@@ -434,6 +437,9 @@ class TestResults : public QObject {
     QCOMPARE(file_stem("small fp32 (2)"), QString("small_fp32_2"));
     QCOMPARE(file_stem("../x"), QString(".._x"));
     QCOMPARE(file_stem("///"), QString("result"));
+    QCOMPARE(file_stem("nfor.exr"), QString("nfor"));  // an added file's extension is not doubled
+    QCOMPARE(file_stem("Beauty.EXR"), QString("Beauty"));
+    QCOMPARE(file_stem(".exr"), QString(".exr"));
     // The sheet: 5 panels go 3 + 2, each labelled above and scored below.
     std::vector<SheetPanel> panels(5);
     for (auto& p : panels) {
