@@ -256,8 +256,12 @@ void DenoiseController::poll() {
       measured_s_per_mp_[key({request_.model, request_.precision})] = stats.seconds / mp / std::max(1, stats.ensemble);
     finish(true, {});
   } else if (st == DenoiseJob::Status::Cancelled) {
-    finish(false, tr("cancelled after %1 of %2 tiles: the rest is the noisy input").arg(p.done).arg(p.total),
-           RunState::Cancelled, tr("cancelled after %1 of %2 tiles").arg(p.done).arg(p.total));
+    if (p.total == 0)  // stopped inside its first tile: nothing of it was finished
+      finish(false, tr("cancelled before its first tile finished: the result is the noisy input"),
+             RunState::Cancelled, tr("cancelled before its first tile"));
+    else
+      finish(false, tr("cancelled after %1 of %2 tiles: the rest is the noisy input").arg(p.done).arg(p.total),
+             RunState::Cancelled, tr("cancelled after %1 of %2 tiles").arg(p.done).arg(p.total));
   } else {
     finish(false, QString::fromStdString(job_->error()), RunState::Failed, tr("failed"));
   }

@@ -569,7 +569,11 @@ void MainWindow::refreshAnalysis() {
     // A blended to a strength below 1 has no like on frame t-1 (that frame keeps its results at strength 1).
     if (in.frame && r.id != running && !(row.a && session_->strength() < 1.0f)) row.previous = session_->previousImage(&r);
     row.seconds = r.seconds;
-    row.state = r.done() ? QString() : r.stateText;
+    // A run that did not finish is half noisy input: listed with its state, never scored as if it were a result.
+    row.state = r.state == RunState::Running ? tr("running") : r.state == RunState::Cancelled ? tr("cancelled")
+              : r.state == RunState::Failed  ? tr("failed") : QString();
+    row.state_text = r.done() ? QString() : r.stateText;
+    if (r.state == RunState::Cancelled || r.state == RunState::Failed) row.image.reset();
     row.a = r.id == session_->a();
     row.b = r.id == session_->b();
     in.rows.push_back(std::move(row));

@@ -345,7 +345,10 @@ void MetricsPanel::showTable() {
     auto* name = new NumberItem(row.state.isEmpty() ? row.name : QString("%1 (%2)").arg(row.name, row.state),
                                 static_cast<double>(i));
     name->setData(kIdRole, row.id);
-    name->setToolTip(row.description.isEmpty() ? row.file : row.description);
+    {
+      const QString what = row.description.isEmpty() ? row.file : row.description;
+      name->setToolTip(row.state_text.isEmpty() ? what : row.state_text + "\n" + what);
+    }
     table_->setItem(r, kName, name);
     const auto scores = [&](const std::optional<Rect>& roi) -> const metrics::Scores* {
       if (!row.image) return nullptr;

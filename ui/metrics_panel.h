@@ -39,7 +39,8 @@ class MetricsPanel : public QWidget {
     std::shared_ptr<const Image> image;  // null while it is being made: the row shows its state
     std::shared_ptr<const Image> previous;  // the same result on frame t-1 (sequences), for the temporal column
     double seconds = 0;
-    QString state;
+    QString state;        // empty when done; else a word shown with the name ("cancelled")
+    QString state_text;   // the state in full, for the tooltip
     bool a = false, b = false;
   };
   struct Inputs {

@@ -286,11 +286,26 @@ class TestViewer : public QObject {
     QVERIFY(settle(w, [&] { return finished.count() == 1; }));
     QCOMPARE(finished.at(0).at(0).toBool(), false);
     QVERIFY(finished.at(0).at(1).toString().contains("cancelled"));
+    QVERIFY2(finished.at(0).at(1).toString().contains("after 1 of 9 tiles"), qPrintable(finished.at(0).at(1).toString()));
     // The last tile row was never reached: it still shows the noisy input.
     const auto stack = w.session()->stack();
     const Image* d = w.session()->denoised();
     QVERIFY(d);
     QCOMPARE(d->at(150, 180, 1), stack->color.image.at(150, 180, 1));
+    // Its row says it was cancelled, where the name cannot elide it away, and has no scores (issue 53, item 3).
+    QVERIFY(settle(w, [&] { return !w.metricsPanel()->busy(); }));
+    auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
+    int row = -1;
+    for (int r = 0; r < table->rowCount(); ++r)
+      if (table->item(r, 1)->text().startsWith("small")) row = r;
+    QVERIFY(row >= 0);
+    QVERIFY2(table->item(row, 1)->text().endsWith("(cancelled)"), qPrintable(table->item(row, 1)->text()));
+    QVERIFY(table->item(row, 1)->toolTip().startsWith("cancelled after 1 of 9 tiles"));
+    QCOMPARE(table->item(row, 2)->text(), QString("-"));
+    QCOMPARE(w.metricsPanel()->wholeReport().rows.size(), size_t(1));  // only the noisy input is scored
+    // The Denoise tab says so too, and no longer shows the progress it had (tile n of m, time left).
+    const QString status = w.denoisePanel()->findChild<QLabel*>("denoiseStatus")->text();
+    QVERIFY2(status.contains("cancelled after 1 of 9 tiles") && !status.contains("left"), qPrintable(status));
     // A cancelled run is not cached: the next run denoises (and finishes).
     QSignalSpy again(w.denoisePanel(), &DenoisePanel::finished);
     w.denoisePanel()->start();
