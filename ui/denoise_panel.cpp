@@ -145,7 +145,6 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   layout->addWidget(progress_);
   status_ = new QLabel(this);
   status_->setObjectName("denoiseStatus");
-  status_->setObjectName("denoiseStatus");
   status_->setWordWrap(true);
   layout->addWidget(status_);
 
