@@ -2,6 +2,7 @@
 
 #include <QCoreApplication>
 #include <algorithm>
+#include <QSettings>
 #include <QTimer>
 
 #include "core/denoise/denoiser.h"
@@ -11,6 +12,7 @@
 #include "core/nn/model_alias.h"
 #include "core/nn/model_registry.h"
 #include "core/temporal/frame_window.h"
+#include "core/util/cpu_peak.h"
 #include "core/util/error.h"
 #include "ui/session.h"
 
@@ -33,6 +35,22 @@ DenoiseController::DenoiseController(Session* session, std::vector<nn::ModelCard
   connect(poll_, &QTimer::timeout, this, &DenoiseController::poll);
   // A new render drops every result: a run for the old one is stopped.
   connect(session_, &Session::loaded, this, &DenoiseController::cancel);
+  // The speeds measured on this CPU in earlier sessions (a model's "here" column survives a restart; another CPU
+  // starts afresh).
+  QSettings settings;
+  settings.beginGroup(speedGroup());
+  for (const QString& k : settings.childKeys()) {
+    bool ok = false;
+    const double v = settings.value(k).toDouble(&ok);
+    if (ok && v > 0) measured_s_per_mp_[QString(k).replace('|', '/')] = v;
+  }
+}
+
+QString DenoiseController::speedGroup() {
+  QString cpu = QString::fromStdString(cpu_description());
+  for (QChar& c : cpu)
+    if (!c.isLetterOrNumber()) c = '_';
+  return "measuredSecondsPerMp/" + cpu;
 }
 
 DenoiseController::~DenoiseController() {
@@ -252,8 +270,12 @@ void DenoiseController::poll() {
     session_->updateResult(result_id_, [&](Result& res) { res.provenance = ran; });
     const double mp = static_cast<double>(r.area()) / 1e6;
     // Kept per network run: a self-ensemble's time divided by its members.
-    if (mp > 0 && stats.seconds > 0)
-      measured_s_per_mp_[key({request_.model, request_.precision})] = stats.seconds / mp / std::max(1, stats.ensemble);
+    if (mp > 0 && stats.seconds > 0) {
+      const QString k = key({request_.model, request_.precision});
+      measured_s_per_mp_[k] = stats.seconds / mp / std::max(1, stats.ensemble);
+      QSettings settings;
+      settings.setValue(speedGroup() + "/" + QString(k).replace('/', '|'), measured_s_per_mp_[k]);
+    }
     finish(true, {});
   } else if (st == DenoiseJob::Status::Cancelled) {
     if (p.total == 0)  // stopped inside its first tile: nothing of it was finished

@@ -85,7 +85,8 @@ class DenoiseController : public QObject {
   std::vector<nn::ModelCard> models_;
   nn::ModelRegistry loaded_;
   std::function<void()> tile_gate_;
-  std::map<QString, double> measured_s_per_mp_;
+  std::map<QString, double> measured_s_per_mp_;  // also kept in the settings, per CPU (speedGroup())
+  static QString speedGroup();
   Request request_;
   QString description_;
   int result_id_ = -1;

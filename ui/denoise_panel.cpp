@@ -185,6 +185,13 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
     }
     emit finished(ok, message);
   });
+  // Another render (or frame): the last run's "done in ..." and its bar were about the one before.
+  connect(session_, &Session::loaded, this, [this] {
+    if (controller_->running()) return;
+    progress_->setRange(0, 1);
+    progress_->setValue(0);
+    status_->clear();
+  });
   connect(precision_, &QComboBox::currentIndexChanged, this, &DenoisePanel::fillTable);
   fillTable();
   selectModel(nn::kDefaultModel);

@@ -321,6 +321,8 @@ class TestResults : public QObject {
     QVERIFY(!progressed.isEmpty());
     QCOMPARE(progressed.last().at(1).toLongLong(), int64_t(9));  // 192 px in 64-px tiles
     QVERIFY(c.measuredSecondsPerMp("small").has_value());
+    // Kept for the next start of the viewer on this CPU (issue 53, item 4).
+    QCOMPARE(DenoiseController(&session, models).measuredSecondsPerMp("small"), c.measuredSecondsPerMp("small"));
     const Result* res = session.result(session.a());
     QVERIFY(res && res->complete && res->done());
     QCOMPARE(res->key, DenoiseController::key(r));
