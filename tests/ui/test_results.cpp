@@ -38,17 +38,6 @@ using namespace residue::ui;
 using namespace residue::ui::viewer_test;
 
 namespace {
-// Runs `model` through the panel and waits for it.
-void runModel(MainWindow& w, const QString& model) {
-  QVERIFY(w.denoisePanel()->selectModel(model));
-  QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
-  w.denoisePanel()->start();
-  QVERIFY(settle(w, [&] { return finished.count() == 1; }));
-  QVERIFY(finished.at(0).at(0).toBool());
-}
-
-
-
 void writeRgb(const QString& path, const Image& img) {
   io::ExrWriteOptions o;
   o.pixel_type = io::PixelType::Float;

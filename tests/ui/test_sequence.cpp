@@ -45,14 +45,6 @@ void go(MainWindow& w, int64_t frame) {
   QVERIFY(settle(w, [&] { return w.session()->frame() == frame && !w.session()->loading(); }));
 }
 
-void runModel(MainWindow& w, const QString& model) {
-  QVERIFY(w.denoisePanel()->selectModel(model));
-  QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
-  w.denoisePanel()->start();
-  QVERIFY(settle(w, [&] { return finished.count() == 1; }));
-  QVERIFY2(finished.at(0).at(0).toBool(), qPrintable(finished.at(0).at(1).toString()));
-}
-
 // The Results table's temporal value of the row whose name starts with `name` (NaN when it shows none).
 double temporalCell(MainWindow& w, const QString& name) {
   auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");

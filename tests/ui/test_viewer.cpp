@@ -210,10 +210,7 @@ class TestViewer : public QObject {
     w.setInteractive(false);
     w.show();
     openExample(w);
-    QVERIFY(w.denoisePanel()->selectModel("tiny"));
-    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
-    w.denoisePanel()->start();
-    QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+    runModel(w, "tiny");
     const auto stack = w.session()->stack();
     const Image full = *w.session()->denoised();
     auto* slider = w.denoisePanel()->findChild<QSlider*>("strength");
@@ -393,24 +390,21 @@ class TestViewer : public QObject {
     QCOMPARE(sheet.pixel(2, 2), QColor(Qt::white).rgb());
   }
 
-  // A region drawn on one render never reaches outside the next one (issue 53, item 1): it is clipped to a smaller
-  // render, cleared when none of it is inside, and the whole image's scores are there either way.
   // The Denoise tab's "done in ..." is about the render it ran on: opening another clears it (issue 53, item 4).
   void theLastRunsStatusGoesWithItsRender() {
     MainWindow w;
     w.setInteractive(false);
     w.show();
     openExample(w);
-    QVERIFY(w.denoisePanel()->selectModel("tiny"));
-    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
-    w.denoisePanel()->start();
-    QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+    runModel(w, "tiny");
     auto* status = w.denoisePanel()->findChild<QLabel*>("denoiseStatus");
     QVERIFY2(status->text().contains("done in"), qPrintable(status->text()));
     openExample(w);
     QVERIFY2(status->text().isEmpty(), qPrintable(status->text()));
   }
 
+  // A region drawn on one render never reaches outside the next one (issue 53, item 1): it is clipped to a smaller
+  // render, cleared when none of it is inside, and the whole image's scores are there either way.
   void aRegionIsClippedOrClearedWhenAnotherRenderOpens() {
     QTemporaryDir dir;
     const auto write = [&](const QString& name, float value) {

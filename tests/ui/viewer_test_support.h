@@ -2,6 +2,7 @@
 // EXR back with OpenImageIO (independent of core/io), comparing images.
 #pragma once
 
+#include <QSignalSpy>
 #include <QString>
 #include <QtTest>
 #include <OpenImageIO/imageio.h>
@@ -16,6 +17,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "ui/denoise_controller.h"
+#include "ui/denoise_panel.h"
 #include "ui/main_window.h"
 
 namespace residue::ui::viewer_test {
@@ -66,6 +68,15 @@ class HeldAtFirstTile {
   DenoiseController* controller_;
   std::shared_ptr<State> state_ = std::make_shared<State>();
 };
+
+// Runs `model` through the Denoise panel and waits until it has finished, successfully.
+inline void runModel(MainWindow& w, const QString& model) {
+  QVERIFY(w.denoisePanel()->selectModel(model));
+  QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+  w.denoisePanel()->start();
+  QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+  QVERIFY2(finished.at(0).at(0).toBool(), qPrintable(finished.at(0).at(1).toString()));
+}
 
 // Opens the example render with its reference (a failure is the calling test's).
 inline void openExample(MainWindow& w) {
