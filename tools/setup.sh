@@ -20,6 +20,8 @@ packages=(
   fakeroot
   # tests: GoogleTest, and scikit-image + OpenImageIO's Python bindings for the independent metric checks
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
+  # `import residue` (app/python): pybind11, Python's headers, and pytest for its tests
+  pybind11-dev python3-dev python3-pytest
   # data generation: Blender (Cycles) for tools/datagen
   blender
   # fuzzing (tools/dev/fuzz.sh, the `fuzz` preset): clang 14 and its compiler-rt, which holds libFuzzer
@@ -43,6 +45,16 @@ fi
 
 cmake --preset release
 cmake --build --preset release -j "$(nproc)"
+
+# `import residue` for Debian's python3: a .pth file naming the build's module folder, in the system's site folder
+# when run as root, else in the user's.
+if [ -d build/release/python ]; then
+  if [ "$(id -u)" -eq 0 ]; then site=$(/usr/bin/python3 -c 'import site; print(site.getsitepackages()[0])')
+  else site=$(/usr/bin/python3 -m site --user-site); fi
+  mkdir -p "$site"
+  echo "$PWD/build/release/python" > "$site/residue-build.pth"
+  /usr/bin/python3 -c 'import residue' && echo "setup: python3 -c 'import residue' works (via $site/residue-build.pth)"
+fi
 
 # The default model: the one the README's first command denoises the example with.
 default_model=multiscale

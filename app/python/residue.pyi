@@ -1,0 +1,74 @@
+"""Residue: denoise Monte Carlo renders with a direct residual network, and score the result.
+
+Images are float32 NumPy arrays of height x width x channels."""
+from typing import Callable, Optional
+
+import numpy as np
+import numpy.typing as npt
+
+Image = npt.NDArray[np.float32]
+
+
+class Error(Exception):
+    """A residue error: its message names the file, the channel or the option and what was expected."""
+
+
+class Cancelled(Exception):
+    """A denoise stopped by its CancelToken or its progress callback."""
+
+
+class CancelToken:
+    def __init__(self) -> None: ...
+    def cancel(self) -> None:
+        """Asks the denoise to stop (within one network layer); safe from any thread."""
+    @property
+    def cancelled(self) -> bool: ...
+
+
+class AovStack:
+    """A render's AOVs as loaded and recognised."""
+    @property
+    def color(self) -> Image: ...
+    @property
+    def albedo(self) -> Optional[Image]: ...
+    @property
+    def normal(self) -> Optional[Image]: ...
+    @property
+    def depth(self) -> Optional[Image]: ...
+    @property
+    def variance(self) -> Optional[Image]: ...
+    @property
+    def reference(self) -> Optional[Image]: ...
+    @property
+    def motion(self) -> Optional[Image]: ...
+    @property
+    def convention(self) -> str: ...
+    @property
+    def notes(self) -> list[str]: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+
+
+def load(path: str, reference: Optional[str] = None) -> AovStack:
+    """Loads a render: one multilayer EXR, or a folder of single-AOV files."""
+
+
+def denoise(stack: AovStack, model: str = "multiscale", precision: str = "fp32", strength: float = 1.0,
+            ensemble: int = 0, tile: int = 0, energy_correction: bool = True,
+            progress: Optional[Callable[[int, int], bool]] = None,
+            cancel: Optional[CancelToken] = None) -> Image:
+    """Denoises a loaded render with a model (as residue-cli's -m takes it); returns its colour, H x W x 3."""
+
+
+def metrics(test: Image, reference: Image, eps: float = 0.01) -> dict[str, float]:
+    """relMSE, MSE, PSNR, SSIM (and the pixel counts) of test against reference, as residue-cli eval."""
+
+
+def flip(test: Image, reference: Image) -> dict:
+    """HDR-FLIP: {"mean": float, "map": H x W x 1 array, "exposures": (start, stop, count)}."""
+
+
+def write_exr(path: str, image: Image, half: bool = True, overwrite: bool = False) -> None:
+    """Writes an image as an EXR, atomically; an existing file is replaced only with overwrite=True."""

@@ -1,0 +1,111 @@
+"""`import residue` (app/python): arrays in and out, the same numbers as residue-cli to the last bit, core's errors
+as residue.Error, a denoise cancelled from another thread. Run by ctest (python_module) with PYTHONPATH at the
+module and RESIDUE_CLI at the command line tool."""
+import json
+import os
+import subprocess
+import threading
+
+import numpy as np
+import OpenImageIO as oiio
+import pytest
+
+import residue
+
+CLI = os.environ["RESIDUE_CLI"]
+ROOM = os.path.join(os.environ["RESIDUE_SOURCE"], "resources", "examples", "room")
+
+
+def read_rgb(path):
+    inp = oiio.ImageInput.open(path)
+    pixels = inp.read_image(0, 0, 0, 3, "float")
+    inp.close()
+    return np.asarray(pixels, dtype=np.float32)
+
+
+@pytest.fixture(scope="module")
+def room():
+    return residue.load(os.path.join(ROOM, "noisy.exr"))
+
+
+def test_a_render_loads_with_its_aovs_and_reference(room):
+    assert room.convention == "Blender Cycles"
+    assert room.color.shape == (192, 192, 3) and room.color.dtype == np.float32
+    assert room.albedo.shape == (192, 192, 3) and room.normal.shape == (192, 192, 3) and room.depth.shape == (192, 192, 1)
+    assert room.reference is not None and any("reference" in n for n in room.notes)
+
+
+def test_an_array_written_and_read_back_is_the_same(tmp_path):
+    rng = np.random.default_rng(3)
+    image = (np.exp(rng.normal(size=(17, 23, 3))) * 0.3).astype(np.float32)
+    path = str(tmp_path / "x.exr")
+    residue.write_exr(path, image, half=False)
+    assert np.array_equal(residue.load(path).color, image)
+    with pytest.raises(residue.Error, match="x.exr"):
+        residue.write_exr(path, image)  # never replaced unless asked
+    residue.write_exr(path, image * 2, half=False, overwrite=True)
+    assert np.array_equal(read_rgb(path), image * 2)
+
+
+def test_denoise_equals_the_cli_to_the_last_bit(room, tmp_path):
+    out = residue.denoise(room, "multiscale")
+    path = str(tmp_path / "cli.exr")
+    subprocess.run([CLI, "denoise", os.path.join(ROOM, "noisy.exr"), "-m", "multiscale", "--float", "-o", path],
+                   check=True, capture_output=True)
+    assert np.array_equal(out, read_rgb(path))
+    assert np.isfinite(out).all()
+
+
+def test_metrics_and_flip_equal_the_clis(room):
+    ev = json.loads(subprocess.run([CLI, "eval", "--json", os.path.join(ROOM, "noisy.exr")], check=True,
+                                   capture_output=True, text=True).stdout)["rows"][0]
+    m = residue.metrics(room.color, room.reference)
+    for k in ("relmse", "mse", "psnr", "ssim", "pixels"):
+        assert m[k] == ev[k], k
+    f = residue.flip(room.color, room.reference)
+    assert f["mean"] == ev["hdr_flip"]
+    assert f["map"].shape == (192, 192, 1) and f["exposures"][2] >= 2
+
+
+def test_progress_reaches_the_whole_work_and_false_stops(room):
+    seen = []
+    residue.denoise(room, "tiny", tile=64, progress=lambda done, total: seen.append((done, total)) or True)
+    assert len(seen) == 9 and seen[-1][0] == seen[-1][1] > 0
+    assert all(a[0] < b[0] for a, b in zip(seen, seen[1:]))
+    with pytest.raises(residue.Cancelled):
+        residue.denoise(room, "tiny", tile=64, progress=lambda done, total: False)
+
+
+def test_a_denoise_is_cancelled_from_another_thread(room):
+    token = residue.CancelToken()
+    reached, cancelled = threading.Event(), threading.Event()
+    outcome = {}
+
+    def hold_at_first_tile(done, total):  # the run waits here until the main thread has cancelled it
+        reached.set()
+        cancelled.wait(60)
+        return True
+
+    def run():
+        try:
+            residue.denoise(room, "small", tile=64, progress=hold_at_first_tile, cancel=token)
+            outcome["result"] = "finished"
+        except residue.Cancelled:
+            outcome["result"] = "cancelled"
+
+    worker = threading.Thread(target=run)
+    worker.start()
+    assert reached.wait(60)
+    token.cancel()
+    cancelled.set()
+    worker.join(60)
+    assert outcome.get("result") == "cancelled" and token.cancelled
+
+
+def test_errors_are_residue_errors_with_cores_message(room):
+    with pytest.raises(residue.Error, match="no-such-render.exr"):
+        residue.load("/no-such-render.exr")
+    with pytest.raises(residue.Error, match="no model \"nosuchmodel\""):
+        residue.denoise(room, "nosuchmodel")
+    with pytest.raises(residue.Error, match="same size"):
+        residue.metrics(np.zeros((4, 4, 3), np.float32), np.zeros((4, 5, 3), np.float32))
