@@ -55,11 +55,36 @@ def load(path: str, reference: Optional[str] = None) -> AovStack:
     """Loads a render: one multilayer EXR, or a folder of single-AOV files."""
 
 
+def stack(color: Image, albedo: Optional[Image] = None, normal: Optional[Image] = None, depth: Optional[Image] = None,
+          reference: Optional[Image] = None, normal_space: str = "camera") -> AovStack:
+    """A render from arrays by role (normals in camera space have +z towards the viewer)."""
+
+
+Roi = tuple[int, int, int, int]  # x, y, width, height
+
+
 def denoise(stack: AovStack, model: str = "multiscale", precision: str = "fp32", strength: float = 1.0,
-            ensemble: int = 0, tile: int = 0, energy_correction: bool = True,
+            ensemble: int = 0, tile: int = 0, energy_correction: bool = True, roi: Optional[Roi] = None,
             progress: Optional[Callable[[int, int], bool]] = None,
             cancel: Optional[CancelToken] = None) -> Image:
     """Denoises a loaded render with a model (as residue-cli's -m takes it); returns its colour, H x W x 3."""
+
+
+def denoise_to_exr(stack: AovStack, path: str, model: str = "multiscale", precision: str = "fp32",
+                   strength: float = 1.0, ensemble: int = 0, tile: int = 0, energy_correction: bool = True,
+                   roi: Optional[Roi] = None, half: bool = True, overwrite: bool = False,
+                   progress: Optional[Callable[[int, int], bool]] = None,
+                   cancel: Optional[CancelToken] = None) -> dict:
+    """denoise() written as residue-cli writes it, with residue:* provenance; returns what ran."""
+
+
+def models() -> list[dict]:
+    """The model cards: family, alias_of, method, architecture, ensemble, gflop_per_mp, variants, description,
+    file, validation ({relmse, ssim, scenes} or None), fp32_s_per_mp, bf16_s_per_mp."""
+
+
+def error_map(test: Image, reference: Image, kind: str = "rse", eps: float = 0.01) -> Image:
+    """A per-pixel map, H x W x 1: abs, se, rse or ssim."""
 
 
 def metrics(test: Image, reference: Image, eps: float = 0.01) -> dict[str, float]:

@@ -13,11 +13,14 @@
 #include "core/aov/aov_loader.h"
 #include "core/denoise/denoiser.h"
 #include "core/denoise/method_registry.h"
+#include "core/denoise/provenance_of.h"
 #include "core/features/features.h"
 #include "core/io/exr_writer.h"
 #include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
+#include "core/nn/model_card.h"
 #include "core/nn/model_registry.h"
+#include "core/io/provenance.h"
 #include "core/util/cancel.h"
 #include "core/util/error.h"
 
@@ -64,6 +67,60 @@ py::dict scores_dict(const metrics::Scores& s) {
 
 std::optional<Array> aov_array(const std::optional<Aov>& aov) {
   return aov ? std::optional<Array>(to_array(aov->image)) : std::nullopt;
+}
+
+using Roi = std::optional<std::tuple<int64_t, int64_t, int64_t, int64_t>>;  // x, y, width, height
+
+std::optional<Rect> to_rect(const Roi& roi) {
+  if (!roi) return std::nullopt;
+  const auto [x, y, w, h] = *roi;
+  return Rect{x, y, w, h};
+}
+
+// What every denoise call takes, as DenoiseOptions.
+DenoiseOptions denoise_options(const std::string& precision, float strength, int ensemble, int64_t tile,
+                               bool energy_correction, const Roi& roi, const CancelToken* cancel) {
+  DenoiseOptions o;
+  o.precision = nn::parse_precision(precision);
+  o.strength = strength;
+  o.ensemble = ensemble;
+  o.tile = tile;
+  o.energy_correction = energy_correction;
+  o.roi = to_rect(roi);
+  o.cancel = cancel;
+  return o;
+}
+
+// Runs `method` on `stack` with the GIL released; progress(done, total) takes it again for each tile.
+Image run_denoise(const AovStack& stack, const Method& method, const DenoiseOptions& o,
+                  const std::function<bool(int64_t, int64_t)>& progress, DenoiseStats& stats) {
+  TileCallback on_tile;
+  if (progress)
+    on_tile = [&progress](const TileEvent& e, const Image&) {
+      py::gil_scoped_acquire gil;
+      return progress(e.work_done, e.work_total);
+    };
+  py::gil_scoped_release released;
+  return denoise(stack, method, o, on_tile, &stats);
+}
+
+py::dict card_dict(const nn::ModelCard& c) {
+  py::dict d;
+  d["family"] = c.family;
+  d["alias_of"] = c.alias_of;
+  d["method"] = nn::to_string(c.method);
+  d["architecture"] = c.architecture;
+  d["ensemble"] = c.ensemble;
+  d["gflop_per_mp"] = c.gflop_per_mp;
+  d["variants"] = c.variants;
+  d["description"] = c.description;
+  d["file"] = c.file.string();
+  if (c.validation) d["validation"] = py::dict(py::arg("relmse") = c.validation->relmse, py::arg("ssim") = c.validation->ssim,
+                                               py::arg("scenes") = c.validation->scenes);
+  else d["validation"] = py::none();
+  d["fp32_s_per_mp"] = c.seconds_per_mp(nn::Precision::FP32);
+  d["bf16_s_per_mp"] = c.seconds_per_mp(nn::Precision::BF16);
+  return d;
 }
 
 }  // namespace
@@ -115,37 +172,110 @@ PYBIND11_MODULE(residue, m) {
       "its reference unless `reference` names another.");
 
   m.def(
+      "stack",
+      [](const Array& color, std::optional<Array> albedo, std::optional<Array> normal, std::optional<Array> depth,
+         std::optional<Array> reference, const std::string& normal_space) {
+        auto stack = std::make_shared<AovStack>();
+        stack->convention = "arrays";
+        stack->color.image = to_image(color, "color");
+        const auto put = [&](AovRole role, const std::optional<Array>& a, const char* what) {
+          if (!a) return;
+          Aov& aov = stack->emplace(role);
+          aov.image = to_image(*a, what);
+          if (aov.image.width() != stack->width() || aov.image.height() != stack->height())
+            throw Error(ErrorKind::Input, std::string(what) + " is " + std::to_string(aov.image.width()) + "x" +
+                                              std::to_string(aov.image.height()) + " but the colour is " +
+                                              std::to_string(stack->width()) + "x" + std::to_string(stack->height()));
+          aov.source.file = std::string("(array ") + what + ")";
+        };
+        put(AovRole::Albedo, albedo, "albedo");
+        put(AovRole::Normal, normal, "normal");
+        put(AovRole::Depth, depth, "depth");
+        put(AovRole::Reference, reference, "reference");
+        const auto space = normal_space_from_string(normal_space);
+        if (!space)
+          throw Error(ErrorKind::Usage, "normal_space: expected camera, world or unknown, not '" + normal_space + "'");
+        stack->normal_space = *space;
+        stack->data_window = {0, 0, stack->width(), stack->height()};
+        stack->display_width = stack->width();
+        stack->display_height = stack->height();
+        return stack;
+      },
+      py::arg("color"), py::arg("albedo") = std::nullopt, py::arg("normal") = std::nullopt,
+      py::arg("depth") = std::nullopt, py::arg("reference") = std::nullopt, py::arg("normal_space") = "camera",
+      "A render from arrays by role (colour H x W x 3; albedo and normal H x W x 3, depth H x W x 1), for images "
+      "that are not in files. Normals in camera space have +z towards the viewer.");
+
+  m.def(
       "denoise",
       [](const AovStack& stack, const std::string& model, const std::string& precision, float strength, int ensemble,
-         int64_t tile, bool energy_correction, std::function<bool(int64_t, int64_t)> progress,
+         int64_t tile, bool energy_correction, const Roi& roi, std::function<bool(int64_t, int64_t)> progress,
          std::shared_ptr<CancelToken> cancel) {
-        DenoiseOptions o;
-        o.precision = nn::parse_precision(precision);
-        o.strength = strength;
-        o.ensemble = ensemble;
-        o.tile = tile;
-        o.energy_correction = energy_correction;
-        o.cancel = cancel.get();
+        const DenoiseOptions o = denoise_options(precision, strength, ensemble, tile, energy_correction, roi, cancel.get());
         const std::unique_ptr<Method> method = resolve_method(model, feature_set_for(stack), models());
-        TileCallback on_tile;
-        if (progress)
-          on_tile = [&progress](const TileEvent& e, const Image&) {
-            py::gil_scoped_acquire gil;
-            return progress(e.work_done, e.work_total);
-          };
-        Image out;
-        {
-          py::gil_scoped_release released;
-          out = denoise(stack, *method, o, on_tile);
-        }
-        return to_array(out);
+        DenoiseStats stats;
+        return to_array(run_denoise(stack, *method, o, progress, stats));
       },
       py::arg("stack"), py::arg("model") = nn::kDefaultModel, py::arg("precision") = "fp32", py::arg("strength") = 1.0f,
-      py::arg("ensemble") = 0, py::arg("tile") = 0, py::arg("energy_correction") = true,
+      py::arg("ensemble") = 0, py::arg("tile") = 0, py::arg("energy_correction") = true, py::arg("roi") = std::nullopt,
       py::arg("progress") = nullptr, py::arg("cancel") = nullptr,
       "Denoises a loaded render with a model (a name as residue-cli's -m takes it: multiscale, best, oidn, "
-      "bilateral, or a file) and returns its colour, height x width x 3. progress(done, total) is called with the "
-      "work done after every tile; returning False stops the run (residue.Cancelled).");
+      "bilateral, or a file) and returns its colour, height x width x 3. roi=(x, y, w, h) denoises that rectangle "
+      "only (the noisy colour elsewhere). progress(done, total) is called with the work done after every tile; "
+      "returning False stops the run (residue.Cancelled).");
+
+  m.def(
+      "denoise_to_exr",
+      [](const AovStack& stack, const std::string& path, const std::string& model, const std::string& precision,
+         float strength, int ensemble, int64_t tile, bool energy_correction, const Roi& roi, bool half, bool overwrite,
+         std::function<bool(int64_t, int64_t)> progress, std::shared_ptr<CancelToken> cancel) {
+        const DenoiseOptions o = denoise_options(precision, strength, ensemble, tile, energy_correction, roi, cancel.get());
+        const std::unique_ptr<Method> method = resolve_method(model, feature_set_for(stack), models());
+        io::ExrWriteOptions exr;
+        exr.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
+        exr.overwrite = overwrite;
+        exr.metadata = stack.metadata;
+        exr.data_window = stack.data_window;
+        exr.display_width = stack.display_width;
+        exr.display_height = stack.display_height;
+        io::prepare_exr_output(path, exr);  // before the work: a file that may not be replaced stops it here
+        DenoiseStats stats;
+        const Image out = run_denoise(stack, *method, o, progress, stats);
+        io::record(exr.residue_attributes, {.source = stack.color.source.file, .written_by = "residue (Python)"});
+        io::record(exr.residue_attributes, provenance_of(*method, stats));
+        io::write_exr(path, out, exr);
+        return py::dict(py::arg("model") = method->name(), py::arg("architecture") = method->architecture(),
+                        py::arg("backend") = stats.backend, py::arg("seconds") = stats.seconds,
+                        py::arg("tiles") = stats.tiles);
+      },
+      py::arg("stack"), py::arg("path"), py::arg("model") = nn::kDefaultModel, py::arg("precision") = "fp32",
+      py::arg("strength") = 1.0f, py::arg("ensemble") = 0, py::arg("tile") = 0, py::arg("energy_correction") = true,
+      py::arg("roi") = std::nullopt, py::arg("half") = true, py::arg("overwrite") = false, py::arg("progress") = nullptr,
+      py::arg("cancel") = nullptr,
+      "denoise() written as residue-cli denoise writes it: the render's header and windows, and residue:* "
+      "provenance (model, architecture, backend, post-steps, time). Returns what ran.");
+
+  m.def(
+      "models",
+      [] {
+        py::list out;
+        for (const nn::ModelCard& c : nn::list_model_cards()) out.append(card_dict(c));
+        return out;
+      },
+      "The model cards: every name denoise() takes, with its method, architecture, cost, variants and the "
+      "validation and benchmark numbers measured for it (as residue-cli models lists them).");
+
+  m.def(
+      "error_map",
+      [](const Array& test, const Array& reference, const std::string& kind, double eps) {
+        const auto k = metrics::map_kind_from_string(kind);
+        if (!k) throw Error(ErrorKind::Usage, "kind: expected abs, se, rse or ssim, not '" + kind + "'");
+        metrics::Options o;
+        o.eps = eps;
+        return to_array(metrics::error_map(to_image(test, "test"), to_image(reference, "reference"), *k, o));
+      },
+      py::arg("test"), py::arg("reference"), py::arg("kind") = "rse", py::arg("eps") = 0.01,
+      "A per-pixel map, H x W x 1: abs, se, rse (its mean is relMSE) or ssim; NaN where a pixel is excluded.");
 
   m.def(
       "metrics",

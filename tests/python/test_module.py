@@ -109,3 +109,45 @@ def test_errors_are_residue_errors_with_cores_message(room):
         residue.denoise(room, "nosuchmodel")
     with pytest.raises(residue.Error, match="same size"):
         residue.metrics(np.zeros((4, 4, 3), np.float32), np.zeros((4, 5, 3), np.float32))
+
+
+def test_a_region_only_changes_the_region(room):
+    out = residue.denoise(room, "tiny", roi=(40, 30, 64, 50))
+    inside = np.zeros(out.shape[:2], bool)
+    inside[30:80, 40:104] = True
+    assert np.array_equal(out[~inside], room.color[~inside])  # the noisy colour outside
+    assert not np.array_equal(out[inside], room.color[inside])
+
+
+def test_arrays_by_role_denoise_as_the_file_does(room):
+    arrays = residue.stack(room.color, albedo=room.albedo, normal=room.normal, depth=room.depth,
+                           reference=room.reference, normal_space="camera")
+    assert arrays.convention == "arrays" and arrays.reference is not None
+    assert np.array_equal(residue.denoise(arrays, "tiny"), residue.denoise(room, "tiny"))
+    with pytest.raises(residue.Error, match="albedo is 4x4 but the colour is 192x192"):
+        residue.stack(room.color, albedo=np.zeros((4, 4, 3), np.float32))
+
+
+def test_denoise_to_exr_records_what_ran_as_the_cli_does(room, tmp_path):
+    path = str(tmp_path / "out.exr")
+    ran = residue.denoise_to_exr(room, path, "tiny", half=False)
+    assert ran["model"] == "tiny" and ran["seconds"] > 0 and ran["backend"]
+    spec = oiio.ImageInput.open(path).spec()
+    assert spec.get_string_attribute("residue:model") == "tiny"
+    assert spec.get_string_attribute("residue:written_by") == "residue (Python)"
+    assert spec.get_string_attribute("residue:architecture") and spec.get_string_attribute("residue:backend")
+    assert np.array_equal(read_rgb(path), residue.denoise(room, "tiny"))
+    with pytest.raises(residue.Error, match="out.exr"):
+        residue.denoise_to_exr(room, path, "tiny")  # refused before any work: the file is there
+
+
+def test_maps_and_cards(room):
+    rse = residue.error_map(room.color, room.reference, "rse")
+    assert rse.shape == (192, 192, 1)
+    assert np.isclose(rse.mean(dtype=np.float64), residue.metrics(room.color, room.reference)["relmse"], rtol=1e-6)
+    with pytest.raises(residue.Error, match="expected abs, se, rse or ssim"):
+        residue.error_map(room.color, room.reference, "psnr")
+    cards = {c["family"]: c for c in residue.models()}
+    assert {"multiscale", "best", "oidn", "bilateral"} <= set(cards)
+    assert cards["best"]["alias_of"] == "multiscale" and cards["best"]["ensemble"] == 8
+    assert cards["multiscale"]["gflop_per_mp"] > 0 and cards["multiscale"]["validation"]["scenes"] > 0
