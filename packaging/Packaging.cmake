@@ -54,10 +54,16 @@ if(TARGET residue)
 else()
   set(_residue_programs "the command-line tool residue-cli")
 endif()
+if(TARGET residue_python)
+  set(_residue_python ", and the Python module (import residue)")
+  # The module needs Debian's python3 and NumPy to import; the programs do not, so they are only suggested.
+  set(CPACK_DEBIAN_PACKAGE_SUGGESTS "python3, python3-numpy")
+endif()
 set(CPACK_DEBIAN_PACKAGE_DESCRIPTION
     "Residue denoises Monte Carlo renders (Blender Cycles, Arnold, RenderMan, V-Ray and plain multilayer EXRs)
-with a direct residual network and measures how good the result is (MSE, relMSE, PSNR, SSIM against a
-reference). This package holds ${_residue_programs}, the shipped models and an OCIO config.")
+with a direct residual network and measures how good the result is (against a
+reference: MSE, relMSE, PSNR, SSIM, HDR-FLIP). This package holds ${_residue_programs}, the shipped models and an
+OCIO config${_residue_python}.")
 # dpkg-shlibdeps computes Depends from the binaries' shared libraries (Qt6, OpenImageIO, OpenColorIO, TBB, oneDNN...)
 # and appends them to the ones given here. The viewer cannot start without a Qt platform plugin (xcb, wayland),
 # which libqt6gui6 only recommends.
