@@ -27,7 +27,12 @@ QStringList PixelInspector::lines(const Session& session, QPoint pixel, const Im
     out << QString("%1: %2").arg(name, values.join(' '));
   };
   add("noisy", session.image(Source::Noisy, AovRole::Color), 3);
-  add("denoised", session.image(Source::Denoised, AovRole::Color), 3);
+  // Every result by its name, A and B marked: A as shown (at its strength), the others as they are.
+  for (const Result& r : session.results()) {
+    const bool is_a = r.id == session.a(), is_b = r.id == session.b();
+    const Image* img = is_a ? session.denoised() : r.image.get();
+    add(QString("%1%2").arg(is_a ? "A " : is_b ? "B " : "", session.resultName(r.id)), img, 3);
+  }
   add("reference", session.image(Source::Reference, AovRole::Color), 3);
   add("albedo", session.image(Source::Noisy, AovRole::Albedo), 3);
   add("normal", session.image(Source::Noisy, AovRole::Normal), 3);

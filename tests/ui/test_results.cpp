@@ -25,6 +25,7 @@
 #include "ui/denoise_controller.h"
 #include "ui/denoise_panel.h"
 #include "ui/export_all.h"
+#include "ui/pixel_inspector.h"
 #include "ui/heatmap_panel.h"
 #include "ui/histogram.h"
 #include "ui/main_window.h"
@@ -145,6 +146,28 @@ class TestResults : public QObject {
     QCOMPARE(w.session()->results().size(), size_t(1));
     QCOMPARE(w.session()->a(), w.session()->results()[0].id);
     QCOMPARE(w.session()->b(), -1);
+  }
+
+  // The Pixel panel lists every result by name, A and B marked, with its values there (issue 53, item 10).
+  void thePixelPanelNamesEveryResult() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    runModel(w, "tiny");
+    runModel(w, "small");
+    const auto& results = w.session()->results();
+    QCOMPARE(results.size(), size_t(2));
+    w.session()->setA(results[1].id);
+    w.session()->setB(results[0].id);
+    const QString text = PixelInspector::lines(*w.session(), QPoint(10, 20), nullptr, {}).join('\n');
+    const auto values = [](const Image& img) {
+      QStringList v;
+      for (int c = 0; c < 3; ++c) v << QString::number(double(img.at(10, 20, c)), 'g', 6);
+      return v.join(' ');
+    };
+    QVERIFY2(text.contains("A small fp32: " + values(*w.session()->denoised())), qPrintable(text));
+    QVERIFY2(text.contains("B tiny fp32: " + values(*results[0].image)), qPrintable(text));
   }
 
   void heatmapsShareOneRangeAcrossResults() {
