@@ -1,6 +1,9 @@
 #include "ui/main_window.h"
 
 #include <QAction>
+#include <QApplication>
+#include <QAbstractSpinBox>
+#include <QLineEdit>
 #include <QCloseEvent>
 #include <QComboBox>
 #include <QDialog>
@@ -39,7 +42,37 @@ namespace {
 constexpr int kMaxRecent = 10;
 
 QString errorText(const std::exception& e) { return QString::fromStdString(e.what()); }
+
+// Whether `w` takes typed text.
+bool takesText(const QWidget* w) {
+  if (qobject_cast<const QLineEdit*>(w) || qobject_cast<const QAbstractSpinBox*>(w)) return true;
+  const auto* combo = qobject_cast<const QComboBox*>(w);
+  return combo && combo->isEditable();
+}
+
+// Whether a key without Ctrl or Alt is one a text field uses: text, Tab (to move on), editing and cursor keys.
+bool fieldKey(const QKeyEvent* k) {
+  if (k->modifiers() & (Qt::ControlModifier | Qt::AltModifier | Qt::MetaModifier)) return false;
+  switch (k->key()) {
+    case Qt::Key_Tab: case Qt::Key_Backtab: case Qt::Key_Backspace: case Qt::Key_Delete: case Qt::Key_Left:
+    case Qt::Key_Right: case Qt::Key_Up: case Qt::Key_Down: case Qt::Key_Home: case Qt::Key_End:
+      return true;
+    default:
+      return !k->text().isEmpty() && k->text().at(0).isPrint();
+  }
+}
 }  // namespace
+
+bool MainWindow::eventFilter(QObject* watched, QEvent* event) {
+  if (event->type() == QEvent::ShortcutOverride) {
+    const auto* w = qobject_cast<QWidget*>(watched);
+    if (w && w->window() == this && takesText(w) && fieldKey(static_cast<QKeyEvent*>(event))) {
+      event->accept();  // the key goes to the field, not to a shortcut
+      return true;
+    }
+  }
+  return QMainWindow::eventFilter(watched, event);
+}
 
 struct MainWindow::Rendered {
   std::vector<Pane> panes;
@@ -57,6 +90,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     resize(1280, 720);
   }
   session_ = new Session(this);
+  qApp->installEventFilter(this);  // ShortcutOverride reaches the focused field, not the window: see eventFilter
   display_ = DisplayTransform::load_default();
   canvas_ = new ImageCanvas(this);
   canvas_->setObjectName("canvas");

@@ -113,6 +113,9 @@ class MainWindow : public QMainWindow {
   void panesRendered();  // the canvas shows the current images
 
  protected:
+  // Keys typed into a field (the eps box, the heatmap's range) are the field's: Tab moves on from it and digits,
+  // arrows and Backspace edit it, instead of running the window's shortcuts (next pane, result 1-9, frames).
+  bool eventFilter(QObject* watched, QEvent* event) override;
   void closeEvent(QCloseEvent*) override;
   void keyPressEvent(QKeyEvent*) override;
 

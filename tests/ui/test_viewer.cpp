@@ -5,6 +5,7 @@
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QLabel>
+#include <QLineEdit>
 #include <QMenu>
 #include <QPushButton>
 #include <QSlider>
@@ -388,6 +389,35 @@ class TestViewer : public QObject {
     QVERIFY2(sheet.width() >= 3 * 200 && sheet.width() < 4 * 200 && sheet.height() > 192 && sheet.height() < 2 * 192,
              qPrintable(QString("%1 x %2").arg(sheet.width()).arg(sheet.height())));
     QCOMPARE(sheet.pixel(2, 2), QColor(Qt::white).rgb());
+  }
+
+  // Keys typed into a field are the field's (issue 53, item 8): Tab moves on from the eps box instead of switching
+  // panes, and digits typed into the heatmap's range go into it instead of picking results.
+  void keysTypedIntoAFieldAreTheFields() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    openExample(w);
+    w.setLayout(ImageCanvas::Layout::Single);
+    const int pane = w.canvas()->current();
+    auto* eps = w.metricsPanel()->findChild<QDoubleSpinBox*>("metricsEps");
+    w.activateWindow();
+    eps->setFocus();
+    QTRY_VERIFY(eps->hasFocus());
+    QTest::keyClick(eps, Qt::Key_Tab);
+    QCOMPARE(w.canvas()->current(), pane);
+    QVERIFY(!eps->hasFocus());
+    QTest::keyClick(&w, Qt::Key_Tab);  // outside a field, Tab still switches panes
+    QVERIFY(w.canvas()->current() != pane);
+    QLineEdit* hi = nullptr;
+    for (auto* e : w.heatmapPanel()->findChildren<QLineEdit*>())
+      if (!e->isReadOnly()) hi = e;
+    QVERIFY(hi);
+    hi->setFocus();
+    QTRY_VERIFY(hi->hasFocus());
+    QTest::keyClicks(hi, "0.5");
+    QCOMPARE(hi->text(), QString("0.5"));
   }
 
   // The Denoise tab's "done in ..." is about the render it ran on: opening another clears it (issue 53, item 4).
