@@ -462,15 +462,16 @@ void MainWindow::cyclePane(int step) {
 }
 
 void MainWindow::pickResult(int index, bool as_b) {
-  const auto& results = session_->results();
-  if (index < 0 || index >= static_cast<int>(results.size())) {
+  // The rows as the Results tab shows them (sorted as the user sorted them), numbered in its # column.
+  const std::vector<int> ids = metrics_->visibleIds();
+  if (index < 0 || index >= static_cast<int>(ids.size())) {
     statusBar()->showMessage(tr("There is no result %1 (the Results tab lists them)").arg(index + 1), 4000);
     return;
   }
-  const int id = results[static_cast<size_t>(index)].id;
+  const int id = ids[static_cast<size_t>(index)];
   if (as_b) session_->setB(id);
   else session_->setA(id);
-  statusBar()->showMessage(tr("%1: %2").arg(as_b ? "B" : "A", results[static_cast<size_t>(index)].name), 4000);
+  statusBar()->showMessage(tr("%1: %2").arg(as_b ? "B" : "A", session_->resultName(id)), 4000);
 }
 
 int MainWindow::paneIndex(Source s) const {

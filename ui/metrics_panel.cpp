@@ -24,7 +24,7 @@
 namespace residue::ui {
 
 namespace {
-enum Column { kAB, kName, kRelMse, kSsim, kFlip, kTemporal, kPsnr, kTime, kRoiRelMse, kRoiSsim, kRoiFlip, kRoiPsnr, kColumns };
+enum Column { kNumber, kAB, kName, kRelMse, kSsim, kFlip, kTemporal, kPsnr, kTime, kRoiRelMse, kRoiSsim, kRoiFlip, kRoiPsnr, kColumns };
 
 QString number(double v, int precision) {
   if (std::isnan(v)) return QStringLiteral("n/a");
@@ -56,9 +56,10 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
 
   table_ = new QTableWidget(0, kColumns, this);
   table_->setObjectName("metricsTable");
-  table_->setHorizontalHeaderLabels({QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("HDR-FLIP"), tr("temporal"),
+  table_->setHorizontalHeaderLabels({tr("#"), QString(), tr("result"), tr("relMSE"), tr("SSIM"), tr("HDR-FLIP"), tr("temporal"),
                                      tr("PSNR"), tr("time"), tr("ROI relMSE"), tr("ROI SSIM"), tr("ROI FLIP"), tr("ROI PSNR")});
-  const QStringList tips = {tr("A: the denoised pane; B: the one compared with it"),
+  const QStringList tips = {tr("The key that shows the result as A (Ctrl+key: as B), in the order the rows are shown"),
+                            tr("A: the denoised pane; B: the one compared with it"),
                             tr("What made the image: model and precision, or the file it came from"),
                             tr("relMSE = mean (x - r)\u00b2 / (r\u00b2 + eps) over the whole image (lower is better)"),
                             tr("SSIM over the whole image (higher is better)"),
@@ -86,6 +87,8 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   table_->horizontalHeader()->setStretchLastSection(true);
   table_->setSortingEnabled(true);
   table_->sortByColumn(kName, Qt::AscendingOrder);  // the order the results came in
+  // After every sort (a header click, or the table refilled): the model reorders its rows, then says so.
+  connect(table_->model(), &QAbstractItemModel::layoutChanged, this, [this] { numberRows(); });
   table_->setWordWrap(false);
   table_->setTextElideMode(Qt::ElideMiddle);
   layout->addWidget(table_, 1);
@@ -109,6 +112,13 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   });
   connect(remove_, &QPushButton::clicked, this, [this] {
     if (const int id = selectedId(); id >= 0) emit removeRequested(id);
+  });
+  // Up/Down (or any change of the current row that is not the table being refilled) shows that row as A.
+  connect(table_, &QTableWidget::currentCellChanged, this, [this](int row, int, int previous, int) {
+    if (updating_ || row < 0 || row == previous || !table_->item(row, kName)) return;
+    if (QApplication::mouseButtons() != Qt::NoButton) return;  // a click: cellClicked decides (A, or B with Ctrl)
+    const int id = table_->item(row, kName)->data(kIdRole).toInt();
+    if (id >= 0) emit showAsA(id);
   });
   connect(table_, &QTableWidget::cellClicked, this, [this](int row, int) {
     const int id = table_->item(row, kName)->data(kIdRole).toInt();
@@ -170,6 +180,31 @@ metrics::Options MetricsPanel::options() const {
 
 // Until the newest result is shown, not only computed: a caller that waits on busy() then reads report().
 bool MetricsPanel::busy() const { return task_->busy() || flip_task_->busy(); }
+
+std::vector<int> MetricsPanel::visibleIds() const {
+  std::vector<int> ids;
+  for (int r = 0; r < table_->rowCount(); ++r)
+    if (const auto* name = table_->item(r, kName); name && name->data(kIdRole).toInt() >= 0)
+      ids.push_back(name->data(kIdRole).toInt());
+  return ids;
+}
+
+void MetricsPanel::numberRows() {
+  if (numbering_) return;  // setting the # items may re-sort when the table is sorted by them
+  numbering_ = true;
+  int n = 0;
+  for (int r = 0; r < table_->rowCount(); ++r) {
+    const auto* name = table_->item(r, kName);
+    const bool result = name && name->data(kIdRole).toInt() >= 0;
+    if (result) ++n;
+    const QString text = result && n <= 9 ? QString::number(n) : QString();
+    if (auto* item = table_->item(r, kNumber); item && item->text() == text) continue;
+    auto* item = new QTableWidgetItem(text);
+    item->setData(Qt::UserRole, kUnknown);
+    table_->setItem(r, kNumber, item);
+  }
+  numbering_ = false;
+}
 
 int MetricsPanel::selectedId() const {
   const auto rows = table_->selectionModel()->selectedRows();
@@ -402,6 +437,7 @@ void MetricsPanel::showTable() {
   table_->setColumnHidden(kTemporal, !temporal_on);
   table_->setSortingEnabled(true);
   table_->sortByColumn(sort_column, sort_order);
+  numberRows();
   table_->resizeColumnToContents(kName);
   table_->setColumnWidth(kName, std::clamp(table_->columnWidth(kName), 120, 260));
   // A stays selected, wherever the sort put it.

@@ -62,6 +62,9 @@ class MetricsPanel : public QWidget {
   const io::MetricsReport& report() const { return report_; }
   const io::MetricsReport& wholeReport() const { return whole_; }  // the whole image, always
   bool busy() const;
+  // The results' ids in the order the table shows them (the noisy input left out): keys 1-9 pick these, and the
+  // table's first column numbers them.
+  std::vector<int> visibleIds() const;
 
  signals:
   void optionsChanged();  // eps or SSIM space edited: the owner calls compute() again
@@ -73,6 +76,7 @@ class MetricsPanel : public QWidget {
 
  private:
   void showTable();
+  void numberRows();  // the # column, after every sort
   int selectedId() const;
 
   QLabel* scope_ = nullptr;
@@ -130,6 +134,7 @@ class MetricsPanel : public QWidget {
   Inputs last_;
   io::MetricsReport report_, whole_;
   bool updating_ = false;  // the table is being refilled: selection changes are not the user's
+  bool numbering_ = false;  // numberRows() is setting the # column
 };
 
 }  // namespace residue::ui

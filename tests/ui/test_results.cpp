@@ -91,9 +91,29 @@ class TestResults : public QObject {
     auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
     QVERIFY(table);
     QCOMPARE(table->rowCount(), 3);
-    table->sortByColumn(2, Qt::AscendingOrder);
-    QVERIFY(table->item(0, 1)->text().startsWith("small"));
-    QVERIFY(table->item(2, 1)->text().startsWith("noisy"));
+    const auto column = [&](const QString& header) {
+      for (int c = 0; c < table->columnCount(); ++c)
+        if (table->horizontalHeaderItem(c)->text() == header) return c;
+      return -1;
+    };
+    const int number = column("#"), name = column("result");
+    table->sortByColumn(column("relMSE"), Qt::AscendingOrder);
+    QVERIFY(table->item(0, name)->text().startsWith("small"));
+    QVERIFY(table->item(2, name)->text().startsWith("noisy"));
+    // Keys 1-9 follow the rows as shown, numbered in the # column (issue 53, item 9): 1 is now small.
+    QCOMPARE(table->item(0, number)->text(), QString("1"));
+    QCOMPARE(table->item(1, number)->text(), QString("2"));
+    QCOMPARE(table->item(2, number)->text(), QString());  // the noisy input has no key
+    QTest::keyClick(&w, Qt::Key_1);
+    QCOMPARE(w.session()->a(), results[1].id);
+    // Up/Down in the table move A with the highlight.
+    table->setFocus();
+    table->setCurrentCell(0, name);
+    QTest::keyClick(table, Qt::Key_Down);
+    QCOMPARE(w.session()->a(), results[0].id);
+    table->sortByColumn(name, Qt::AscendingOrder);  // back to the order they came in, the noisy input first
+    QCOMPARE(table->item(1, number)->text(), QString("1"));
+    QVERIFY(table->item(1, name)->text().startsWith("tiny"));
 
     // Keys: 1 makes tiny A, Ctrl+2 small B; the B pane shows small's pixels.
     QTest::keyClick(&w, Qt::Key_1);

@@ -48,12 +48,14 @@ void go(MainWindow& w, int64_t frame) {
 // The Results table's temporal value of the row whose name starts with `name` (NaN when it shows none).
 double temporalCell(MainWindow& w, const QString& name) {
   auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
-  int column = -1;
-  for (int c = 0; c < table->columnCount(); ++c)
+  int column = -1, name_column = -1;
+  for (int c = 0; c < table->columnCount(); ++c) {
     if (table->horizontalHeaderItem(c)->text() == "temporal") column = c;
-  if (column < 0 || table->isColumnHidden(column)) return std::nan("");
+    if (table->horizontalHeaderItem(c)->text() == "result") name_column = c;
+  }
+  if (column < 0 || name_column < 0 || table->isColumnHidden(column)) return std::nan("");
   for (int r = 0; r < table->rowCount(); ++r)
-    if (table->item(r, 1)->text().startsWith(name)) return table->item(r, column)->data(Qt::UserRole).toDouble();
+    if (table->item(r, name_column)->text().startsWith(name)) return table->item(r, column)->data(Qt::UserRole).toDouble();
   return std::nan("");
 }
 

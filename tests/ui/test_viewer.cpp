@@ -293,13 +293,17 @@ class TestViewer : public QObject {
     // Its row says it was cancelled, where the name cannot elide it away, and has no scores (issue 53, item 3).
     QVERIFY(settle(w, [&] { return !w.metricsPanel()->busy(); }));
     auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
-    int row = -1;
+    int row = -1, name = -1, relmse = -1;
+    for (int c = 0; c < table->columnCount(); ++c) {
+      if (table->horizontalHeaderItem(c)->text() == "result") name = c;
+      if (table->horizontalHeaderItem(c)->text() == "relMSE") relmse = c;
+    }
     for (int r = 0; r < table->rowCount(); ++r)
-      if (table->item(r, 1)->text().startsWith("small")) row = r;
+      if (table->item(r, name)->text().startsWith("small")) row = r;
     QVERIFY(row >= 0);
-    QVERIFY2(table->item(row, 1)->text().endsWith("(cancelled)"), qPrintable(table->item(row, 1)->text()));
-    QVERIFY(table->item(row, 1)->toolTip().startsWith("cancelled after 1 of 9 tiles"));
-    QCOMPARE(table->item(row, 2)->text(), QString("-"));
+    QVERIFY2(table->item(row, name)->text().endsWith("(cancelled)"), qPrintable(table->item(row, name)->text()));
+    QVERIFY(table->item(row, name)->toolTip().startsWith("cancelled after 1 of 9 tiles"));
+    QCOMPARE(table->item(row, relmse)->text(), QString("-"));
     QCOMPARE(w.metricsPanel()->wholeReport().rows.size(), size_t(1));  // only the noisy input is scored
     // The Denoise tab says so too, and no longer shows the progress it had (tile n of m, time left).
     const QString status = w.denoisePanel()->findChild<QLabel*>("denoiseStatus")->text();
@@ -478,7 +482,7 @@ class TestViewer : public QObject {
     QCOMPARE(w.metricsPanel()->report().rows[0].scores.relmse, whole(w));
     QVERIFY2(w.statusBar()->currentMessage().contains("cleared"), qPrintable(w.statusBar()->currentMessage()));
     auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
-    QVERIFY(table && table->item(0, 1));
+    QVERIFY(table && table->rowCount() > 0);
     bool shown = false;  // the whole image's relMSE is in the table, not "..."
     for (int c = 0; c < table->columnCount(); ++c)
       if (table->item(0, c) && table->item(0, c)->text() == QString::number(whole(w), 'g', 5)) shown = true;
