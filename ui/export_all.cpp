@@ -4,6 +4,7 @@
 #include <QPainter>
 #include <cstring>
 
+#include "core/denoise/provenance_of.h"
 #include "core/io/atomic_file.h"
 #include "core/io/exr_writer.h"
 #include "core/io/map_writer.h"
@@ -143,10 +144,7 @@ void write_result_exr(const std::filesystem::path& path, const Image& image, con
   io::ExrWriteOptions o;
   o.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
   o.compression = compression;
-  o.metadata = stack.metadata;
-  o.data_window = stack.data_window;
-  o.display_width = stack.display_width;
-  o.display_height = stack.display_height;
+  keep_render_header(o, stack);
   io::Provenance p = result.provenance;
   if (!p.model) p.model = result.description.toStdString();  // an added file: its path
   p.source = stack.color.source.file;

@@ -234,10 +234,7 @@ PYBIND11_MODULE(residue, m) {
         io::ExrWriteOptions exr;
         exr.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
         exr.overwrite = overwrite;
-        exr.metadata = stack.metadata;
-        exr.data_window = stack.data_window;
-        exr.display_width = stack.display_width;
-        exr.display_height = stack.display_height;
+        keep_render_header(exr, stack);
         io::prepare_exr_output(path, exr);  // before the work: a file that may not be replaced stops it here
         DenoiseStats stats;
         const Image out = run_denoise(stack, *method, o, progress, stats);

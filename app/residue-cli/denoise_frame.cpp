@@ -147,10 +147,7 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   d.backends = &context.backends;
 
   io::ExrWriteOptions w = o.write_options();
-  w.metadata = layout.metadata;
-  w.data_window = layout.data_window;
-  w.display_width = layout.display_width;
-  w.display_height = layout.display_height;
+  keep_render_header(w, layout);
   io::record(w.residue_attributes, {.source = layout.color.source.file, .written_by = "residue-cli"});
   check_output(output, layout, w);
 

@@ -20,4 +20,11 @@ io::Provenance provenance_of(const Method& method, const DenoiseStats& stats) {
   return p;
 }
 
+void keep_render_header(io::ExrWriteOptions& exr, const AovStack& stack) {
+  exr.metadata = stack.metadata;
+  exr.data_window = stack.data_window;
+  exr.display_width = stack.display_width;
+  exr.display_height = stack.display_height;
+}
+
 }  // namespace residue

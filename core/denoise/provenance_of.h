@@ -3,8 +3,10 @@
 // things whichever program wrote it.
 #pragma once
 
+#include "core/aov/aov_stack.h"
 #include "core/denoise/denoiser.h"
 #include "core/denoise/method.h"
+#include "core/io/exr_writer.h"
 #include "core/io/provenance.h"
 
 namespace residue {
@@ -15,5 +17,9 @@ io::Provenance run_provenance(const DenoiseStats& stats);
 
 // The same with the method that ran: its name and architecture.
 io::Provenance provenance_of(const Method& method, const DenoiseStats& stats);
+
+// What a denoised image of `stack` keeps of the render when it is written: its header attributes, data and
+// display windows. Every writer of a result (the CLI, the viewer's exports, the Python module) sets them here.
+void keep_render_header(io::ExrWriteOptions& exr, const AovStack& stack);
 
 }  // namespace residue
