@@ -11,6 +11,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include "core/metrics/tile_scores.h"
 #include "core/util/error.h"
 
 namespace residue::metrics {
@@ -303,8 +304,9 @@ void check_inputs(const Image& test, const Image& reference, const FlipOptions& 
     throw Error(ErrorKind::Usage, "FLIP: pixels per degree must be a positive number");
 }
 
+// Whether a pixel's RGB is finite: the metrics' own test (tile_scores.h), so FLIP leaves out the pixels they do.
 bool finite_rgb(const Image& img, int64_t x, int64_t y) {
-  return std::isfinite(img.at(x, y, 0)) && std::isfinite(img.at(x, y, 1)) && std::isfinite(img.at(x, y, 2));
+  return detail::finite_rgb(img.row(y).data() + x * img.channels());
 }
 
 // The RGB planes of `img` with excluded pixels (`keep` false) read as 0.
