@@ -629,19 +629,24 @@ void MainWindow::refreshAnalysis() {
   const auto a_image = running == session_->a() ? nullptr : session_->denoisedShared();
   const auto b_image = running == session_->b() ? nullptr : session_->compareShared();
   if (heatmap_->temporal()) return computeTemporalMap();
+  // Against the reference, the FLIP map the Results tab already has serves the heatmap too (it is the slow one).
+  const auto against_reference = [&](const std::shared_ptr<const Image>& test, const QString& subject,
+                                     const QString& missing) {
+    if (const auto map = heatmap_->flip() && test && in.reference ? metrics_->flipMap(test.get()) : nullptr)
+      return heatmap_->computeMap([map] { return *map; }, subject, missing);
+    heatmap_->compute(test, in.reference, subject, missing, metrics_->options());
+  };
   switch (heatmap_->of()) {
     case HeatmapPanel::Of::A:
-      heatmap_->compute(a_image, in.reference, a_name.isEmpty() ? tr("A") : a_name,
-                        !in.reference ? tr("no reference") : tr("no result A yet (denoise, or add a result)"),
-                        metrics_->options());
+      against_reference(a_image, a_name.isEmpty() ? tr("A") : a_name,
+                        !in.reference ? tr("no reference") : tr("no result A yet (denoise, or add a result)"));
       break;
     case HeatmapPanel::Of::B:
-      heatmap_->compute(b_image, in.reference, b_name.isEmpty() ? tr("B") : b_name,
-                        !in.reference ? tr("no reference") : tr("no result B (Ctrl+1-9 picks one)"), metrics_->options());
+      against_reference(b_image, b_name.isEmpty() ? tr("B") : b_name,
+                        !in.reference ? tr("no reference") : tr("no result B (Ctrl+1-9 picks one)"));
       break;
     case HeatmapPanel::Of::Noisy:
-      heatmap_->compute(in.rows.front().image, in.reference, tr("the noisy input"), tr("no reference"),
-                        metrics_->options());
+      against_reference(in.rows.front().image, tr("the noisy input"), tr("no reference"));
       break;
     case HeatmapPanel::Of::AgainstB:
       heatmap_->compute(a_image, b_image, tr("%1 against %2").arg(a_name, b_name),

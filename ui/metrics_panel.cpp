@@ -181,6 +181,11 @@ metrics::Options MetricsPanel::options() const {
 // Until the newest result is shown, not only computed: a caller that waits on busy() then reads report().
 bool MetricsPanel::busy() const { return task_->busy() || flip_task_->busy(); }
 
+std::shared_ptr<const Image> MetricsPanel::flipMap(const Image* image) const {
+  const auto it = flips_.find(image);
+  return it == flips_.end() ? nullptr : it->second.map;
+}
+
 std::vector<int> MetricsPanel::visibleIds() const {
   std::vector<int> ids;
   for (int r = 0; r < table_->rowCount(); ++r)

@@ -65,6 +65,8 @@ class MetricsPanel : public QWidget {
   // The results' ids in the order the table shows them (the noisy input left out): keys 1-9 pick these, and the
   // table's first column numbers them.
   std::vector<int> visibleIds() const;
+  // The HDR-FLIP map of `image` against the current reference, once computed here; null before.
+  std::shared_ptr<const Image> flipMap(const Image* image) const;
 
  signals:
   void optionsChanged();  // eps or SSIM space edited: the owner calls compute() again

@@ -159,6 +159,13 @@ class TestResults : public QObject {
     QCOMPARE(maxAbsDiff(*w.heatmapPanel()->map(), metrics::hdr_flip(*results[0].image, *results[1].image).map, 1), 0.0);
     QCOMPARE(w.heatmapPanel()->colormap(), Colormap::Magma);
     QCOMPARE(w.heatmapPanel()->range(), (std::pair<double, double>{0.0, 1.0}));
+    // Of A against the reference: the map the Results tab computed for its column, the same as core's.
+    w.heatmapPanel()->setOf(HeatmapPanel::Of::A);
+    QVERIFY(settle(w, [&] { return w.heatmapPanel()->map() && !w.heatmapPanel()->title().contains("against"); }));
+    QCOMPARE(maxAbsDiff(*w.heatmapPanel()->map(),
+                        metrics::hdr_flip(*w.session()->denoised(), w.session()->stack()->reference->image).map, 1),
+             0.0);
+    w.heatmapPanel()->setOf(HeatmapPanel::Of::AgainstB);
     w.heatmapPanel()->setKind(metrics::MapKind::RelativeSquaredError);
 
     // Removing a result drops its row; removing A makes the newest A.
