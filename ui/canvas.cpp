@@ -23,6 +23,13 @@ ImageCanvas::ImageCanvas(QWidget* parent) : QWidget(parent) {
   setFocusPolicy(Qt::StrongFocus);
   setMinimumSize(320, 200);
   setAttribute(Qt::WA_OpaquePaintEvent);
+  connect(this, &ImageCanvas::viewChanged, this, &ImageCanvas::rehover);
+}
+
+void ImageCanvas::rehover() {
+  if (!mouse_) return;
+  hovered_pane_ = paneAt(*mouse_);
+  emit hovered(pixelAt(*mouse_));
 }
 
 void ImageCanvas::setPanes(std::vector<Pane> panes, QSize image_size) {
@@ -37,6 +44,7 @@ void ImageCanvas::setPanes(std::vector<Pane> panes, QSize image_size) {
   // A fitted view follows the panes: more panes are smaller.
   if (!same_size || !fitted_ || (auto_fit_ && !same_count)) fit();
   update();
+  rehover();
 }
 
 void ImageCanvas::patchPane(int index, QPoint at, const QImage& pixels) {
@@ -89,6 +97,7 @@ void ImageCanvas::setCurrent(int index) {
   if (index < 0 || index >= static_cast<int>(panes_.size())) return;
   current_ = index;
   update();
+  rehover();
 }
 
 void ImageCanvas::setWipePair(int a, int b) {
@@ -97,11 +106,13 @@ void ImageCanvas::setWipePair(int a, int b) {
   wipe_a_ = a;
   wipe_b_ = b;
   update();
+  rehover();
 }
 
 void ImageCanvas::flipAB() {
   current_ = current_ == wipe_a_ ? wipe_b_ : wipe_a_;
   update();
+  rehover();
 }
 
 void ImageCanvas::setWipePosition(double fraction) {
@@ -433,6 +444,7 @@ void ImageCanvas::mouseMoveEvent(QMouseEvent* e) {
       break;
   }
   if (drag_ != Drag::Roi) drag_last_ = pos;
+  mouse_ = pos;
   hovered_pane_ = paneAt(pos);
   emit hovered(pixelAt(pos));
 }
@@ -448,6 +460,7 @@ void ImageCanvas::mouseReleaseEvent(QMouseEvent*) {
 }
 
 void ImageCanvas::leaveEvent(QEvent*) {
+  mouse_.reset();
   hovered_pane_.reset();
   emit hovered(std::nullopt);
 }

@@ -112,9 +112,13 @@ class ImageCanvas : public QWidget {
   void drawRoi(class QPainter& p, const Slot& s) const;
   int wipeSplitX() const;
   void clampView();
+  // Says again what is under the mouse after the view changed under it (a zoom, a flip, another layout), so that
+  // the status bar and the Pixel panel do not wait for the next mouse move.
+  void rehover();
 
   std::vector<Pane> panes_;
   std::optional<int> hovered_pane_;
+  std::optional<QPointF> mouse_;  // where the mouse is over the canvas, if it is
   QSize image_size_;
   Layout layout_ = Layout::SideBySide;
   int current_ = 0;

@@ -85,6 +85,11 @@ MetricsPanel::MetricsPanel(QWidget* parent) : QWidget(parent) {
   // sideways rather than squeezing the names to a few letters.
   table_->horizontalHeader()->setSectionResizeMode(kName, QHeaderView::Interactive);
   table_->horizontalHeader()->setStretchLastSection(true);
+  // A region's scores come right after the names (they are what a dragged region is for), so that a side bar
+  // shows a result's name and its region scores together; the whole image's follow, scrolled to when wanted.
+  for (int c : {kRoiRelMse, kRoiSsim, kRoiFlip, kRoiPsnr})
+    table_->horizontalHeader()->moveSection(table_->horizontalHeader()->visualIndex(c),
+                                            table_->horizontalHeader()->visualIndex(kName) + 1 + (c - kRoiRelMse));
   table_->setSortingEnabled(true);
   table_->sortByColumn(kName, Qt::AscendingOrder);  // the order the results came in
   // After every sort (a header click, or the table refilled): the model reorders its rows, then says so.

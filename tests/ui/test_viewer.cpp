@@ -243,6 +243,71 @@ class TestViewer : public QObject {
     QCOMPARE(in->spec().get_float_attribute("residue:strength", -1.0f), 0.25f);
   }
 
+  // Issue 53, item 2: with a region, a result's name and its region scores are visible together, at 1280x720
+  // and at 1920x1080, and the name keeps the width it needs.
+  void regionScoresSitBesideTheNames() {
+    for (const QSize size : {QSize(1280, 720), QSize(1920, 1080)}) {
+      MainWindow w;
+      w.setInteractive(false);
+      w.resize(size);
+      w.show();
+      openExample(w);
+      runModel(w, "tiny");
+      w.showSideTab(MainWindow::SideTab::Results);
+      w.setRoi(Rect{40, 30, 64, 50});
+      QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.roi.has_value(); }));
+      auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
+      QVERIFY(table);
+      std::map<QString, int> columns;
+      for (int c = 0; c < table->columnCount(); ++c) columns[table->horizontalHeaderItem(c)->text()] = c;
+      const int viewport = table->viewport()->width();
+      const QFontMetrics fm(table->font());
+      for (const QString& name : {QString("result"), QString("ROI relMSE"), QString("ROI SSIM")}) {
+        const int c = columns.at(name);
+        const int x = table->columnViewportPosition(c);
+        QVERIFY2(!table->isColumnHidden(c) && x >= 0 && x + table->columnWidth(c) <= viewport,
+                 qPrintable(QString("%1 at %2 + %3 of %4 px").arg(name).arg(x).arg(table->columnWidth(c)).arg(viewport)));
+      }
+      int tiny_row = -1;
+      for (int r = 0; r < table->rowCount(); ++r)
+        if (table->item(r, columns.at("result"))->text().startsWith("tiny")) tiny_row = r;
+      QVERIFY(tiny_row >= 0);
+      const QString name = table->item(tiny_row, columns.at("result"))->text();
+      QVERIFY2(fm.horizontalAdvance(name) + 8 <= table->columnWidth(columns.at("result")),
+               qPrintable(name + " in " + QString::number(table->columnWidth(columns.at("result"))) + " px"));
+    }
+  }
+
+  // Issue 53, item 4: the status bar and the Pixel panel read what is under the mouse after a flip, a layout change
+  // or a zoom, without waiting for the mouse to move.
+  void statusFollowsTheViewUnderAStillMouse() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.resize(1280, 720);
+    w.show();
+    openExample(w);
+    runModel(w, "tiny");
+    auto* cursor = w.findChild<QLabel*>("cursorLabel");
+    QVERIFY(cursor);
+    w.canvas()->setLayout(ImageCanvas::Layout::Single);
+    w.canvas()->setWipePair(0, 1);
+    w.canvas()->setCurrent(0);
+    const QPoint centre = w.canvas()->paneRects().front().center();
+    QTest::mouseMove(w.canvas(), centre);
+    QVERIFY2(cursor->text().contains("Noisy"), qPrintable(cursor->text()));
+    QTest::keyClick(w.canvas(), Qt::Key_Space);  // flip to A, the mouse where it was
+    QVERIFY2(cursor->text().contains("A: tiny fp32"), qPrintable(cursor->text()));
+    auto* inspector = w.findChild<PixelInspector*>();
+    QVERIFY(inspector);
+    const auto before = w.canvas()->pixelAt(centre);
+    w.canvas()->zoomAbout(4.0, QPointF(centre) + QPointF(40, 30));  // the pixel under the mouse moves
+    const auto after = w.canvas()->pixelAt(centre);
+    QVERIFY(before && after && *before != *after);
+    QVERIFY2(cursor->text().startsWith(QString("x %1  y %2").arg(after->x()).arg(after->y())), qPrintable(cursor->text()));
+    QCOMPARE(inspector->text(), PixelInspector::lines(*w.session(), *after, w.heatmapPanel()->map().get(),
+                                                      w.heatmapPanel()->title()).join('\n'));
+  }
+
   void roiDenoiseRunsOnlyTheRoi() {
     MainWindow w;
     w.setInteractive(false);
