@@ -6,6 +6,7 @@ namespace residue::nn {
 
 #ifdef RESIDUE_HAVE_ONEDNN
 std::unique_ptr<Backend> make_onednn_backend(const Graph& graph, Precision precision);
+bool onednn_has_native_bf16();
 #endif
 
 const char* to_string(Precision p) { return p == Precision::BF16 ? "bf16" : "fp32"; }
@@ -24,6 +25,14 @@ std::vector<std::string> available_backends() {
   names.push_back("onednn");
 #endif
   return names;
+}
+
+bool bf16_available() {
+#ifdef RESIDUE_HAVE_ONEDNN
+  return onednn_has_native_bf16();
+#else
+  return false;
+#endif
 }
 
 std::string default_backend(Precision precision) {

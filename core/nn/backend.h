@@ -58,6 +58,8 @@ class Backend {
 std::unique_ptr<Backend> make_backend(const std::string& name, const Graph& graph, const BackendOptions& options);
 std::unique_ptr<Backend> make_backend(const std::string& name, const Network& network, const BackendOptions& options);
 std::vector<std::string> available_backends();
+// Whether this CPU computes bf16 natively (AVX512_BF16 or AMX, as oneDNN finds it): bf16 inference runs only then.
+bool bf16_available();
 // What runs when the caller names no backend: the faster one for this precision as measured.
 std::string default_backend(Precision precision);
 

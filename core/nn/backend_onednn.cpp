@@ -171,6 +171,8 @@ class OneDnnBackend final : public Backend {
 
 }  // namespace
 
+bool onednn_has_native_bf16() { return has_native_bf16(dnnl::get_effective_cpu_isa()); }
+
 std::unique_ptr<Backend> make_onednn_backend(const Graph& graph, Precision precision) {
   return std::make_unique<OneDnnBackend>(graph, precision);
 }
