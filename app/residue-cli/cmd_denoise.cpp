@@ -22,6 +22,9 @@ int run(const DenoiseCliOptions& o) {
   if (o.ensemble > 1 && is_model_free_method(o.model))
     throw Error(ErrorKind::Usage, "--ensemble " + std::to_string(o.ensemble) + ": the self-ensemble averages a network "
                                   "under flips; the " + o.model + " filter has none (leave --ensemble out)");
+  if (o.temporal_blend && !is_sequence(o))
+    throw Error(ErrorKind::Usage, "--temporal-blend averages a frame with its neighbours: give the input as a pattern "
+                                  "(shot.####.exr or shot.%04d.exr)");
   if (is_sequence(o)) return run_sequence(o);
   if (!o.frames.empty() || o.skip_existing || !o.summary.empty())
     throw Error(ErrorKind::Usage, "--frames, --skip-existing and --summary are for frame sequences: give the input as "
@@ -78,6 +81,16 @@ Command add_denoise_command(CLI::App& app) {
                 "Sequences: denoise each frame with its neighbours, warped to it along the motion vectors (the "
                 "renderer's motion AOV, e.g. Cycles' Vector pass): less flicker. Runs " +
                     std::string(nn::kDefaultTemporalModel) + " unless -m names another temporal model");
+  auto* blend = cmd->add_flag("--temporal-blend", o->temporal_blend,
+                "Sequences: average each frame's denoised colour with frames t-1 and t+1's, brought to it along the "
+                "motion vectors where they show the same surface and their colours agree (less flicker, for any "
+                "model; each frame is still denoised once)");
+  cmd->add_option("--blend-tolerance", o->blend_tolerance,
+                  "--temporal-blend: the relative colour difference |a - b| / (a + b) beyond which a neighbour's "
+                  "colour is left out (a highlight or shadow the motion vectors do not follow)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.01, 10.0))
+      ->needs(blend);
   cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)")
       ->check(CLI::IsMember(nn::available_backends()));
   cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")

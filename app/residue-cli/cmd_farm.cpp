@@ -44,6 +44,7 @@ struct FarmOptions {
   int retries = 2, max_parallel = 0, cpus = 2;
   bool dry_run = false;
   bool temporal = false;  // each frame with its neighbours (denoise --temporal); a chunk reads the frames beside it
+  bool temporal_blend = false;  // denoise --temporal-blend; likewise
   std::vector<std::string> denoise_args;  // passed through to each denoise
 };
 
@@ -126,9 +127,10 @@ void check_model(const FarmOptions& o, const fs::path& first_frame) {
     return;
   }
   const AovReader reader({first_frame}, LoadOptions{});
-  if (o.temporal && !reader.layout().motion)
-    throw Error(ErrorKind::Input, "'" + first_frame.string() + "' has no motion AOV (Cycles: the Vector pass): "
-                                  "--temporal warps each frame's neighbours to it along the motion vectors");
+  if ((o.temporal || o.temporal_blend) && !reader.layout().motion)
+    throw Error(ErrorKind::Input, "'" + first_frame.string() + "' has no motion AOV (Cycles: the Vector pass): " +
+                                      (o.temporal ? "--temporal" : "--temporal-blend") +
+                                      " warps each frame's neighbours to it along the motion vectors");
   (void)nn::find_model_for(model_of(o), feature_set_for(reader.layout()));
 }
 
@@ -173,7 +175,8 @@ int run_slurm(const FarmOptions& o) {
 
   std::string denoise = quote(self_path()) + " denoise " + quote(fs::absolute(o.input).string()) + " -o " +
                         quote(fs::absolute(o.output).string()) + " -m " + quote(model_of(o)) + " --threads " +
-                        std::to_string(o.cpus) + " --skip-existing" + (o.temporal ? " --temporal" : "");
+                        std::to_string(o.cpus) + " --skip-existing" + (o.temporal ? " --temporal" : "") +
+                        (o.temporal_blend ? " --temporal-blend" : "");
   if (!o.reference.empty()) denoise += " -r " + quote(fs::absolute(o.reference).string());
   for (const std::string& a : o.denoise_args) denoise += " " + quote(a);
   std::ostringstream task;
@@ -283,6 +286,8 @@ Command add_farm_command(CLI::App& app) {
                     std::string(nn::kDefaultTemporalModel) + ")");
   slurm->add_flag("--temporal", o->temporal, "Denoise each frame with its neighbours (denoise --temporal): each task "
                   "reads the frames beside its chunk, so frames come out as one run over the whole range makes them");
+  slurm->add_flag("--temporal-blend", o->temporal_blend, "Blend each frame with frames t-1 and t+1 along the motion "
+                  "(denoise --temporal-blend): each task reads and denoises the frames beside its chunk too");
   slurm->add_option("-r,--reference", o->reference, "References, a pattern (ref.####.exr): per-frame metrics");
   slurm->add_option("--frames", o->frames, "Frames, e.g. 1001-1100 (default: every frame whose input exists now)");
   slurm->add_option("--chunk", o->chunk, "Frames per array task")->capture_default_str()->check(CLI::Range(1, 1 << 20));

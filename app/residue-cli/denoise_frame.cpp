@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <set>
 
 #include "core/denoise/method_registry.h"
 #include "core/denoise/provenance_of.h"
@@ -14,6 +15,7 @@
 #include "core/nn/model_card.h"
 #include "core/metrics/metrics.h"
 #include "core/temporal/frame_window.h"
+#include "core/temporal/temporal_blend.h"
 #include "core/util/error.h"
 
 namespace residue::cli {
@@ -67,33 +69,82 @@ void check_output(const std::string& output, const AovStack& layout, const io::E
                  removed.c_str());
 }
 
-// Frame t's neighbours warped to it (core/temporal/frame_window.h), kept while the next frames read them: frames the
-// window has moved past are dropped. Returns the offsets the sequence lacks.
+// A frame of the sequence read without its reference (a neighbour), or the one already held.
+std::shared_ptr<const AovStack> neighbour_stack(FrameContext& context, const std::vector<std::filesystem::path>& files) {
+  const std::string key = files.front().string();
+  if (const auto it = context.neighbour_frames.find(key); it != context.neighbour_frames.end()) return it->second;
+  if (const auto it = context.denoised_frames.find(key); it != context.denoised_frames.end()) return it->second.stack;
+  LoadOptions lo = context.options.input.load_options();
+  lo.load_reference = false;
+  lo.reference.reset();
+  auto s = std::make_shared<const AovStack>(load_aov_stack(files, lo));
+  context.neighbour_frames[key] = s;
+  return s;
+}
+
+// Frame t's neighbours warped to it (core/temporal/frame_window.h). Returns the offsets the sequence lacks.
 std::vector<int> read_neighbours(FrameContext& context, AovStack& frame, int radius, const NeighbourInputs& inputs) {
   std::map<int, std::shared_ptr<const AovStack>> window;
-  std::map<std::string, std::shared_ptr<const AovStack>> kept;
-  for (int d : neighbour_offsets(radius)) {
-    const std::optional<std::vector<std::filesystem::path>> files = inputs(d);
-    if (!files) continue;
-    const std::string key = files->front().string();
-    auto it = context.neighbour_frames.find(key);
-    std::shared_ptr<const AovStack> s;
-    if (it != context.neighbour_frames.end()) {
-      s = it->second;
-    } else {
-      LoadOptions lo = context.options.input.load_options();
-      lo.load_reference = false;
-      lo.reference.reset();
-      s = std::make_shared<const AovStack>(load_aov_stack(*files, lo));
-    }
-    window[d] = s;
-    kept[key] = s;
-  }
-  context.neighbour_frames = std::move(kept);
+  for (int d : neighbour_offsets(radius))
+    if (const std::optional<std::vector<std::filesystem::path>> files = inputs(d)) window[d] = neighbour_stack(context, *files);
   return attach_neighbours(frame, radius, [&](int d) -> const AovStack* {
     const auto it = window.find(d);
     return it == window.end() ? nullptr : it->second.get();
   });
+}
+
+// Frames the window of frame t has moved past are dropped: those not among t - reach .. t + reach.
+void keep_window(FrameContext& context, int reach, const NeighbourInputs& inputs, const std::string& self) {
+  std::set<std::string> keep = {self};
+  for (int d = -reach; d <= reach; ++d)
+    if (const auto files = inputs(d)) keep.insert(files->front().string());
+  std::erase_if(context.neighbour_frames, [&](const auto& e) { return !keep.count(e.first); });
+  std::erase_if(context.denoised_frames, [&](const auto& e) { return !keep.count(e.first); });
+}
+
+// --temporal-blend: frame t + offset denoised (before the blend), once per run. `stack`: the frame when it is
+// already read (frame t itself), else it is read as a neighbour.
+const FrameContext::Denoised& denoised_at(FrameContext& context, const Method& method, const DenoiseOptions& d,
+                                          int offset, const std::vector<std::filesystem::path>& files,
+                                          std::shared_ptr<AovStack> stack, const NeighbourInputs& inputs,
+                                          const TileCallback& on_tile) {
+  const std::string key = files.front().string();
+  if (const auto it = context.denoised_frames.find(key); it != context.denoised_frames.end()) return it->second;
+  FrameContext::Denoised done;
+  if (!stack) stack = std::make_shared<AovStack>(*neighbour_stack(context, files));
+  if (method.frame_radius() > 0)
+    done.missing_neighbours = read_neighbours(context, *stack, method.frame_radius(),
+                                              [&](int n) { return inputs(offset + n); });
+  done.image = std::make_shared<const Image>(denoise(*stack, method, d, on_tile, &done.stats));
+  stack->neighbours.clear();
+  done.stack = std::move(stack);
+  return context.denoised_frames[key] = std::move(done);
+}
+
+// Frame t's denoised colour blended with frames t-1 and t+1's along the motion (core/temporal/temporal_blend.h).
+Image blended(FrameContext& context, const Method& method, const DenoiseOptions& d,
+              const std::vector<std::filesystem::path>& inputs, std::shared_ptr<AovStack> stack,
+              const NeighbourInputs& neighbours, const TileCallback& on_tile, FrameResult& result) {
+  const FrameContext::Denoised& self = denoised_at(context, method, d, 0, inputs, std::move(stack), neighbours, on_tile);
+  result.stats = self.stats;
+  result.missing_neighbours = self.missing_neighbours;
+  const TileCallback quiet = [&](const TileEvent&, const Image&) { return !context.interrupt.interrupted(); };
+  std::vector<WarpedNeighbour> warped;
+  for (int offset : {-1, 1}) {
+    const std::optional<std::vector<std::filesystem::path>> files = neighbours(offset);
+    if (!files) {
+      result.blend_missing.push_back(offset);
+      continue;
+    }
+    const FrameContext::Denoised& other = denoised_at(context, method, d, offset, *files, nullptr, neighbours, quiet);
+    throw_if_cancelled(d.cancel);
+    std::optional<WarpedNeighbour> w = warp_to_frame(*self.stack, offset, [&](int o) {
+      return o == offset ? other.stack.get() : nullptr;
+    }, *other.image, *self.image);
+    warped.push_back(std::move(*w));
+  }
+  keep_window(context, std::max(1, method.frame_radius()) + 1, neighbours, inputs.front().string());
+  return temporal_blend(*self.image, warped, {.radius = 1, .tolerance = context.options.blend_tolerance});
 }
 
 }  // namespace
@@ -169,31 +220,37 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   if (o.temporal && result.frame_radius == 0)
     throw Error(ErrorKind::Usage, "--temporal: " + method->name() + " denoises frames one by one; give a temporal "
                                   "model (" + nn::kDefaultTemporalModel + ", the default with --temporal)");
-  if (result.frame_radius > 0 && neighbours && !layout.motion)
+  if ((result.frame_radius > 0 || o.temporal_blend) && neighbours && !layout.motion)
     throw Error(ErrorKind::Input, "'" + layout.color.source.file + "' has no motion AOV (Cycles: the Vector pass; "
-                                  "another renderer's: --map motion=...): " + method->name() +
+                                  "another renderer's: --map motion=...): " +
+                                      (result.frame_radius > 0 ? method->name() : std::string("--temporal-blend")) +
                                   " warps the neighbouring frames to it along the motion vectors");
   result.model = method->name();
   result.architecture = method->architecture();
   io::record(w.residue_attributes, {.model = result.model, .architecture = result.architecture});
   // Renders that fit in --max-memory are denoised in memory; larger ones band by band from and to the files
   // (then the header cannot carry the time, which is known only at the end).
-  result.streamed = method->streams() && whole_image_bytes(layout) > d.max_memory;
+  // (The temporal blend holds frames t-1..t+1 whole: it does not stream.)
+  result.streamed = method->streams() && whole_image_bytes(layout) > d.max_memory && !(o.temporal_blend && neighbours);
   if (result.streamed) {  // the header, written first, says which post-steps run (core decides, as below)
     stats = denoise_to_exr(reader, *method, d, output, w, on_tile);
   } else {
     auto t0 = std::chrono::steady_clock::now();
     auto stack = std::make_shared<AovStack>(reader.read(whole));
-    if (result.frame_radius > 0 && neighbours)
+    const bool blend = o.temporal_blend && neighbours;
+    if (result.frame_radius > 0 && neighbours && !blend)
       result.missing_neighbours = read_neighbours(context, *stack, result.frame_radius, *neighbours);
     result.read_s = seconds_since(t0);
-    const Image out = denoise(*stack, *method, d, on_tile, &stats);
-    if (result.frame_radius > 0 && neighbours) {  // the next frames read this one as a neighbour
+    const Image out = blend ? blended(context, *method, d, inputs, stack, *neighbours, on_tile, result)
+                            : denoise(*stack, *method, d, on_tile, &stats);
+    if (result.frame_radius > 0 && neighbours && !blend) {  // the next frames read this one as a neighbour
       stack->neighbours.clear();
       context.neighbour_frames[layout.color.source.file] = stack;
+      keep_window(context, result.frame_radius, *neighbours, layout.color.source.file);
     }
     throw_if_cancelled(d.cancel);
     io::record(w.residue_attributes, provenance_of(*method, stats));
+    if (blend) io::record(w.residue_attributes, {.temporal_blend = static_cast<float>(o.blend_tolerance)});
     t0 = std::chrono::steady_clock::now();
     stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
     result.write_s = seconds_since(t0);

@@ -45,6 +45,8 @@ struct DenoiseCliOptions {
   bool fail_fast = false;
   std::string summary;
   bool temporal = false;  // a temporal model (kDefaultTemporalModel unless -m names one), neighbours read
+  bool temporal_blend = false;  // core/temporal/temporal_blend.h over frames t-1..t+1
+  double blend_tolerance = 0.5;
 
   // The model -m names, or the default temporal model for --temporal without -m.
   std::string model_name() const;
@@ -65,6 +67,15 @@ struct FrameContext {
   BackendCache backends;
   // Frames read as a temporal method's neighbours, by their colour file, kept while the next frames need them.
   std::map<std::string, std::shared_ptr<const AovStack>> neighbour_frames;
+  // --temporal-blend: frames denoised before the blend, by their colour file, kept while the next frames need
+  // them (frame t's blend reads frames t-1 and t+1's), so that each is denoised once.
+  struct Denoised {
+    std::shared_ptr<const AovStack> stack;
+    std::shared_ptr<const Image> image;
+    DenoiseStats stats;
+    std::vector<int> missing_neighbours;
+  };
+  std::map<std::string, Denoised> denoised_frames;
 };
 
 struct FrameResult {
@@ -78,6 +89,7 @@ struct FrameResult {
   std::vector<std::string> notes;            // the loader's
   int frame_radius = 0;                      // a temporal method's neighbours each side
   std::vector<int> missing_neighbours;       // offsets the sequence lacked (read as not valid)
+  std::vector<int> blend_missing;            // --temporal-blend: the offsets of -1, +1 the sequence lacked
 };
 
 // Throws residue::Error (nothing written), or Cancelled when interrupted before the output was complete.

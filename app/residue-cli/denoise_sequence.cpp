@@ -29,6 +29,7 @@ struct FrameRecord {
   std::string model;
   std::optional<io::MetricsReport> metrics;
   std::vector<int> missing_neighbours;  // a temporal method's: offsets the sequence lacked
+  std::vector<int> blend_missing;       // --temporal-blend's: offsets of -1, +1 the sequence lacked
 };
 
 FramePattern pattern_of(const std::string& text, const char* what) {
@@ -56,6 +57,7 @@ nlohmann::ordered_json to_json(const std::vector<FrameRecord>& records, const De
       j["seconds"] = r.seconds;
       j["megapixels"] = r.megapixels;
       if (!r.missing_neighbours.empty()) j["missing_neighbours"] = r.missing_neighbours;
+      if (!r.blend_missing.empty()) j["blend_missing"] = r.blend_missing;
       if (r.metrics) {
         const auto& noisy = r.metrics->rows[0].scores;
         const auto& denoised = r.metrics->rows[1].scores;
@@ -77,6 +79,7 @@ nlohmann::ordered_json to_json(const std::vector<FrameRecord>& records, const De
   doc["input"] = in.to_string();
   doc["output"] = out.to_string();
   doc["model"] = o.model_name();
+  if (o.temporal_blend) doc["temporal_blend"] = {{"frames", "t-1..t+1"}, {"tolerance", o.blend_tolerance}};
   doc["frames_requested"] = records.size();
   doc["done"] = done;
   doc["skipped"] = skipped;
@@ -106,13 +109,15 @@ int run_sequence(const DenoiseCliOptions& o) {
   if (frames.empty())
     throw Error(ErrorKind::Input, "no frame of '" + in.to_string() + "' exists (give --frames to name them)");
 
-  // --temporal warps each frame's neighbours along its motion vectors: a sequence without them is refused now.
-  if (o.temporal)
+  // --temporal and --temporal-blend warp each frame's neighbours along its motion vectors: a sequence without them
+  // is refused now.
+  if (o.temporal || o.temporal_blend)
     for (int64_t f : frames)
       if (fs::exists(in.path(f))) {
         const AovReader first({in.path(f)}, o.input.load_options());
         if (!first.layout().motion)
-          throw Error(ErrorKind::Input, "--temporal: '" + in.path(f).string() + "' has no motion AOV (Cycles: the "
+          throw Error(ErrorKind::Input, std::string(o.temporal ? "--temporal" : "--temporal-blend") + ": '" +
+                                            in.path(f).string() + "' has no motion AOV (Cycles: the "
                                         "Vector pass; another renderer's: --map motion=...): the neighbouring frames "
                                         "are warped to each frame along its motion vectors");
         break;
@@ -212,6 +217,7 @@ int run_sequence(const DenoiseCliOptions& o) {
       };
       const FrameResult result = denoise_frame(context, {r.input}, load, r.output.string(), &neighbours);
       r.missing_neighbours = result.missing_neighbours;
+      r.blend_missing = result.blend_missing;
       r.status = "done";
       r.seconds = result.stats.seconds;
       r.megapixels = result.megapixels;
@@ -227,6 +233,9 @@ int run_sequence(const DenoiseCliOptions& o) {
         for (int d : r.missing_neighbours) missing += (missing.empty() ? "" : ", ") + std::string(d < 0 ? "t" : "t+") + std::to_string(d);
         std::printf("  (fewer neighbours: no frame %s)", missing.c_str());
       }
+      if (r.blend_missing.size() == 2) std::printf("  (no frame beside it to blend with)");
+      else if (!r.blend_missing.empty())
+        std::printf("  (blended with frame %s only)", r.blend_missing.front() < 0 ? "t+1" : "t-1");
       std::printf("  [%zu/%zu]\n", index, records.size());
       std::fflush(stdout);
     } catch (const Cancelled&) {

@@ -18,6 +18,7 @@ void record(OIIO::ParamValueList& attributes, const Provenance& p) {
   if (p.variance_blend) attributes.attribute("residue:variance_blend", *p.variance_blend ? 1 : 0);
   if (p.strength) attributes.attribute("residue:strength", *p.strength);
   if (p.ensemble) attributes.attribute("residue:ensemble", *p.ensemble);
+  if (p.temporal_blend) attributes.attribute("residue:temporal_blend", *p.temporal_blend);
 }
 
 }  // namespace residue::io

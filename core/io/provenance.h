@@ -21,6 +21,7 @@ struct Provenance {
   std::optional<bool> variance_blend;       // residue:variance_blend (0/1)
   std::optional<float> strength;            // residue:strength
   std::optional<int> ensemble;              // residue:ensemble, the self-ensemble's members (1, 2, 4, 8)
+  std::optional<float> temporal_blend;      // residue:temporal_blend, the tolerance of the blend with frames t-1, t+1
 };
 
 // Adds the set fields, and residue:version always, to `attributes` (replacing attributes of the same name).

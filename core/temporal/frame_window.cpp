@@ -40,44 +40,50 @@ Image step(const Image& carried, const AovStack& to, const AovStack& from, Motio
 
 }  // namespace
 
+std::optional<WarpedNeighbour> warp_to_frame(const AovStack& frame, int offset, const ShotFrames& shot,
+                                             const Image& image, const Image& fill, const ReprojectionOptions& options) {
+  // The frames from t to t + offset; all must exist to carry t + offset's image to t.
+  const int sign = offset < 0 ? -1 : 1;
+  std::vector<const AovStack*> path = {&frame};
+  for (int i = sign; i != offset + sign; i += sign) path.push_back(shot(i));
+  for (const AovStack* s : path)
+    if (!s) return std::nullopt;
+  for (size_t i = 1; i < path.size(); ++i) check_grid(frame, *path[i]);
+  if (image.width() != frame.width() || image.height() != frame.height() || image.channels() != 3 ||
+      fill.width() != frame.width() || fill.height() != frame.height() || fill.channels() != 3)
+    throw Error(ErrorKind::Usage, "warp_to_frame: the images are RGB on the frame's grid");
+  Image carried(frame.width(), frame.height(), 4);
+  for (int64_t y = 0; y < frame.height(); ++y)
+    for (int64_t x = 0; x < frame.width(); ++x) {
+      for (int c = 0; c < 3; ++c) carried.at(x, y, c) = image.at(x, y, c);
+      carried.at(x, y, 3) = 1.0f;
+    }
+  // From t + offset towards t: each frame on the way looks up where its pixels were in the one beyond it.
+  const MotionStep direction = offset < 0 ? MotionStep::Previous : MotionStep::Next;
+  for (size_t i = path.size() - 1; i > 0; --i) {
+    check_motion(*path[i - 1]);
+    carried = step(carried, *path[i - 1], *path[i], direction, options);
+  }
+  WarpedNeighbour n{offset, Image(frame.width(), frame.height(), 3), Image(frame.width(), frame.height(), 1)};
+  for (int64_t y = 0; y < frame.height(); ++y)
+    for (int64_t x = 0; x < frame.width(); ++x) {
+      const bool valid = carried.at(x, y, 3) > 0.5f;
+      for (int c = 0; c < 3; ++c) n.color.at(x, y, c) = valid ? carried.at(x, y, c) : fill.at(x, y, c);
+      n.valid.at(x, y) = valid ? 1.0f : 0.0f;
+    }
+  return n;
+}
+
 std::vector<int> attach_neighbours(AovStack& frame, int radius, const ShotFrames& shot,
                                    const ReprojectionOptions& options) {
   frame.neighbours.clear();
   std::vector<int> missing;
-  const std::vector<int> offsets = neighbour_offsets(radius);
-  for (int d : offsets) {
-    // The frames from t to t + d; all must exist to carry t + d's colour to t.
-    const int sign = d < 0 ? -1 : 1;
-    std::vector<const AovStack*> path = {&frame};
-    for (int i = sign; i != d + sign; i += sign) path.push_back(shot(i));
-    bool complete = true;
-    for (const AovStack* s : path) complete = complete && s;
-    if (!complete) {
-      missing.push_back(d);
-      continue;
-    }
-    for (size_t i = 1; i < path.size(); ++i) check_grid(frame, *path[i]);
-    const AovStack& far = *path.back();
-    Image carried(frame.width(), frame.height(), 4);
-    for (int64_t y = 0; y < frame.height(); ++y)
-      for (int64_t x = 0; x < frame.width(); ++x) {
-        for (int c = 0; c < 3; ++c) carried.at(x, y, c) = far.color.image.at(x, y, c);
-        carried.at(x, y, 3) = 1.0f;
-      }
-    // From t + d towards t: each frame on the way looks up where its pixels were in the one beyond it.
-    const MotionStep direction = d < 0 ? MotionStep::Previous : MotionStep::Next;
-    for (size_t i = path.size() - 1; i > 0; --i) {
-      check_motion(*path[i - 1]);
-      carried = step(carried, *path[i - 1], *path[i], direction, options);
-    }
-    WarpedNeighbour n{d, Image(frame.width(), frame.height(), 3), Image(frame.width(), frame.height(), 1)};
-    for (int64_t y = 0; y < frame.height(); ++y)
-      for (int64_t x = 0; x < frame.width(); ++x) {
-        const bool valid = carried.at(x, y, 3) > 0.5f;
-        for (int c = 0; c < 3; ++c) n.color.at(x, y, c) = valid ? carried.at(x, y, c) : frame.color.image.at(x, y, c);
-        n.valid.at(x, y) = valid ? 1.0f : 0.0f;
-      }
-    frame.neighbours.push_back(std::move(n));
+  for (int d : neighbour_offsets(radius)) {
+    const AovStack* far = shot(d);
+    std::optional<WarpedNeighbour> n =
+        far ? warp_to_frame(frame, d, shot, far->color.image, frame.color.image, options) : std::nullopt;
+    if (n) frame.neighbours.push_back(std::move(*n));
+    else missing.push_back(d);
   }
   return missing;
 }

@@ -7,7 +7,8 @@ and a table per model: the means over the shots, the temporal error against per-
     /usr/bin/python3 tools/research/sequence_eval.py /work/datasets/residue-shots-v1 \\
         --models multiscale,oidn,bilateral,multiscale-temporal --out docs/research/temporal/eval_shots_v1
 
-A model is a name or file, as -m takes it. Outputs go to a work folder (--work, reused: a sequence already
+A model is a name or file, as -m takes it; NAME+blend (or NAME+blend0.25, a tolerance) runs it with
+--temporal-blend. Outputs go to a work folder (--work, reused: a sequence already
 denoised is not denoised again unless --redo); OUT.json holds every number and OUT.md the table.
 """
 import argparse
@@ -40,8 +41,18 @@ def cpu_name():
         return platform.processor() or "unknown CPU"
 
 
+def split_blend(model):
+    """'NAME+blend' or 'NAME+blend0.25': the model and the --temporal-blend options it is run with."""
+    name, plus, blend = model.partition("+blend")
+    if not plus:
+        return model, []
+    return name, ["--temporal-blend"] + (["--blend-tolerance", blend] if blend else [])
+
+
 def label(model):
-    return os.path.splitext(os.path.basename(model))[0] if model.endswith(".safetensors") else model
+    name, extra = split_blend(model)
+    base = os.path.splitext(os.path.basename(name))[0] if name.endswith(".safetensors") else name
+    return base + model[len(name):] if extra else base
 
 
 def main():
@@ -83,8 +94,9 @@ def main():
             os.makedirs(out_dir, exist_ok=True)
             summary = os.path.join(out_dir, "summary.json")
             if a.redo or not os.path.exists(summary):
+                name, blend = split_blend(m)
                 cmd = [a.cli, "denoise", os.path.join(shot_dir, "noisy.####.exr"), "-o",
-                       os.path.join(out_dir, "den.####.exr"), "-m", m, "--summary", summary, "--force"]
+                       os.path.join(out_dir, "den.####.exr"), "-m", name, "--summary", summary, "--force"] + blend
                 if a.threads:
                     cmd += ["--threads", str(a.threads)]
                 run(cmd)

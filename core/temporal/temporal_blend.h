@@ -1,0 +1,29 @@
+// The temporal blend: frame t's denoised colour averaged with the denoised colour of frames t-k..t+k brought to
+// it along the motion (frame_window.h's warp_to_frame, with its mask). A denoiser's error that changes from frame
+// to frame (the boiling a per-frame or a windowed network leaves) is averaged over the frames that show the same
+// surface; a pixel no neighbour shows (a disocclusion, the frame's edge) keeps frame t's own colour.
+//
+// Motion vectors follow surfaces, not what lights them: a moving highlight or shadow does not move with the
+// vectors, and averaging it would leave copies of it behind (ghosts). A neighbour's weight therefore falls with its
+// difference from frame t's colour, relative to their level, and is 0 beyond `tolerance`.
+#pragma once
+
+#include <vector>
+
+#include "core/aov/aov_stack.h"
+
+namespace residue {
+
+struct TemporalBlendOptions {
+  int radius = 1;           // frames each side
+  double tolerance = 0.25;  // relative difference |a - b| / (a + b) (summed over RGB) at which a weight is 0
+};
+
+// The blend of `denoised` (frame t's, RGB) with `neighbours` (other frames' denoised colour warped to t, with their
+// validity): at each pixel, sum of w_i c_i over sum of w_i, with frame t's weight 1 and a valid neighbour's
+// 1 - (d / tolerance)^2 for its relative difference d from frame t's colour (0 beyond). Non-finite neighbour pixels
+// weigh 0. Throws Error(Usage) when a size differs.
+Image temporal_blend(const Image& denoised, const std::vector<WarpedNeighbour>& neighbours,
+                     const TemporalBlendOptions& options = {});
+
+}  // namespace residue
