@@ -55,7 +55,7 @@ TEST(TemporalBlend, FollowsItsRuleInFloat64) {
   std::vector<WarpedNeighbour> ns = {neighbour(-1, b), neighbour(1, c)};
   ns[1].valid.at(2, 2) = 0.0f;  // a disocclusion
   const double tol = 0.3;
-  const Image out = temporal_blend(a, ns, {.radius = 1, .tolerance = tol});
+  const Image out = temporal_blend(a, ns, {.tolerance = tol});
   int blended = 0;
   for (int64_t y = 0; y < kH; ++y)
     for (int64_t x = 0; x < kW; ++x)
@@ -68,7 +68,7 @@ TEST(TemporalBlend, FollowsItsRuleInFloat64) {
   EXPECT_LT(out.at(4, 3, 0), 2.5f);
   // A masked neighbour counts for nothing.
   std::vector<WarpedNeighbour> only_prev = {ns[0]};
-  const Image prev_only = temporal_blend(a, only_prev, {.radius = 1, .tolerance = tol});
+  const Image prev_only = temporal_blend(a, only_prev, {.tolerance = tol});
   for (int ch = 0; ch < 3; ++ch) EXPECT_FLOAT_EQ(out.at(2, 2, ch), prev_only.at(2, 2, ch));
 }
 
@@ -85,7 +85,7 @@ TEST(TemporalBlend, NoNeighbourNaNAndEqualFrames) {
     EXPECT_NEAR(out.data()[i], a.data()[i], 1e-6);  // equal frames average to themselves; non-finite ones are left out
   }
   EXPECT_THROW(temporal_blend(a, {neighbour(-1, Image(kW + 1, kH, 3))}, {}), Error);
-  EXPECT_THROW(temporal_blend(a, {}, {.radius = 1, .tolerance = 0}), Error);
+  EXPECT_THROW(temporal_blend(a, {}, {.tolerance = 0}), Error);
 }
 
 // A camera pan of 1 px a frame: frame t-1's image, warped by warp_to_frame, lands on frame t's pixels exactly (the
@@ -125,7 +125,7 @@ TEST(TemporalBlend, APanOfNoisyFramesAveragesTheirNoise) {
   EXPECT_EQ(warped[0].color.at(10, 5, 1), noisy[0].at(9, 5, 1));
   EXPECT_EQ(warped[1].valid.at(W - 1, 5), 0.0f);
   EXPECT_EQ(warped[1].color.at(10, 5, 2), noisy[2].at(11, 5, 2));
-  const Image out = temporal_blend(noisy[1], warped, {.radius = 1, .tolerance = 0.5});
+  const Image out = temporal_blend(noisy[1], warped, {.tolerance = 0.5});
   double var_in = 0, var_out = 0;
   int64_t count = 0;
   for (int64_t y = 0; y < H; ++y)

@@ -111,7 +111,10 @@ const FrameContext::Denoised& denoised_at(FrameContext& context, const Method& m
   const std::string key = files.front().string();
   if (const auto it = context.denoised_frames.find(key); it != context.denoised_frames.end()) return it->second;
   FrameContext::Denoised done;
-  if (!stack) stack = std::make_shared<AovStack>(*neighbour_stack(context, files));
+  if (!stack) {  // its own copy, which gets its neighbours attached; held from now on as the denoised frame's
+    stack = std::make_shared<AovStack>(*neighbour_stack(context, files));
+    context.neighbour_frames.erase(key);
+  }
   if (method.frame_radius() > 0)
     done.missing_neighbours = read_neighbours(context, *stack, method.frame_radius(),
                                               [&](int n) { return inputs(offset + n); });
@@ -144,7 +147,7 @@ Image blended(FrameContext& context, const Method& method, const DenoiseOptions&
     warped.push_back(std::move(*w));
   }
   keep_window(context, std::max(1, method.frame_radius()) + 1, neighbours, inputs.front().string());
-  return temporal_blend(*self.image, warped, {.radius = 1, .tolerance = context.options.blend_tolerance});
+  return temporal_blend(*self.image, warped, {.tolerance = context.options.blend_tolerance});
 }
 
 }  // namespace

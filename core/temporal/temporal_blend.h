@@ -15,7 +15,6 @@
 namespace residue {
 
 struct TemporalBlendOptions {
-  int radius = 1;           // frames each side
   double tolerance = 0.25;  // relative difference |a - b| / (a + b) (summed over RGB) at which a weight is 0
 };
 
