@@ -256,11 +256,15 @@ TEST(NnBackendChoice, EigenRefusesBf16AndUnknownNamesListTheAvailable) {
   }
 }
 
-// The default for each precision can run it: fp32 on the reference backend, bf16 on oneDNN when it is built (the
-// only one with bf16), so a caller naming no backend never gets eigen's bf16 refusal.
+// The default for each precision can run it: fp32 on eigen where its AVX-512 kernel runs, else on oneDNN when it
+// is built (faster than eigen's portable path); bf16 on oneDNN when it is built (the only one with bf16), so a
+// caller naming no backend never gets eigen's bf16 refusal.
 TEST(NnBackendChoice, TheDefaultRunsEachPrecision) {
   const nn::Network net = nn::random_network({1, 8, FeatureSet::Full}, 1);
-  EXPECT_EQ(nn::default_backend(nn::Precision::FP32), "eigen");
+  EXPECT_EQ(nn::default_backend(nn::Precision::FP32), nn::eigen_runs_direct_kernel() ? "eigen" : nn::available_backends().back());
+  setenv("RESIDUE_EIGEN_PORTABLE", "1", 1);
+  EXPECT_EQ(nn::default_backend(nn::Precision::FP32), nn::available_backends().back()) << "eigen's portable path is not the default where onednn is built";
+  unsetenv("RESIDUE_EIGEN_PORTABLE");
   auto fp32 = nn::make_backend(nn::default_backend(nn::Precision::FP32), net, {nn::Precision::FP32});
   EXPECT_NE(fp32->description().find("fp32"), std::string::npos) << fp32->description();
   const auto names = nn::available_backends();

@@ -36,9 +36,12 @@ bool bf16_available() {
 }
 
 std::string default_backend(Precision precision) {
-  // fp32: eigen. At the automatic tile (1024) it matches onednn on the flat models and is 5-12 % faster on OIDN's
-  // UNet, whose halo it skips (docs/PERFORMANCE.md, "The fp32 default and the arena's first touch"); bf16 is onednn's alone.
-  return precision == Precision::BF16 ? available_backends().back() : "eigen";
+  // fp32: eigen with its AVX-512 kernel. At the automatic tile (1024) it matches onednn on the flat models and is
+  // 5-12 % faster on OIDN's UNet, whose halo it skips (docs/PERFORMANCE.md, "The fp32 default and the arena's first
+  // touch"). Without AVX-512 eigen's portable path is 1.5-3.5x slower than onednn's AVX2 kernels on all but the
+  // narrowest models ("The portable path"), so onednn where it is built. bf16 is onednn's alone.
+  if (precision == Precision::BF16 || !eigen_runs_direct_kernel()) return available_backends().back();
+  return "eigen";
 }
 
 std::unique_ptr<Backend> make_backend(const std::string& name, const Network& network, const BackendOptions& options) {

@@ -64,5 +64,8 @@ bool bf16_available();
 std::string default_backend(Precision precision);
 
 std::unique_ptr<Backend> make_eigen_backend(const Graph& graph);
+// Whether eigen runs its direct AVX-512 kernel here (the CPU has AVX-512 and RESIDUE_EIGEN_PORTABLE is unset);
+// else its portable im2col + GEMM path.
+bool eigen_runs_direct_kernel();
 
 }  // namespace residue::nn

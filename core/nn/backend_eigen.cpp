@@ -59,7 +59,14 @@ struct Value {
   }
 };
 
-constexpr int64_t kStripPixels = 2048;  // im2col rows per GEMM: ~9 MB of patches at W = 128
+// The rows of one im2col GEMM: a strip of about kStripBytes of patches and results per thread, at least one
+// row. Small, so that a band's tight --max-memory holds it; from 128 to 2048 pixels a strip the speed is the same
+// within 5 % (docs/PERFORMANCE.md, "The portable path").
+constexpr int64_t kStripBytes = int64_t{64} << 10;
+
+int64_t strip_rows(int64_t width, int64_t floats_per_pixel) {
+  return std::max<int64_t>(1, kStripBytes / (std::max<int64_t>(width, 1) * floats_per_pixel * int64_t{sizeof(float)}));
+}
 
 bool portable_forced() {
   const char* v = std::getenv("RESIDUE_EIGEN_PORTABLE");
@@ -69,7 +76,7 @@ bool portable_forced() {
 class EigenBackend final : public Backend {
  public:
   explicit EigenBackend(const Graph& g)
-      : graph_(g), avx512_(cpu_has_avx512() && !portable_forced()) {
+      : graph_(g), avx512_(eigen_runs_direct_kernel()) {
     convs_.resize(static_cast<size_t>(g.size()));
     for (int i = 0; i < g.size(); ++i)
       if (g.op(i).kind == OpKind::Conv) convs_[static_cast<size_t>(i)] = pack(g, g.op(i), avx512_);
@@ -83,13 +90,15 @@ class EigenBackend final : public Backend {
 
   size_t scratch_bytes(int64_t width, int64_t height) const override {
     size_t bytes = plan_for(height, width).arena.bytes;
-    if (!avx512_) {
-      int widest = 0;
+    if (!avx512_) {  // each thread's strip, as conv_eigen sizes it for the conv that needs the most
+      int64_t strip = 0;
       for (const GraphOp& o : graph_.ops())
-        if (o.kind == OpKind::Conv) widest = std::max(widest, o.kernel * o.kernel * o.in_channels + o.channels);
-      const auto threads = static_cast<size_t>(tbb::this_task_arena::max_concurrency());
-      const auto strip = static_cast<size_t>(std::min(kStripPixels, std::max<int64_t>(width, 1) * height));
-      bytes += threads * strip * static_cast<size_t>(widest) * sizeof(float);
+        if (o.kind == OpKind::Conv) {
+          const int64_t w = width >> o.level, h = height >> o.level;
+          const int64_t floats = int64_t{o.kernel} * o.kernel * o.in_channels + o.channels;
+          strip = std::max(strip, std::min(h, strip_rows(w, floats)) * w * floats * int64_t{sizeof(float)});
+        }
+      bytes += static_cast<size_t>(tbb::this_task_arena::max_concurrency()) * static_cast<size_t>(strip);
     }
     return bytes;
   }
@@ -196,7 +205,7 @@ class EigenBackend final : public Backend {
     const int64_t w = region.width, x0 = region.x;
     const int k = c.kernel, r = c.dilation * (k / 2);
     const auto cols = static_cast<int64_t>(c.weights.rows());
-    const int64_t rows_per_strip = std::max<int64_t>(1, kStripPixels / std::max<int64_t>(w, 1));
+    const int64_t rows_per_strip = strip_rows(w, cols + c.out);
     const int64_t strips = (region.height + rows_per_strip - 1) / rows_per_strip;
     tbb::parallel_for(int64_t{0}, strips, [&](int64_t s) {
       if (cancel != nullptr && cancel->requested()) return;
@@ -278,5 +287,7 @@ class EigenBackend final : public Backend {
 }  // namespace
 
 std::unique_ptr<Backend> make_eigen_backend(const Graph& graph) { return std::make_unique<EigenBackend>(graph); }
+
+bool eigen_runs_direct_kernel() { return cpu_has_avx512() && !portable_forced(); }
 
 }  // namespace residue::nn
