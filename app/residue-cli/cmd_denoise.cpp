@@ -91,7 +91,7 @@ Command add_denoise_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(0.01, 10.0))
       ->needs(blend);
-  cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)")
+  cmd->add_option("--backend", o->backend, "Inference backend (default: the faster here: eigen for fp32 on CPUs with AVX-512, else onednn)")
       ->check(CLI::IsMember(nn::available_backends()));
   cmd->add_option("--precision", o->precision, "fp32, or bf16 (oneDNN; AMX where present)")
       ->capture_default_str()

@@ -305,7 +305,7 @@ Command add_evaluate_set_command(CLI::App& app) {
                   "averaged; default: each model's own)")
       ->delimiter(',')
       ->check(CLI::IsMember({1, 2, 4, 8}));
-  cmd->add_option("--backend", o->backend, "Inference backend (default: eigen for fp32, onednn for bf16: the faster of each)");
+  cmd->add_option("--backend", o->backend, "Inference backend (default: the faster here: eigen for fp32 on CPUs with AVX-512, else onednn)");
   cmd->add_option("--last", o->last, "Only the last N scenes by name (the starter set's validation scenes)")
       ->check(CLI::Range(1, 1 << 30));
   cmd->add_option("--perturb", o->perturb,
