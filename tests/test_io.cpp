@@ -745,7 +745,8 @@ io::MetricsReport sample_report() {
   same.psnr = std::numeric_limits<double>::infinity();
   same.ssim = 1.0;
   same.pixels = 1920 * 1080;
-  report.rows = {{"noisy, 16spp", "/renders/noisy \"a\".exr", noisy, 0.1234567890123}, {"denoised", "denoised.exr", same}};
+  report.rows = {{"noisy, 16spp", "/renders/noisy \"a\".exr", noisy, 0.1234567890123},
+                 {"denoised", "denoised.exr", same, std::nullopt, 0.0123456789012345}};
   report.flip = metrics::FlipExposures{-2.5, 5.0, 8};
   return report;
 }
@@ -798,6 +799,8 @@ TEST(IoMetrics, JsonRoundTrip) {
   EXPECT_EQ(j["rows"][1]["psnr"], "inf");
   EXPECT_EQ(j["rows"][0]["hdr_flip"].get<double>(), 0.1234567890123);
   EXPECT_TRUE(j["rows"][1]["hdr_flip"].is_null()) << "not computed: null, not a number";
+  EXPECT_TRUE(j["rows"][0]["temporal_relmse_compensated"].is_null()) << "not computed: null, not a number";
+  EXPECT_EQ(j["rows"][1]["temporal_relmse_compensated"].get<double>(), 0.0123456789012345);
   EXPECT_EQ(j["flip"]["exposures"]["count"], 8);
   EXPECT_EQ(j["flip"]["exposures"]["start"].get<double>(), -2.5);
   EXPECT_EQ(j["flip"]["definition"], metrics::flip_formula_text(*report.flip));
@@ -842,11 +845,13 @@ TEST(IoMetrics, CsvRoundTrip) {
   std::vector<std::string> lines;
   for (std::string line; std::getline(text, line);) lines.push_back(line);
   ASSERT_EQ(lines.size(), 3u);
-  EXPECT_EQ(lines[0], "name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip");
+  EXPECT_EQ(lines[0], "name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip,"
+                      "temporal_relmse_compensated");
   for (size_t i = 0; i < 2; ++i) {
     const auto f = split_csv(lines[i + 1]);
-    ASSERT_EQ(f.size(), 10u) << lines[i + 1];
+    ASSERT_EQ(f.size(), 11u) << lines[i + 1];
     EXPECT_EQ(f[9], i == 0 ? "0.1234567890123" : "") << "HDR-FLIP, empty where not computed";
+    EXPECT_EQ(f[10], i == 1 ? "0.0123456789012345" : "") << "the temporal error, empty where not computed";
     EXPECT_EQ(f[0], report.rows[i].name);
     EXPECT_EQ(f[1], report.rows[i].test_file);
     metrics::Scores s;

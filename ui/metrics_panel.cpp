@@ -358,6 +358,9 @@ void MetricsPanel::showTable() {
         report.rows.back().hdr_flip = roi ? metrics::flip_mean(*f->second.map, roi) : f->second.mean;
         report.flip = f->second.exposures;
       }
+      if (!roi && row.previous)  // the table's temporal column: the whole image's
+        if (const auto t = temporal_.find({row.image.get(), row.previous.get()}); t != temporal_.end())
+          report.rows.back().temporal_relmse_compensated = t->second.value;
     }
   };
   fill(whole_, std::nullopt);

@@ -75,7 +75,10 @@ std::string to_json(const MetricsReport& report) {
                     {"pixels", s.pixels},
                     {"excluded_test", s.excluded_test},
                     {"excluded_reference", s.excluded_reference},
-                    {"hdr_flip", row.hdr_flip ? json_number(*row.hdr_flip) : ordered_json(nullptr)}});
+                    {"hdr_flip", row.hdr_flip ? json_number(*row.hdr_flip) : ordered_json(nullptr)},
+                    {"temporal_relmse_compensated", row.temporal_relmse_compensated
+                                                        ? json_number(*row.temporal_relmse_compensated)
+                                                        : ordered_json(nullptr)}});
   }
 
   ordered_json doc;
@@ -98,14 +101,15 @@ std::string to_json(const MetricsReport& report) {
 }
 
 std::string to_csv(const MetricsReport& report) {
-  std::string out = "name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip\n";
+  std::string out =
+      "name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip,temporal_relmse_compensated\n";
   for (const MetricsRow& row : report.rows) {
     const metrics::Scores& s = row.scores;
     out += csv_field(row.name) + "," + csv_field(row.test_file) + "," + format_double(s.mse) + "," +
            format_double(s.relmse) + "," + format_double(s.psnr) + "," + format_double(s.ssim) + "," +
            std::to_string(s.pixels) + "," + std::to_string(s.excluded_test) + "," +
            std::to_string(s.excluded_reference) + "," + (row.hdr_flip ? format_double(*row.hdr_flip) : std::string()) +
-           "\n";
+           "," + (row.temporal_relmse_compensated ? format_double(*row.temporal_relmse_compensated) : std::string()) + "\n";
   }
   return out;
 }

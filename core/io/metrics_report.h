@@ -17,6 +17,9 @@ struct MetricsRow {
   std::string test_file;   // the image that was scored
   metrics::Scores scores;
   std::optional<double> hdr_flip;  // HDR-FLIP's mean (core/metrics/flip.h) over the scores' region, when computed
+  // A frame of a sequence: the temporal relMSE along the motion against the same result on frame t-1
+  // (metrics::CompensatedTemporalRelMse, core/metrics/temporal.h) over the whole image, when computed.
+  std::optional<double> temporal_relmse_compensated;
 };
 
 struct MetricsReport {
@@ -29,12 +32,13 @@ struct MetricsReport {
 };
 
 // Pretty-printed: reference_file, width, height, options {eps, ssim_space, roi (null or {x,y,width,height})},
-// formula (metrics::formula_text), rows (hdr_flip: a number, or null when not computed), flip (null, or its
+// formula (metrics::formula_text), rows (hdr_flip and temporal_relmse_compensated: a number, or null when not
+// computed), flip (null, or its
 // exposures and definition) and notes. Finite numbers parse back to the same double. JSON has no infinity
 // or NaN: a non-finite score (PSNR of identical images is +inf) is written as the string "inf", "-inf" or "nan".
 std::string to_json(const MetricsReport& report);
-// Header `name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip`, one line per row
-// (hdr_flip empty when not computed);
+// Header `name,test_file,mse,relmse,psnr,ssim,pixels,excluded_test,excluded_reference,hdr_flip,
+// temporal_relmse_compensated`, one line per row (the last two empty when not computed);
 // doubles as the shortest text that parses back to the same value (inf, -inf, nan when not finite); fields with
 // a comma, quote or line break are quoted ("" for a quote).
 std::string to_csv(const MetricsReport& report);

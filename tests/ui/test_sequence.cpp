@@ -17,6 +17,7 @@
 
 #include "core/aov/aov_loader.h"
 #include "ui/denoise_panel.h"
+#include "core/io/metrics_report.h"
 #include "ui/frame_bar.h"
 #include "ui/heatmap_panel.h"
 #include "ui/main_window.h"
@@ -158,6 +159,13 @@ class TestSequence : public QObject {
              qPrintable(QString("%1 vs %2").arg(temporalCell(w, "noisy")).arg(cli_noisy)));
     QVERIFY2(std::abs(temporalCell(w, "tiny") - cli_tiny) <= 1e-4 * cli_tiny,
              qPrintable(QString("%1 vs %2").arg(temporalCell(w, "tiny")).arg(cli_tiny)));
+    // What Export writes (the whole image's report, as JSON and CSV) carries the column's values.
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->wholeReport().rows.size() == 2; }));
+    for (const io::MetricsRow& row : w.metricsPanel()->wholeReport().rows) {
+      QVERIFY2(row.temporal_relmse_compensated.has_value(), row.name.c_str());
+      QCOMPARE(*row.temporal_relmse_compensated, temporalCell(w, QString::fromStdString(row.name).section(' ', 0, 0)));
+    }
+    QVERIFY(QString::fromStdString(io::to_csv(w.metricsPanel()->wholeReport())).contains("temporal_relmse_compensated"));
 
     // The map: its mean over the pixels it scores is the column's value.
     QSignalSpy ready(w.heatmapPanel(), &HeatmapPanel::ready);
@@ -180,6 +188,8 @@ class TestSequence : public QObject {
     go(w, 1);
     QVERIFY(settle(w, [&] { return std::isnan(temporalCell(w, "noisy")); }));
     QVERIFY(!w.heatmapPanel()->map());
+    for (const io::MetricsRow& row : w.metricsPanel()->wholeReport().rows)
+      QVERIFY2(!row.temporal_relmse_compensated, row.name.c_str());
   }
 
   void theTemporalModelReadsTheFramesBesideAndEqualsTheCli() {
