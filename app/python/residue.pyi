@@ -95,5 +95,9 @@ def flip(test: Image, reference: Image) -> dict:
     """HDR-FLIP: {"mean": float, "map": H x W x 1 array, "exposures": (start, stop, count)}."""
 
 
+def temporal_blend(frames: list[AovStack], denoised: list[Image], t: int, tolerance: float = 0.5) -> Image:
+    """Frame t's denoised colour blended with frames t-1 and t+1's along the motion, as --temporal-blend does."""
+
+
 def write_exr(path: str, image: Image, half: bool = True, overwrite: bool = False) -> None:
     """Writes an image as an EXR, atomically; an existing file is replaced only with overwrite=True."""

@@ -19,6 +19,8 @@
 #include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_card.h"
+#include "core/temporal/frame_window.h"
+#include "core/temporal/temporal_blend.h"
 #include "core/nn/model_registry.h"
 #include "core/io/provenance.h"
 #include "core/util/cancel.h"
@@ -178,6 +180,7 @@ PYBIND11_MODULE(residue, m) {
         auto stack = std::make_shared<AovStack>();
         stack->convention = "arrays";
         stack->color.image = to_image(color, "color");
+        stack->color.source.file = "(array color)";
         const auto put = [&](AovRole role, const std::optional<Array>& a, const char* what) {
           if (!a) return;
           Aov& aov = stack->emplace(role);
@@ -302,6 +305,44 @@ PYBIND11_MODULE(residue, m) {
       py::arg("test"), py::arg("reference"),
       "HDR-FLIP of linear `test` against `reference`: its mean, its per-pixel map and the exposures (start, stop, "
       "count) it used, as NVIDIA's reference code computes them.");
+
+  m.def(
+      "temporal_blend",
+      [](const std::vector<std::shared_ptr<AovStack>>& frames, const std::vector<Array>& denoised, int t,
+         double tolerance) {
+        const int n = static_cast<int>(frames.size());
+        if (static_cast<int>(denoised.size()) != n)
+          throw Error(ErrorKind::Usage, "temporal_blend: " + std::to_string(n) + " frames but " +
+                                            std::to_string(denoised.size()) + " denoised images");
+        if (t < 0 || t >= n)
+          throw Error(ErrorKind::Usage, "temporal_blend: t = " + std::to_string(t) + " is not a frame of the " +
+                                            std::to_string(n) + " given");
+        std::vector<Image> images;
+        for (int i = std::max(0, t - 1); i <= std::min(n - 1, t + 1); ++i)
+          images.push_back(to_image(denoised[static_cast<size_t>(i)], "denoised"));
+        const Image& self = images[t > 0 ? 1 : 0];
+        Image out;
+        {
+          py::gil_scoped_release released;
+          // As residue-cli denoise --temporal-blend: frames t-1 and t+1 (those given), warped to t.
+          std::vector<WarpedNeighbour> warped;
+          for (const int offset : {-1, 1}) {
+            const int i = t + offset;
+            if (i < 0 || i >= n) continue;
+            const AovStack* other = frames[static_cast<size_t>(i)].get();
+            std::optional<WarpedNeighbour> w = warp_to_frame(
+                *frames[static_cast<size_t>(t)], offset, [&](int o) { return o == offset ? other : nullptr; },
+                images[static_cast<size_t>(i - std::max(0, t - 1))], self);
+            if (w) warped.push_back(std::move(*w));
+          }
+          out = temporal_blend(self, warped, {.tolerance = tolerance});
+        }
+        return to_array(out);
+      },
+      py::arg("frames"), py::arg("denoised"), py::arg("t"), py::arg("tolerance") = 0.5,
+      "Frame t's denoised colour averaged with frames t-1 and t+1's, brought to it along the motion vectors and "
+      "weighted down by their colour difference (0 beyond `tolerance`), as residue-cli denoise --temporal-blend does. "
+      "`frames`: consecutive frames of a shot (each with its motion AOV), `denoised`: each one's denoised colour.");
 
   m.def(
       "write_exr",

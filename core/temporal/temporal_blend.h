@@ -15,7 +15,8 @@
 namespace residue {
 
 struct TemporalBlendOptions {
-  double tolerance = 0.25;  // relative difference |a - b| / (a + b) (summed over RGB) at which a weight is 0
+  // The relative difference |a - b| / (a + b) (summed over RGB) at which a weight is 0; residue-cli's default.
+  double tolerance = 0.5;
 };
 
 // The blend of `denoised` (frame t's, RGB) with `neighbours` (other frames' denoised colour warped to t, with their

@@ -151,3 +151,30 @@ def test_maps_and_cards(room):
     assert {"multiscale", "best", "oidn", "bilateral"} <= set(cards)
     assert cards["best"]["alias_of"] == "multiscale" and cards["best"]["ensemble"] == 8
     assert cards["multiscale"]["gflop_per_mp"] > 0 and cards["multiscale"]["validation"]["scenes"] > 0
+
+
+SHOT = os.path.join(os.environ["RESIDUE_SOURCE"], "tests", "data", "shot")
+
+
+def test_temporal_blend_equals_the_clis(tmp_path):
+    frames = [residue.load(os.path.join(SHOT, f"noisy.{i:04d}.exr")) for i in (1, 2, 3, 4)]
+    assert all(f.motion is not None for f in frames)
+    denoised = [residue.denoise(f, "tiny") for f in frames]
+    pattern = str(tmp_path / "blend.####.exr")
+    subprocess.run([CLI, "denoise", os.path.join(SHOT, "noisy.####.exr"), "--frames", "1-3", "-m", "tiny",
+                    "--temporal-blend", "--float", "-o", pattern], check=True, capture_output=True)
+    for t in (0, 1, 2):  # frame 1 has no frame before it; the CLI reads frame 4 beside frame 3, outside its range
+        blended = residue.temporal_blend(frames, denoised, t)
+        assert np.array_equal(blended, read_rgb(str(tmp_path / f"blend.{t + 1:04d}.exr"))), t
+        assert not np.array_equal(blended, denoised[t]), "the neighbours change it"
+    loose = residue.temporal_blend(frames, denoised, 1, tolerance=2.0)
+    assert not np.array_equal(loose, residue.temporal_blend(frames, denoised, 1))
+    assert np.array_equal(residue.temporal_blend(frames[:3], denoised[:3], 2),
+                          residue.temporal_blend(frames[1:3], denoised[1:3], 1)), "the last frame given: one neighbour"
+    with pytest.raises(residue.Error, match="t = 4"):
+        residue.temporal_blend(frames, denoised, 4)
+    with pytest.raises(residue.Error, match="2 denoised"):
+        residue.temporal_blend(frames, denoised[:2], 0)
+    still = residue.stack(frames[1].color)  # frame t without motion vectors
+    with pytest.raises(residue.Error, match="motion"):
+        residue.temporal_blend([frames[0], still], denoised[:2], 1)
