@@ -7,6 +7,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <map>
 #include <memory>
 #include <string>
 
@@ -19,7 +20,6 @@
 #include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_card.h"
-#include "core/temporal/frame_window.h"
 #include "core/temporal/temporal_blend.h"
 #include "core/nn/model_registry.h"
 #include "core/io/provenance.h"
@@ -317,25 +317,18 @@ PYBIND11_MODULE(residue, m) {
         if (t < 0 || t >= n)
           throw Error(ErrorKind::Usage, "temporal_blend: t = " + std::to_string(t) + " is not a frame of the " +
                                             std::to_string(n) + " given");
-        std::vector<Image> images;
-        for (int i = std::max(0, t - 1); i <= std::min(n - 1, t + 1); ++i)
-          images.push_back(to_image(denoised[static_cast<size_t>(i)], "denoised"));
-        const Image& self = images[t > 0 ? 1 : 0];
+        std::map<int, Image> images;  // frames t-1..t+1 of those given, by offset
+        for (int offset = -1; offset <= 1; ++offset)
+          if (t + offset >= 0 && t + offset < n)
+            images[offset] = to_image(denoised[static_cast<size_t>(t + offset)], "denoised");
         Image out;
         {
           py::gil_scoped_release released;
-          // As residue-cli denoise --temporal-blend: frames t-1 and t+1 (those given), warped to t.
-          std::vector<WarpedNeighbour> warped;
-          for (const int offset : {-1, 1}) {
-            const int i = t + offset;
-            if (i < 0 || i >= n) continue;
-            const AovStack* other = frames[static_cast<size_t>(i)].get();
-            std::optional<WarpedNeighbour> w = warp_to_frame(
-                *frames[static_cast<size_t>(t)], offset, [&](int o) { return o == offset ? other : nullptr; },
-                images[static_cast<size_t>(i - std::max(0, t - 1))], self);
-            if (w) warped.push_back(std::move(*w));
-          }
-          out = temporal_blend(self, warped, {.tolerance = tolerance});
+          out = temporal_blend_frames(*frames[static_cast<size_t>(t)], images.at(0), [&](int offset) -> DenoisedFrame {
+            const auto it = images.find(offset);
+            if (it == images.end()) return {};
+            return {frames[static_cast<size_t>(t + offset)].get(), &it->second};
+          }, {.tolerance = tolerance});
         }
         return to_array(out);
       },

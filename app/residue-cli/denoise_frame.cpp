@@ -132,22 +132,18 @@ Image blended(FrameContext& context, const Method& method, const DenoiseOptions&
   result.stats = self.stats;
   result.missing_neighbours = self.missing_neighbours;
   const TileCallback quiet = [&](const TileEvent&, const Image&) { return !context.interrupt.interrupted(); };
-  std::vector<WarpedNeighbour> warped;
-  for (int offset : {-1, 1}) {
+  Image out = temporal_blend_frames(*self.stack, *self.image, [&](int offset) -> DenoisedFrame {
     const std::optional<std::vector<std::filesystem::path>> files = neighbours(offset);
     if (!files) {
       result.blend_missing.push_back(offset);
-      continue;
+      return {};
     }
     const FrameContext::Denoised& other = denoised_at(context, method, d, offset, *files, nullptr, neighbours, quiet);
     throw_if_cancelled(d.cancel);
-    std::optional<WarpedNeighbour> w = warp_to_frame(*self.stack, offset, [&](int o) {
-      return o == offset ? other.stack.get() : nullptr;
-    }, *other.image, *self.image);
-    warped.push_back(std::move(*w));
-  }
+    return {other.stack.get(), other.image.get()};
+  }, {.tolerance = context.options.blend_tolerance});
   keep_window(context, std::max(1, method.frame_radius()) + 1, neighbours, inputs.front().string());
-  return temporal_blend(*self.image, warped, {.tolerance = context.options.blend_tolerance});
+  return out;
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include "core/temporal/frame_window.h"
 #include "core/util/error.h"
 
 namespace residue {
@@ -46,6 +47,20 @@ Image temporal_blend(const Image& denoised, const std::vector<WarpedNeighbour>& 
     }
   });
   return out;
+}
+
+Image temporal_blend_frames(const AovStack& frame, const Image& denoised,
+                            const std::function<DenoisedFrame(int offset)>& neighbour,
+                            const TemporalBlendOptions& options) {
+  std::vector<WarpedNeighbour> warped;
+  for (const int offset : {-1, 1}) {
+    const DenoisedFrame other = neighbour(offset);
+    if (!other.stack || !other.denoised) continue;
+    std::optional<WarpedNeighbour> w = warp_to_frame(
+        frame, offset, [&](int o) { return o == offset ? other.stack : nullptr; }, *other.denoised, denoised);
+    if (w) warped.push_back(std::move(*w));
+  }
+  return temporal_blend(denoised, warped, options);
 }
 
 }  // namespace residue

@@ -8,6 +8,7 @@
 // difference from frame t's colour, relative to their level, and is 0 beyond `tolerance`.
 #pragma once
 
+#include <functional>
 #include <vector>
 
 #include "core/aov/aov_stack.h"
@@ -25,5 +26,19 @@ struct TemporalBlendOptions {
 // weigh 0. Throws Error(Usage) when a size differs.
 Image temporal_blend(const Image& denoised, const std::vector<WarpedNeighbour>& neighbours,
                      const TemporalBlendOptions& options = {});
+
+// A neighbouring frame for the blend: its stack (whose place on the shot the warp needs) and its denoised colour;
+// both null where the shot has no such frame.
+struct DenoisedFrame {
+  const AovStack* stack = nullptr;
+  const Image* denoised = nullptr;
+};
+
+// What --temporal-blend computes for frame t: `denoised` (frame t's) blended with frames t-1 and t+1 as
+// `neighbour(offset)` gives them (asked for -1, then +1), each warped to `frame` along its motion
+// (frame_window.h's warp_to_frame, filled with frame t's colour). Throws as warp_to_frame and temporal_blend do.
+Image temporal_blend_frames(const AovStack& frame, const Image& denoised,
+                            const std::function<DenoisedFrame(int offset)>& neighbour,
+                            const TemporalBlendOptions& options = {});
 
 }  // namespace residue

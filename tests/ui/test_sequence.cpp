@@ -16,8 +16,8 @@
 #include <nlohmann/json.hpp>
 
 #include "core/aov/aov_loader.h"
-#include "ui/denoise_panel.h"
 #include "core/io/metrics_report.h"
+#include "ui/denoise_panel.h"
 #include "ui/frame_bar.h"
 #include "ui/heatmap_panel.h"
 #include "ui/main_window.h"
