@@ -364,7 +364,7 @@ TEST(AovConventions, PlainLayersWithReference) {
                                     coded("depth.Z", 40), coded("reference.R", 60), coded("reference.G", 61),
                                     coded("reference.B", 62)})});
   const AovStack s = load_aov_stack({f});
-  EXPECT_EQ(s.convention, "plain (R,G,B with named layers)");
+  EXPECT_EQ(s.convention, "plain R,G,B with named layers");
   EXPECT_EQ(s.width(), 1);
   for (auto [role, tag] : std::vector<std::pair<AovRole, float>>{{AovRole::Color, 10}, {AovRole::Albedo, 30},
                                                                  {AovRole::Normal, 20}, {AovRole::Depth, 40},
@@ -384,7 +384,7 @@ TEST(AovConventions, PlainWithMitsubaAovNames) {
                                     coded("albedo.R", 30), coded("albedo.G", 31), coded("albedo.B", 32),
                                     coded("nn.X", 20), coded("nn.Y", 21), coded("nn.Z", 22), coded("dd.y", 40)})});
   const AovStack s = load_aov_stack({f});
-  EXPECT_EQ(s.convention, "plain (R,G,B with named layers)");
+  EXPECT_EQ(s.convention, "plain R,G,B with named layers");
   for (auto [role, tag] : std::vector<std::pair<AovRole, float>>{
            {AovRole::Color, 10}, {AovRole::Albedo, 30}, {AovRole::Normal, 20}, {AovRole::Depth, 40}})
     expect_coded(s, role, tag);

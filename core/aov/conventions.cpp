@@ -156,7 +156,7 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Variance, {"variance", "rgba_variance"}},
            {AovRole::Reference, {"reference"}},
        }},
-      {"plain (R,G,B with named layers)",
+      {"plain R,G,B with named layers",
        {},
        true,
        {

@@ -92,7 +92,7 @@ AovStack live_aov_stack(const std::string& name, const LiveImage& image) {
                                       "); expected R,G,B");
   }
   AovStack stack;
-  stack.convention = "tev IPC stream (" + rec.convention + ")";
+  stack.convention = "tev IPC stream, " + rec.convention;
   stack.notes = rec.notes;
   stack.data_window = image.pixels.bounds();
   stack.display_width = image.pixels.width();
