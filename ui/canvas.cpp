@@ -75,6 +75,12 @@ void ImageCanvas::setPaneLabel(int index, QString label) {
   update();
 }
 
+void ImageCanvas::setPanePlaceholder(int index, QString placeholder) {
+  if (index < 0 || index >= static_cast<int>(panes_.size())) return;
+  panes_[static_cast<size_t>(index)].placeholder = std::move(placeholder);
+  update();
+}
+
 void ImageCanvas::setOverlay(int index, QImage overlay) {
   if (index < 0 || index >= static_cast<int>(panes_.size())) return;
   panes_[static_cast<size_t>(index)].overlay = std::move(overlay);
@@ -324,27 +330,45 @@ void ImageCanvas::drawPane(QPainter& p, const Slot& s) const {
         p.setOpacity(1.0);
       }
     }
-    if (zoom_ >= kValueTextZoom && pane.values) drawValues(p, s, pane);
-  } else {
+  }
+  // Label, on a dark plate so it reads over any image. A long one wraps onto a second line rather than losing its
+  // middle ("Relative squared e...of oidn fp32"); only what is longer still is shortened, at its end.
+  const QFontMetrics fm(font());
+  const int width = std::max(40, s.clip.width() - 24);
+  QString label = pane.label;
+  QRect text = fm.boundingRect(QRect(0, 0, width, 10000), Qt::TextWordWrap, label);
+  if (text.height() > 2 * fm.lineSpacing()) {
+    while (label.size() > 1 && fm.boundingRect(QRect(0, 0, width, 10000), Qt::TextWordWrap, label + "...").height() >
+                                   2 * fm.lineSpacing())
+      label.chop(1);
+    label += "...";
+    text = fm.boundingRect(QRect(0, 0, width, 10000), Qt::TextWordWrap, label);
+  }
+  QRect box = text.adjusted(-5, -3, 5, 3);
+  box.moveTopLeft(s.clip.topLeft() + QPoint(6, 6));
+  if (layout_ == Layout::Wipe && s.pane == wipe_b_) box.moveTopRight(s.clip.topRight() + QPoint(-6, 6));
+  if (!pane.display.isNull() && zoom_ >= kValueTextZoom && pane.values) drawValues(p, s, pane, box);
+  if (pane.display.isNull()) {
     p.setPen(QColor(150, 150, 150));
     p.drawText(s.rect, Qt::AlignCenter,
                pane.placeholder.isEmpty() ? tr("%1\n(not available)").arg(pane.label) : pane.placeholder);
   }
   drawRoi(p, s);
-  // Label, on a dark plate so it reads over any image.
-  const QFontMetrics fm(font());
-  // Long labels are shortened in the middle, so both the model and its settings' ends stay readable.
-  const QString label = fm.elidedText(pane.label, Qt::ElideMiddle, std::max(40, s.clip.width() - 24));
-  QRect box = fm.boundingRect(label).adjusted(-5, -3, 5, 3);
-  box.moveTopLeft(s.clip.topLeft() + QPoint(6, 6));
-  if (layout_ == Layout::Wipe && s.pane == wipe_b_) box.moveTopRight(s.clip.topRight() + QPoint(-6, 6));
   p.fillRect(box, QColor(0, 0, 0, 150));
   p.setPen(Qt::white);
-  p.drawText(box, Qt::AlignCenter, label);
+  p.drawText(box, Qt::AlignCenter | Qt::TextWordWrap, label);
   p.restore();
 }
 
-void ImageCanvas::drawValues(QPainter& p, const Slot& s, const Pane& pane) const {
+QString ImageCanvas::fittedValueText(double value, double width, const QFontMetrics& fm) {
+  for (int digits = 4; digits >= 1; --digits) {
+    const QString text = QString::number(value, 'g', digits);
+    if (fm.horizontalAdvance(text) <= width) return text;
+  }
+  return {};
+}
+
+void ImageCanvas::drawValues(QPainter& p, const Slot& s, const Pane& pane, const QRect& label) const {
   const Image& v = *pane.values;
   const QPointF tl = toImage(s.rect, QPointF(s.clip.topLeft()));
   const QPointF br = toImage(s.rect, QPointF(s.clip.bottomRight()));
@@ -352,15 +376,22 @@ void ImageCanvas::drawValues(QPainter& p, const Slot& s, const Pane& pane) const
   const int64_t y0 = std::max<int64_t>(0, static_cast<int64_t>(std::floor(tl.y())));
   const int64_t x1 = std::min<int64_t>(v.width() - 1, static_cast<int64_t>(std::floor(br.x())));
   const int64_t y1 = std::min<int64_t>(v.height() - 1, static_cast<int64_t>(std::floor(br.y())));
-  QFont f = font();
-  f.setPointSizeF(std::max(6.0, std::min(10.0, zoom_ / 9.0)));
-  p.setFont(f);
   const int count = std::min(pane.channel_count, v.channels() - pane.first_channel);
+  // A line per channel, in a font that fits it; a value too wide for its cell is written with fewer digits
+  // (fittedValueText), never across the next cell.
+  QFont f = font();
+  f.setPixelSize(std::clamp(static_cast<int>(zoom_ / (count + 1) * 0.8), 6, 15));
+  p.setFont(f);
+  const QFontMetrics fm(f);
   static const QColor kChannelColors[] = {QColor(255, 120, 120), QColor(120, 230, 120), QColor(130, 170, 255)};
   for (int64_t y = y0; y <= y1; ++y) {
     for (int64_t x = x0; x <= x1; ++x) {
       const QRectF cell(toWidget(s.rect, QPointF(static_cast<double>(x), static_cast<double>(y))),
                         QSizeF(zoom_, zoom_));
+      // A cell belongs to the pane its centre is in (a wipe's seam cuts no number in two), and the label's plate
+      // keeps its corner.
+      if (!s.clip.contains(cell.center().toPoint()) || cell.intersects(label)) continue;
+      p.setClipRect(cell.intersected(s.rect));
       const QRgb bg = pane.display.pixel(std::min(pane.display.width() - 1, static_cast<int>(x) / pane.display_scale),
                                          std::min(pane.display.height() - 1, static_cast<int>(y) / pane.display_scale));
       const bool dark = qGray(bg) < 128;
@@ -371,10 +402,11 @@ void ImageCanvas::drawValues(QPainter& p, const Slot& s, const Pane& pane) const
         QColor col = count == 1 ? (dark ? Qt::white : Qt::black) : kChannelColors[c % 3];
         if (!dark) col = col.darker(250);
         p.setPen(col);
-        p.drawText(line, Qt::AlignCenter, QString::number(static_cast<double>(value), 'g', 4));
+        p.drawText(line, Qt::AlignCenter, fittedValueText(static_cast<double>(value), cell.width() - 4, fm));
       }
     }
   }
+  p.setClipRect(s.clip);
 }
 
 void ImageCanvas::drawRoi(QPainter& p, const Slot& s) const {

@@ -4,6 +4,7 @@
 // reports what the user does with the mouse: the pixel under the cursor, a dragged region of interest.
 #pragma once
 
+#include <QFontMetrics>
 #include <QImage>
 #include <QWidget>
 #include <memory>
@@ -42,6 +43,7 @@ class ImageCanvas : public QWidget {
   void setPaneValues(int index, std::shared_ptr<const Image> values);
   void setPaneDisplay(int index, QImage display);
   void setPaneLabel(int index, QString label);
+  void setPanePlaceholder(int index, QString placeholder);
   void setOverlay(int index, QImage overlay);  // null clears it
   void clearOverlays();
 
@@ -79,6 +81,10 @@ class ImageCanvas : public QWidget {
 
   // Zoom at which each pixel gets its values written in it.
   static constexpr double kValueTextZoom = 48.0;
+  static constexpr double kZoomStep = 1.4142135623730951;  // + and -: half a stop
+  // A pixel's value as written in its cell: as many significant digits (4 at most) as fit `width` pixels; empty
+  // when not even one does.
+  static QString fittedValueText(double value, double width, const QFontMetrics& fm);
 
  signals:
   void hovered(std::optional<QPoint> pixel);
@@ -108,7 +114,7 @@ class ImageCanvas : public QWidget {
   QPointF toImage(const QRect& pane_rect, QPointF widget_pos) const;
   QPointF toWidget(const QRect& pane_rect, QPointF image_pos) const;
   void drawPane(class QPainter& p, const Slot& s) const;
-  void drawValues(class QPainter& p, const Slot& s, const Pane& pane) const;
+  void drawValues(class QPainter& p, const Slot& s, const Pane& pane, const QRect& label) const;
   void drawRoi(class QPainter& p, const Slot& s) const;
   int wipeSplitX() const;
   void clampView();

@@ -8,10 +8,12 @@
 #include <QLabel>
 #include <QProgressBar>
 #include <QPushButton>
+#include <QSignalBlocker>
 #include <QSlider>
 #include <QTableWidget>
 #include <QTimer>
 #include <QVBoxLayout>
+#include <cmath>
 
 #include "core/nn/backend.h"
 #include "ui/session.h"
@@ -117,15 +119,23 @@ DenoisePanel::DenoisePanel(Session* session, QWidget* parent) : QWidget(parent),
   strength_->setObjectName("strength");
   strength_->setRange(0, 100);
   strength_->setValue(100);
-  strength_->setToolTip(tr("Denoising strength: 100 % shows the denoised result, 0 % the noisy input, between a "
-                           "linear blend of the two (which keeps the brightness). Metrics, heatmaps and exports "
-                           "follow it."));
+  strength_->setToolTip(tr("Denoising strength of A: 100 % is the denoised result, 0 % the noisy input, between a "
+                           "linear blend of the two (which keeps the brightness), kept as a result of its own beside "
+                           "the full one (\"oidn fp32 @ 50 %\") with its own scores, heatmap and export."));
   strength_row->addWidget(strength_label_);
   strength_row->addWidget(strength_, 1);
   layout->addLayout(strength_row);
   connect(strength_, &QSlider::valueChanged, this, [this](int v) {
     strength_label_->setText(tr("Strength %1 %").arg(v));
     session_->setStrength(static_cast<float>(v) / 100.0f);
+  });
+  // The slider shows A's strength: 100 % for a full result, its own for a result at a strength.
+  connect(session_, &Session::denoisedChanged, this, [this] {
+    const int v = static_cast<int>(std::lround(session_->strength() * 100.0f));
+    if (v == strength_->value()) return;
+    const QSignalBlocker block(strength_);
+    strength_->setValue(v);
+    strength_label_->setText(tr("Strength %1 %").arg(v));
   });
 
   auto* buttons = new QHBoxLayout;

@@ -80,6 +80,18 @@ void expose_row(const float* src, int channels, int64_t width, float scale, floa
   }
 }
 
+// The channel shown alone, as grey: in place on `n` RGB triplets.
+void isolate_row(float* rgb, int64_t n, DisplayChannel c) {
+  if (c == DisplayChannel::RGB) return;
+  for (int64_t x = 0; x < n; ++x, rgb += 3) {
+    const float v = c == DisplayChannel::R   ? rgb[0]
+                    : c == DisplayChannel::G ? rgb[1]
+                    : c == DisplayChannel::B ? rgb[2]
+                                             : 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
+    rgb[0] = rgb[1] = rgb[2] = v;
+  }
+}
+
 std::string joined(const std::vector<std::string>& names) {
   std::string out;
   for (const auto& n : names) out += (out.empty() ? "\"" : ", \"") + n + "\"";
@@ -267,6 +279,24 @@ std::string DisplayTransform::default_view(const std::string& display) const {
   return impl_->default_view(display);
 }
 
+const char* to_string(DisplayChannel c) {
+  switch (c) {
+    case DisplayChannel::RGB: return "rgb";
+    case DisplayChannel::R: return "r";
+    case DisplayChannel::G: return "g";
+    case DisplayChannel::B: return "b";
+    case DisplayChannel::Luminance: return "luminance";
+  }
+  return "?";
+}
+
+std::optional<DisplayChannel> display_channel_from_string(const std::string& name) {
+  for (DisplayChannel c : {DisplayChannel::RGB, DisplayChannel::R, DisplayChannel::G, DisplayChannel::B,
+                           DisplayChannel::Luminance})
+    if (name == to_string(c)) return c;
+  return std::nullopt;
+}
+
 std::array<float, 3> DisplayTransform::apply(std::array<float, 3> linear, const DisplaySettings& settings,
                                              Encoding enc) const {
   for (float v : linear)
@@ -277,6 +307,7 @@ std::array<float, 3> DisplayTransform::apply(std::array<float, 3> linear, const 
   const float scale = exposure_scale(settings.exposure);
   const auto offset = static_cast<float>(settings.offset);
   for (float& v : linear) v = expose(v, scale, offset);
+  isolate_row(linear.data(), 1, settings.channel);
   if (enc == Encoding::SceneLinear) impl_->pipeline(settings).apply_row(linear.data(), 1);
   for (float& v : linear) v = clamp01(v);
   return linear;
@@ -320,6 +351,7 @@ QImage DisplayTransform::render(const Image& image, int first_channel, int count
         case 2: expose_row<2>(src, channels, width, scale, offset, rgb.data(), bad.data()); break;
         default: expose_row<3>(src, channels, width, scale, offset, rgb.data(), bad.data()); break;
       }
+      isolate_row(rgb.data(), width, s.channel);
       if (enc == Encoding::SceneLinear) pipeline.apply_row(rgb.data(), width);
       // Quantise the flat row (vectorised), then pack.
       for (size_t i = 0; i < codes.size(); ++i) codes[i] = to_code(rgb[i]);

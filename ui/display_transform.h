@@ -6,6 +6,7 @@
 #include <array>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,11 +16,18 @@
 
 namespace residue::ui {
 
+// One channel shown alone, as grey through the same view (tev's channel isolation), or all three. Luminance is
+// Rec. 709's Y of the scene-linear values.
+enum class DisplayChannel { RGB, R, G, B, Luminance };
+const char* to_string(DisplayChannel c);  // "rgb", "r", "g", "b", "luminance"
+std::optional<DisplayChannel> display_channel_from_string(const std::string& name);
+
 struct DisplaySettings {
   double exposure = 0.0;  // stops: values are multiplied by 2^exposure
   double offset = 0.0;    // added after the exposure
   std::string display;    // OCIO display; empty = the config's default
   std::string view;       // OCIO view; empty = the display's default
+  DisplayChannel channel = DisplayChannel::RGB;  // taken after the exposure, before the view
 };
 
 // How a buffer's values are meant: radiance/albedo go through OCIO; Data (normals remapped to [0,1], depth

@@ -140,7 +140,7 @@ void write_png(const std::filesystem::path& path, const QImage& image, bool over
 }
 
 void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,
-                      const Result& result, bool overwrite, bool half, const std::string& compression, float strength) {
+                      const Result& result, bool overwrite, bool half, const std::string& compression) {
   io::ExrWriteOptions o;
   o.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
   o.compression = compression;
@@ -150,7 +150,7 @@ void write_result_exr(const std::filesystem::path& path, const Image& image, con
   p.source = stack.color.source.file;
   p.result = result.name.toStdString();
   p.written_by = "residue viewer";
-  p.strength = strength;  // the viewer's blend towards the noisy colour, applied on export
+  p.strength = result.strength;  // a result at a strength: its blend towards the noisy colour
   io::record(o.residue_attributes, p);
   o.overwrite = overwrite;
   io::write_exr(path, image, o);

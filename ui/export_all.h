@@ -51,10 +51,10 @@ std::vector<std::filesystem::path> planned_files(const ExportAllInputs& in, cons
 QString export_all(const ExportAllInputs& in, const std::filesystem::path& folder, bool overwrite);
 
 // Writes one result as an EXR with what made it: a run's provenance as the CLI writes it (residue:model, its
-// architecture, backend, post-steps, time), and residue:source, residue:result; an added file names itself.
+// architecture, backend, post-steps, time), and residue:source, residue:result; an added file names itself; a
+// result at a strength says it (residue:strength).
 void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,
-                      const Result& result, bool overwrite, bool half = true, const std::string& compression = "zip",
-                      float strength = 1.0f);
+                      const Result& result, bool overwrite, bool half = true, const std::string& compression = "zip");
 
 // Writes `image` as a PNG atomically (atomic_file.h); `what` names it in the error ("heatmap PNG").
 void write_png(const std::filesystem::path& path, const QImage& image, bool overwrite, const std::string& what);

@@ -236,6 +236,11 @@ ColorScale HeatmapPanel::scale() const {
   return s;
 }
 
+QString HeatmapPanel::placeholder() const {
+  if (map_) return {};
+  return tr("%1\n(%2)").arg(title(), missing_.isEmpty() ? tr("computing...") : missing_);
+}
+
 QString HeatmapPanel::title() const {
   // Words, not the CLI's short names ("rse" meant nothing to a first-time user).
   QString what;
@@ -287,11 +292,13 @@ void HeatmapPanel::computeMap(std::function<Image()> make, const QString& subjec
     map_.reset();
     image_ = QImage();
     subject_ = subject;
+    missing_ = missing;
     bar_->setScale(colormap(), 0, 1, false, missing);
     histogram_->setValues(nullptr, false, {0, 1}, colormap(), missing);
     emit ready();
     return;
   }
+  missing_.clear();
   const auto cm = colormap();
   const auto sc = scale();
   task_->start([=](const LatestTask<Result>::Token& token) {

@@ -81,6 +81,9 @@ class HeatmapPanel : public QWidget {
   std::shared_ptr<const Image> map() const { return map_; }   // one channel, image-sized; null when none
   const QImage& image() const { return image_; }               // the colour-mapped map
   QString title() const;  // e.g. "Relative squared error of small fp32 (log)", for the map shown
+  // What the heatmap pane says while it has no map: the title and why there is none ("no reference"), or that it
+  // is being computed.
+  QString placeholder() const;
   bool busy() const;
 
   void setKind(metrics::MapKind kind);
@@ -112,6 +115,7 @@ class HeatmapPanel : public QWidget {
   ColorBar* bar_ = nullptr;
   class Histogram* histogram_ = nullptr;
   QString subject_;  // what the current map is of
+  QString missing_;  // why there is no map (computeMap without `make`), until the next map is asked for
 
   struct Result {
     QString subject;

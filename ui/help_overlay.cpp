@@ -1,6 +1,7 @@
 #include "ui/help_overlay.h"
 
 #include <QEvent>
+#include <QFontMetrics>
 #include <QPainter>
 #include <algorithm>
 
@@ -27,37 +28,55 @@ void HelpOverlay::toggle() {
   show();
 }
 
+HelpOverlay::Plan HelpOverlay::plan() const {
+  // The largest font (from 1.1x the widget's down to 7 pt) at which every row fits unshortened, in as many columns
+  // as the width allows; at the smallest, descriptions are shortened to their column.
+  const int n = static_cast<int>(shortcuts_.size());
+  Plan plan;
+  for (double pt = font().pointSizeF() * 1.1;; pt -= 0.5) {
+    plan.font = font();
+    plan.font.setPointSizeF(std::max(7.0, pt));
+    const QFontMetrics fm(plan.font);
+    plan.line = fm.height() + 4;
+    plan.key_width = plan.what_width = 0;
+    for (const auto& [k, w] : shortcuts_) {
+      plan.key_width = std::max(plan.key_width, fm.horizontalAdvance(k));
+      plan.what_width = std::max(plan.what_width, fm.horizontalAdvance(w));
+    }
+    const int room_w = width() - 2 * kMargin, room_h = height() - 2 * kMargin;
+    const int fit = std::clamp(room_h / plan.line - 2, 1, std::max(1, n));  // rows under the title
+    plan.columns = (n + fit - 1) / std::max(1, fit);
+    plan.rows = (n + plan.columns - 1) / std::max(1, plan.columns);  // columns filled evenly
+    const int full = plan.key_width + 24 + plan.what_width + 24;
+    plan.column_width = std::min(full, room_w / std::max(1, plan.columns));
+    plan.shortened = plan.column_width < full;
+    if (!plan.shortened || pt <= 7.0) return plan;
+  }
+}
+
 void HelpOverlay::paintEvent(QPaintEvent*) {
   QPainter p(this);
-  p.fillRect(rect(), QColor(0, 0, 0, 190));
-  QFont f = font();
-  f.setPointSizeF(f.pointSizeF() * 1.1);
-  p.setFont(f);
-  const QFontMetrics fm(f);
-  const int line = fm.height() + 4;
-  int key_width = 0, what_width = 0;
-  for (const auto& [k, w] : shortcuts_) {
-    key_width = std::max(key_width, fm.horizontalAdvance(k));
-    what_width = std::max(what_width, fm.horizontalAdvance(w));
-  }
-  // As many rows as fit the height, in as many columns as that takes; descriptions shortened to the width.
+  p.fillRect(rect(), QColor(0, 0, 0, 120));
+  const Plan pl = plan();
+  p.setFont(pl.font);
+  const QFontMetrics fm(pl.font);
   const int n = static_cast<int>(shortcuts_.size());
-  const int fit = std::clamp((height() - 20) / line - 2, 1, std::max(1, n));
-  const int columns = (n + fit - 1) / fit;
-  const int rows = (n + columns - 1) / columns;  // the columns filled evenly, not one full and one nearly empty
-  const int column_width = std::min(key_width + 24 + what_width + 32, (width() - 20) / columns);
-  const int x0 = std::max(10, (width() - columns * column_width) / 2);
-  int y0 = std::max(10 + fm.ascent(), (height() - line * (std::min(rows, n) + 2)) / 2);
+  // An opaque plate under the text, so that nothing of the canvas (its pane labels) reads through it.
+  const int w = pl.columns * pl.column_width + 24, h = pl.line * (pl.rows + 2) + 16;
+  const QRect plate(std::max(kMargin / 2, (width() - w) / 2), std::max(kMargin / 2, (height() - h) / 2), w, h);
+  p.fillRect(plate, QColor(24, 24, 24, 245));
+  const int x0 = plate.left() + 12;
+  int y0 = plate.top() + 8 + fm.ascent();
   p.setPen(Qt::white);
   p.drawText(x0, y0, tr("Keyboard shortcuts (? or Esc to close)"));
-  y0 += 2 * line;
+  y0 += 2 * pl.line;
   for (int i = 0; i < n; ++i) {
     const auto& [keys, what] = shortcuts_[static_cast<size_t>(i)];
-    const int x = x0 + (i / rows) * column_width, y = y0 + (i % rows) * line;
+    const int x = x0 + (i / pl.rows) * pl.column_width, y = y0 + (i % pl.rows) * pl.line;
     p.setPen(QColor(255, 220, 120));
     p.drawText(x, y, keys);
     p.setPen(Qt::white);
-    p.drawText(x + key_width + 24, y, fm.elidedText(what, Qt::ElideRight, column_width - key_width - 32));
+    p.drawText(x + pl.key_width + 24, y, fm.elidedText(what, Qt::ElideRight, pl.column_width - pl.key_width - 24));
   }
 }
 

@@ -34,12 +34,12 @@
 #include "ui/metrics_panel.h"
 #include "ui/pane_renderer.h"
 #include "ui/pixel_inspector.h"
+#include "ui/recent_renders.h"
 #include "ui/tev_server.h"
 
 namespace residue::ui {
 
 namespace {
-constexpr int kMaxRecent = 10;
 
 QString errorText(const std::exception& e) { return QString::fromStdString(e.what()); }
 
@@ -112,11 +112,16 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   statusBar()->addPermanentWidget(cursor_label_);
   statusBar()->addPermanentWidget(size_label_);
   statusBar()->addPermanentWidget(zoom_label_);
-  statusBar()->showMessage(tr("Colour: %1").arg(QString::fromStdString(display_->source())), 8000);
-  if (!display_->note().empty()) statusBar()->showMessage(QString::fromStdString(display_->note()), 15000);
+  connect(statusBar(), &QStatusBar::messageChanged, this, [this](const QString& m) {
+    if (!m.isEmpty()) return;
+    status_text_.clear();
+    statusBar()->setToolTip({});
+  });
+  say(tr("Colour: %1").arg(QString::fromStdString(display_->source())), 8000);
+  if (!display_->note().empty()) say(QString::fromStdString(display_->note()), 15000);
 
   connect(session_, &Session::loadStarted, this, [this](const QString& what) {
-    statusBar()->showMessage(tr("Loading %1...").arg(what));
+    say(tr("Loading %1...").arg(what));
   });
   connect(session_, &Session::loaded, this, &MainWindow::onLoaded);
   watcher_ = new QFileSystemWatcher(this);
@@ -136,7 +141,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   });
   connect(session_, &Session::loadFailed, this, &MainWindow::onLoadFailed);
   connect(session_, &Session::referenceChanged, this, [this] {
-    statusBar()->showMessage(tr("Reference loaded"), 5000);
+    say(tr("Reference loaded"), 5000);
+    // Open Recent opens the render with it next time.
+    if (const auto& ref = session_->loadOptions().reference; ref && session_->liveName().isEmpty()) {
+      QStringList inputs;
+      for (const auto& p : session_->inputs()) inputs << QString::fromStdString(p.string());
+      RecentRenders().setReference(inputs, QString::fromStdString(ref->string()));
+      rebuildRecentMenu();
+    }
     refreshPanes();
     refreshAnalysis();
   });
@@ -154,7 +166,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   });
   connect(session_, &Session::resultFailed, this, [this](const QString& message) {
     last_error_ = message;
-    statusBar()->showMessage(message, 15000);
+    say(message, 15000);
     if (interactive_) QMessageBox::warning(this, tr("Add result"), message);
   });
   connect(session_, &Session::denoisedTileChanged, this, &MainWindow::patchDenoisedTile);
@@ -179,8 +191,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(metrics_, &MetricsPanel::showAsB, session_, &Session::setB);
   connect(metrics_, &MetricsPanel::removeRequested, session_, &Session::removeResult);
   connect(metrics_, &MetricsPanel::addRequested, this, [this] {
-    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), QString(),
-                                                            tr("Images (*.exr *.hdr *.pfm *.tif *.tiff *.png);;All files (*)"));
+    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), startFolder(), kImageFilter);
     addResultFiles(files);
   });
   connect(metrics_, &MetricsPanel::optionsChanged, this, &MainWindow::refreshAnalysis);
@@ -193,10 +204,10 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(heatmap_, &HeatmapPanel::ready, this, &MainWindow::applyHeatmap);
   connect(denoise_, &DenoisePanel::started, this, [this](const QString& what) {
     run_tiles_.clear();
-    statusBar()->showMessage(tr("Denoising with %1").arg(what));
+    say(tr("Denoising with %1").arg(what));
   });
   connect(denoise_, &DenoisePanel::finished, this, [this](bool ok, const QString& message) {
-    statusBar()->showMessage(ok ? tr("Denoised: %1").arg(session_->denoisedDescription()) : message, 10000);
+    say(ok ? tr("Denoised: %1").arg(session_->denoisedDescription()) : message, 10000);
     updateTitle();
     refreshPanes();  // the pane labels say whether the result is complete
     refreshAnalysis();
@@ -236,7 +247,7 @@ void MainWindow::openFiles(const QStringList& files, const LoadOptions& options)
   mapping_retry_ = false;
   load_from_renderer_ = false;
   session_->open(inputs, options);
-  addRecent(files);
+  addRecent(files, options.reference ? QString::fromStdString(options.reference->string()) : QString());
 }
 
 void MainWindow::openReferenceFile(const QString& file) {
@@ -296,7 +307,7 @@ void MainWindow::onLoaded() {
       setRoi(inside.empty() ? std::nullopt : std::optional<Rect>(inside));
     }
   }
-  statusBar()->showMessage(tr("Loaded %1 (%2)%3")
+  say(tr("Loaded %1 (%2)%3")
                                .arg(session_->title(), QString::fromStdString(stack->convention),
                                     notes.isEmpty() ? QString() : " - " + notes.join("; ")),
                            10000);
@@ -320,7 +331,15 @@ void MainWindow::watchInputs() {
 
 void MainWindow::onLoadFailed(const QString& message, int kind, const QStringList& inputs) {
   last_error_ = message;
-  statusBar()->showMessage(tr("Could not load: %1").arg(message), 15000);
+  // Channels that no convention recognises: the user can assign them (once per channel layout), so the status bar
+  // says what is asked, not that the load failed.
+  const bool mapping_problem = kind == static_cast<int>(ErrorKind::Mapping) ||
+                               (kind == static_cast<int>(ErrorKind::Input) && message.contains("channel"));
+  const bool can_map = mapping_problem && inputs.size() == 1 && QFileInfo(inputs.front()).isFile();
+  say(can_map && interactive_ && !load_from_renderer_ && !auto_reloading_
+          ? tr("Assign the channels of %1: %2").arg(QFileInfo(inputs.front()).fileName(), message)
+          : tr("Could not load: %1").arg(message),
+      15000);
   if (load_from_renderer_) {
     std::fprintf(stderr, "residue: a renderer's open request failed: %s\n", qPrintable(message));
     return;
@@ -330,10 +349,7 @@ void MainWindow::onLoadFailed(const QString& message, int kind, const QStringLis
     watchInputs();
     return;
   }
-  // Channels that no convention recognises: let the user assign them (once per channel layout).
-  const bool mapping_problem = kind == static_cast<int>(ErrorKind::Mapping) ||
-                               (kind == static_cast<int>(ErrorKind::Input) && message.contains("channel"));
-  if (mapping_problem && inputs.size() == 1 && QFileInfo(inputs.front()).isFile()) {
+  if (can_map) {
     MappingDialog probe(inputs.front().toStdString(), message, this);
     if (!mapping_retry_) {
       if (const auto remembered = remembered_mapping(probe.channels())) {
@@ -349,7 +365,9 @@ void MainWindow::onLoadFailed(const QString& message, int kind, const QStringLis
       }
     }
     if (!interactive_) return;
-    if (probe.exec() == QDialog::Accepted) {
+    if (probe.exec() != QDialog::Accepted) return say(tr("Not loaded: the channels of %1 were not assigned")
+                                                          .arg(QFileInfo(inputs.front()).fileName()), 15000);
+    {
       try {
         LoadOptions o;
         o.mapping = probe.mapping();
@@ -365,29 +383,27 @@ void MainWindow::onLoadFailed(const QString& message, int kind, const QStringLis
   if (interactive_) QMessageBox::warning(this, tr("Could not load"), message);
 }
 
-void MainWindow::addRecent(const QStringList& files) {
-  QSettings s;
-  QStringList recent = s.value("recentFiles").toStringList();
-  const QString entry = files.join('\n');
-  recent.removeAll(entry);
-  recent.prepend(entry);
-  while (recent.size() > kMaxRecent) recent.removeLast();
-  s.setValue("recentFiles", recent);
+void MainWindow::addRecent(const QStringList& files, const QString& reference) {
+  RecentRenders().add(files, reference);
   rebuildRecentMenu();
 }
 
 void MainWindow::rebuildRecentMenu() {
   recent_menu_->clear();
-  const QStringList recent = QSettings().value("recentFiles").toStringList();
-  for (const QString& entry : recent) {
-    const QStringList files = entry.split('\n');
-    QStringList names;
-    for (const auto& f : files) names << QFileInfo(f).fileName();
-    auto* a = recent_menu_->addAction(names.join(", "));
-    a->setToolTip(entry);
-    connect(a, &QAction::triggered, this, [this, files] { openFiles(files); });
+  const std::vector<RecentRender> recent = RecentRenders().list();
+  for (const RecentRender& r : recent) {
+    auto* a = recent_menu_->addAction(r.label());
+    a->setToolTip(r.inputs.join('\n') + (r.reference.isEmpty() ? QString() : tr("\nreference: %1").arg(r.reference)));
+    connect(a, &QAction::triggered, this, [this, r] {
+      LoadOptions o;
+      if (!r.reference.isEmpty()) {
+        if (QFileInfo::exists(r.reference)) o.reference = r.reference.toStdString();
+        else say(tr("The reference %1 is gone: opened without it").arg(r.reference), 10000);
+      }
+      openFiles(r.inputs, o);
+    });
   }
-  recent_menu_->setEnabled(!recent.isEmpty());
+  recent_menu_->setEnabled(!recent.empty());
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -397,12 +413,15 @@ DisplaySettings MainWindow::displaySettings() const {
   DisplaySettings s;
   s.exposure = exposure_box_->value();
   s.offset = offset_box_->value();
+  s.channel = channel();
   s.display = display_box_->currentText().toStdString();
   s.view = view_box_->currentText().toStdString();
   return s;
 }
 
 void MainWindow::setExposure(double stops) { exposure_box_->setValue(stops); }
+void MainWindow::setChannel(DisplayChannel c) { channel_box_->setCurrentIndex(channel_box_->findData(static_cast<int>(c))); }
+DisplayChannel MainWindow::channel() const { return static_cast<DisplayChannel>(channel_box_->currentData().toInt()); }
 double MainWindow::exposure() const { return exposure_box_->value(); }
 
 void MainWindow::setAov(AovRole aov) {
@@ -421,7 +440,7 @@ void MainWindow::cycleAov(int step) {
     if (session_->hasAov(kViewableAovs[i])) break;
   }
   setAov(kViewableAovs[i]);
-  statusBar()->showMessage(tr("AOV: %1").arg(display_name(aov_)), 3000);
+  say(tr("AOV: %1").arg(display_name(aov_)), 3000);
 }
 
 void MainWindow::showPane(Source s) {
@@ -458,20 +477,20 @@ void MainWindow::cyclePane(int step) {
   if (n == 0) return;
   if (canvas_->layout() == ImageCanvas::Layout::Single) canvas_->setCurrent((canvas_->current() + step + n) % n);
   layout_box_->setCurrentIndex(1);
-  statusBar()->showMessage(canvas_->panes()[static_cast<size_t>(canvas_->current())].label, 3000);
+  say(canvas_->panes()[static_cast<size_t>(canvas_->current())].label, 3000);
 }
 
 void MainWindow::pickResult(int index, bool as_b) {
   // The rows as the Results tab shows them (sorted as the user sorted them), numbered in its # column.
   const std::vector<int> ids = metrics_->visibleIds();
   if (index < 0 || index >= static_cast<int>(ids.size())) {
-    statusBar()->showMessage(tr("There is no result %1 (the Results tab lists them)").arg(index + 1), 4000);
+    say(tr("There is no result %1 (the Results tab lists them)").arg(index + 1), 4000);
     return;
   }
   const int id = ids[static_cast<size_t>(index)];
   if (as_b) session_->setB(id);
   else session_->setA(id);
-  statusBar()->showMessage(tr("%1: %2").arg(as_b ? "B" : "A", session_->resultName(id)), 4000);
+  say(tr("%1: %2").arg(as_b ? "B" : "A", session_->resultName(id)), 4000);
 }
 
 int MainWindow::paneIndex(Source s) const {
@@ -531,6 +550,7 @@ void MainWindow::refreshPanes() {
   in.heat_image = heatmap_->image();
   in.heat_map = heatmap_->map();
   in.heat_title = heatmap_->title();
+  in.heat_placeholder = heatmap_->placeholder();
   const auto label = [this](int id) {
     const Result* r = session_->result(id);
     if (!r) return QString();
@@ -600,9 +620,9 @@ void MainWindow::refreshAnalysis() {
     row.file = r.file;
     row.description = r.description;
     // A result still being made is listed without scores: its pixels are half noisy.
-    if (r.id != running) row.image = r.id == session_->a() ? session_->denoisedShared() : r.image;
-    // A blended to a strength below 1 has no like on frame t-1 (that frame keeps its results at strength 1).
-    if (in.frame && r.id != running && !(row.a && session_->strength() < 1.0f)) row.previous = session_->previousImage(&r);
+    const bool made_now = r.id == running || (r.atStrength() && r.base == running);
+    if (!made_now) row.image = r.image;
+    if (in.frame && !made_now) row.previous = session_->previousImage(&r);
     row.seconds = r.seconds;
     // A run that did not finish is half noisy input: listed with its state, never scored as if it were a result.
     row.state = r.state == RunState::Running ? tr("running") : r.state == RunState::Cancelled ? tr("cancelled")
@@ -664,6 +684,7 @@ void MainWindow::applyHeatmap() {
       canvas_->setPaneDisplay(i, heatmap_->image());
       canvas_->setPaneValues(i, heatmap_->map());
       canvas_->setPaneLabel(i, heatmap_->title());  // the map may be newer than the panes
+      canvas_->setPanePlaceholder(i, heatmap_->placeholder());
     }
   } else if (d == HeatmapPanel::Display::Overlay) {
     const int i = paneIndex(heatmap_->of() == HeatmapPanel::Of::Noisy ? Source::Noisy
@@ -671,6 +692,18 @@ void MainWindow::applyHeatmap() {
                                                                      : Source::Denoised);
     if (i >= 0 && !heatmap_->image().isNull()) canvas_->setOverlay(i, heatmap_->image());
   }
+}
+
+void MainWindow::say(const QString& text, int timeout_ms) {
+  QStatusBar* bar = statusBar();
+  int room = bar->width() - 24;  // the size grip and margins
+  for (const QWidget* w : {static_cast<QWidget*>(cursor_label_), static_cast<QWidget*>(size_label_),
+                           static_cast<QWidget*>(zoom_label_)})
+    if (w && w->isVisible()) room -= w->width() + 8;
+  const QString shown = bar->fontMetrics().elidedText(text, Qt::ElideMiddle, std::max(room, 120));
+  status_text_ = text;
+  bar->setToolTip(shown == text ? QString() : text);
+  bar->showMessage(shown, timeout_ms);
 }
 
 void MainWindow::updateStatus() {
@@ -728,19 +761,19 @@ QString MainWindow::listenForRenderers(quint16 port, size_t max_bytes) {
         session_->adoptLive(std::make_shared<const AovStack>(ipc::live_aov_stack(live_pending_.toStdString(), *live)),
                             live_pending_);
       } catch (const std::exception& e) {
-        statusBar()->showMessage(errorText(e), 10000);
+        say(errorText(e), 10000);
       }
     });
     connect(tev_, &TevServer::openRequested, this, [this](const QString& path, const QString& channels) {
       if (!channels.isEmpty())
-        statusBar()->showMessage(tr("Opening %1 (channel selector \"%2\" ignored: AOVs are recognised by name)")
+        say(tr("Opening %1 (channel selector \"%2\" ignored: AOVs are recognised by name)")
                                      .arg(path, channels), 10000);
       openFiles({path});
       load_from_renderer_ = true;  // a failure goes to the status bar: a client's requests never stack dialogs
     });
     connect(tev_, &TevServer::reloadRequested, this, [this] { session_->reload(); });
     connect(tev_, &TevServer::protocolError, this, [this](const QString& message) {
-      statusBar()->showMessage(message, 15000);
+      say(message, 15000);
     });
   }
   if (tev_->listening()) return {};
@@ -764,6 +797,7 @@ void MainWindow::keyPressEvent(QKeyEvent* e) {
 
 void MainWindow::closeEvent(QCloseEvent* e) {
   denoise_->cancel();
+  saveSettings();
   QMainWindow::closeEvent(e);
 }
 

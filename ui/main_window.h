@@ -57,6 +57,17 @@ class MainWindow : public QMainWindow {
   static std::optional<SideTab> sideTabFromName(const QString& name);
   void showSideTab(SideTab tab);
 
+  // Settings kept across restarts (ui/main_window_settings.cpp): the window, layout, colour view, theme, model and
+  // heatmap drawing. restoreSettings() sets them from the last session and has them saved when the window closes;
+  // a window that never calls it (tests, --screenshot) starts from the defaults and saves nothing.
+  void restoreSettings();
+  // The theme: the platform's palette, or Fusion in light or dark neutral greys (View > Theme, --theme).
+  enum class Theme { System, Light, Dark };
+  void setTheme(Theme theme);
+  Theme theme() const { return theme_; }
+  static QString themeName(Theme theme);  // "system", "light", "dark"
+  static std::optional<Theme> themeFromName(const QString& name);
+
   // Opening. Errors go to a message box, or to the mapping dialog when the channels could not be mapped.
   void openFiles(const QStringList& files, const LoadOptions& options = {});
   void openReferenceFile(const QString& file);
@@ -65,6 +76,9 @@ class MainWindow : public QMainWindow {
   // When false, load errors are not shown in dialogs (tests, screenshots); lastError() has them.
   void setInteractive(bool on) { interactive_ = on; }
   QString lastError() const { return last_error_; }
+  // The status bar's message in full, while it is shown (the bar shows it elided in the middle when it is wider
+  // than the bar, with the whole text as its tooltip); empty once it has timed out.
+  QString statusText() const { return status_text_; }
 
   // Renderers streaming over tev's protocol (ui/tev_server.h): listens on the loopback interface. Returns an
   // error message (the port is taken, ...) or an empty string. A streamed image is shown as the render, once
@@ -77,6 +91,8 @@ class MainWindow : public QMainWindow {
   double exposure() const;
   void setAov(AovRole aov);
   AovRole aov() const { return aov_; }
+  void setChannel(DisplayChannel channel);  // every pane's colour, or one channel alone
+  DisplayChannel channel() const;
   void setRoi(std::optional<Rect> roi);  // as if dragged
   void showPane(Source s);               // single-pane layout on that image
   // The two panes a wipe, flip or A | B layout shows; a source that is not shown falls back (B -> reference
@@ -121,6 +137,8 @@ class MainWindow : public QMainWindow {
 
  private:
   std::vector<std::pair<QString, QString>> shortcutRows() const;  // the help overlay's (keys, what they do)
+  std::vector<QWidget*> rememberedControls() const;
+  void saveSettings() const;
   void buildActions();
   void buildDocks();
   void buildToolBar();
@@ -138,13 +156,16 @@ class MainWindow : public QMainWindow {
   struct Rendered;  // panes drawn on a worker
   void showRendered(Rendered&& r);  // the newest panes, on the canvas
   void updateStatus();
+  void say(const QString& text, int timeout_ms = 0);  // a status bar message (see statusText)
   void updateTitle();
-  void addRecent(const QStringList& files);
+  void addRecent(const QStringList& files, const QString& reference);  // File > Open Recent (ui/recent_renders.h)
   void rebuildRecentMenu();
   void cycleAov(int step);
   void cyclePane(int step);
   void pickResult(int index, bool as_b);  // keys 1-9 / Ctrl+1-9
   void exportAllDialog();
+  static const QString kImageFilter;  // the Open dialogs' file types
+  QString startFolder() const;        // where they start: the render's folder, else the last render's
   struct SheetInputs;
   SheetInputs sheetInputs() const;
   bool looksLikeResult(const QString& file) const;
@@ -175,6 +196,7 @@ class MainWindow : public QMainWindow {
 
   QComboBox* layout_box_ = nullptr;
   QComboBox* aov_box_ = nullptr;
+  QComboBox* channel_box_ = nullptr;
   QDoubleSpinBox* exposure_box_ = nullptr;
   QDoubleSpinBox* offset_box_ = nullptr;
   QComboBox* display_box_ = nullptr;
@@ -192,6 +214,7 @@ class MainWindow : public QMainWindow {
   bool interactive_ = true;
   bool load_from_renderer_ = false;  // the load in flight was asked for over tev's protocol: no dialogs
   QString last_error_;
+  QString status_text_;
   bool mapping_retry_ = false;
 
   std::unique_ptr<LatestTask<Rendered>> render_;  // the panes, drawn on a worker
@@ -206,6 +229,9 @@ class MainWindow : public QMainWindow {
   QElapsedTimer play_clock_;
   bool playing_ = false;
   bool every_frame_ = false;      // denoising every frame in turn
+  bool remember_settings_ = false;
+  Theme theme_ = Theme::System;
+  std::vector<QAction*> theme_actions_;  // View > Theme
 };
 
 }  // namespace residue::ui

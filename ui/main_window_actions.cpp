@@ -10,7 +10,9 @@
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QFileDialog>
+#include <QFileInfo>
 #include <QFormLayout>
+#include <QLabel>
 #include <QMenuBar>
 #include <QMessageBox>
 #include <QStatusBar>
@@ -25,9 +27,24 @@
 #include "ui/metrics_panel.h"
 #include "ui/pane_renderer.h"
 #include "ui/pixel_inspector.h"
+#include "ui/recent_renders.h"
 #include "ui/tev_server.h"
 
 namespace residue::ui {
+
+// What the Open dialogs list: what OpenImageIO reads for a render, a reference or a result.
+const QString MainWindow::kImageFilter = QStringLiteral(
+    "Images (*.exr *.hdr *.pfm *.tif *.tiff *.png *.jpg *.jpeg);;OpenEXR (*.exr);;All files (*)");
+
+QString MainWindow::startFolder() const {
+  if (!session_->inputs().empty()) {
+    const QFileInfo first(QString::fromStdString(session_->inputs().front().string()));
+    return first.isDir() ? first.absoluteFilePath() : first.absolutePath();
+  }
+  const auto recent = RecentRenders().list();
+  if (!recent.empty()) return QFileInfo(recent.front().inputs.front()).absolutePath();
+  return {};
+}
 
 // The help overlay's rows come from the actions themselves: each action's `help` text, with its shortcuts (actions
 // that share a text share a row: "E  Shift+E"), then what the mouse does. A key is written once, where it is bound.
@@ -75,12 +92,20 @@ void MainWindow::buildDocks() {
 void MainWindow::buildToolBar() {
   auto* bar = addToolBar(tr("View"));
   bar->setObjectName("viewToolBar");
+  // Every control says what it is: a label before it (its buddy, for Alt+letter), not only a tooltip.
+  const auto labelled = [this, bar](const QString& text, QWidget* control) {
+    auto* label = new QLabel(text, this);
+    label->setBuddy(control);
+    label->setContentsMargins(8, 0, 4, 0);
+    bar->addWidget(label);
+    bar->addWidget(control);
+  };
   layout_box_ = new QComboBox(this);
   layout_box_->setObjectName("layoutBox");
   layout_box_->addItems({tr("All"), tr("Single"), tr("A | B"), tr("Wipe A | B")});
   layout_box_->setToolTip(tr("All panes in a grid (A), one pane (Tab cycles, Space flips A and B), A and B side "
                              "by side (S), or a wipe between them (W)"));
-  bar->addWidget(layout_box_);
+  labelled(tr("&Layout"), layout_box_);
   connect(layout_box_, &QComboBox::currentIndexChanged, this, [this](int i) {
     constexpr ImageCanvas::Layout layouts[] = {ImageCanvas::Layout::SideBySide, ImageCanvas::Layout::Single,
                                                ImageCanvas::Layout::Pair, ImageCanvas::Layout::Wipe};
@@ -90,9 +115,20 @@ void MainWindow::buildToolBar() {
   aov_box_->setObjectName("aovBox");
   for (AovRole v : kViewableAovs) aov_box_->addItem(display_name(v), static_cast<int>(v));
   aov_box_->setToolTip(tr("The AOV the noisy pane shows ([ and ])"));
-  bar->addWidget(aov_box_);
+  labelled(tr("&AOV"), aov_box_);
   connect(aov_box_, &QComboBox::currentIndexChanged, this,
           [this] { setAov(static_cast<AovRole>(aov_box_->currentData().toInt())); });
+
+  channel_box_ = new QComboBox(this);
+  channel_box_->setObjectName("channelBox");
+  for (DisplayChannel c : {DisplayChannel::RGB, DisplayChannel::R, DisplayChannel::G, DisplayChannel::B,
+                           DisplayChannel::Luminance}) {
+    const QString names[] = {tr("RGB"), tr("R"), tr("G"), tr("B"), tr("Luminance")};
+    channel_box_->addItem(names[static_cast<int>(c)], static_cast<int>(c));
+  }
+  channel_box_->setToolTip(tr("Every pane's colour, or one channel of it alone as grey (Rec. 709 luminance: Y)"));
+  labelled(tr("&Channel"), channel_box_);
+  connect(channel_box_, &QComboBox::currentIndexChanged, this, &MainWindow::refreshPanes);
 
   exposure_box_ = new QDoubleSpinBox(this);
   exposure_box_->setObjectName("exposureBox");
@@ -100,16 +136,15 @@ void MainWindow::buildToolBar() {
   exposure_box_->setSingleStep(0.5);
   exposure_box_->setDecimals(1);
   exposure_box_->setToolTip(tr("Exposure in stops (E / Shift+E)"));
-  exposure_box_->setPrefix(tr("EV "));
-  bar->addWidget(exposure_box_);
+  exposure_box_->setSuffix(tr(" EV"));
+  labelled(tr("E&xposure"), exposure_box_);
   offset_box_ = new QDoubleSpinBox(this);
   offset_box_->setObjectName("offsetBox");
   offset_box_->setRange(-10, 10);
   offset_box_->setSingleStep(0.01);
   offset_box_->setDecimals(3);
   offset_box_->setToolTip(tr("Offset added after the exposure"));
-  offset_box_->setPrefix(tr("+ "));
-  bar->addWidget(offset_box_);
+  labelled(tr("Off&set"), offset_box_);
   connect(exposure_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
   connect(offset_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
 
@@ -132,8 +167,8 @@ void MainWindow::buildToolBar() {
     refreshPanes();
   });
   connect(view_box_, &QComboBox::currentIndexChanged, this, &MainWindow::refreshPanes);
-  bar->addWidget(display_box_);
-  bar->addWidget(view_box_);
+  labelled(tr("Displa&y"), display_box_);
+  labelled(tr("Vie&w"), view_box_);
   display_box_->setToolTip(tr("OpenColorIO display and view (%1)").arg(QString::fromStdString(display_->source())));
   view_box_->setToolTip(display_box_->toolTip());
 }
@@ -160,21 +195,21 @@ void MainWindow::buildActions() {
   };
   auto* file = menuBar()->addMenu(tr("&File"));
   listed(action(file, tr("&Open..."), QKeySequence::Open, [this] {
-    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Open a render (AOV stack)"), QString(),
-                                                            tr("OpenEXR (*.exr);;All files (*)"));
+    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Open a render (AOV stack)"), startFolder(),
+                                                            kImageFilter);
     if (!files.isEmpty()) openFiles(files);
   }), tr("open a render / open its reference"));
   listed(action(file, tr("Open &Reference..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O), [this] {
-    const QString f = QFileDialog::getOpenFileName(this, tr("Open a reference image"), QString(),
-                                                   tr("OpenEXR (*.exr);;All files (*)"));
+    const QString f = QFileDialog::getOpenFileName(this, tr("Open a reference image"), startFolder(), kImageFilter);
     if (!f.isEmpty()) openReferenceFile(f);
   }), tr("open a render / open its reference"));
   listed(action(file, tr("&Add Result..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_A), [this] {
-    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), QString(),
-                                                            tr("Images (*.exr *.hdr *.pfm *.tif *.tiff *.png);;All files (*)"));
+    const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), startFolder(), kImageFilter);
     addResultFiles(files);
   }), tr("add a result to compare (or drop it)"));
   recent_menu_ = file->addMenu(tr("Open Re&cent"));
+  recent_menu_->setObjectName("recentMenu");
+  recent_menu_->setToolTipsVisible(true);  // the full paths and the reference
   listed(action(file, tr("Re&load"), QKeySequence(Qt::Key_F5), [this] { session_->reload(); }), tr("reload"));
   auto_reload_ = action(file, tr("Reload When the Files Change"), QKeySequence(), [this] { watchInputs(); });
   auto_reload_->setCheckable(true);
@@ -237,7 +272,7 @@ void MainWindow::buildActions() {
     canvas_->flipAB();
   }), tr("flip between A and B"));
   listed(action(view, tr("Difference: A against B"), QKeySequence(Qt::Key_D), [this] {
-    if (session_->b() < 0) return statusBar()->showMessage(tr("Pick a result B first (Ctrl+1-9)"), 5000);
+    if (session_->b() < 0) return say(tr("Pick a result B first (Ctrl+1-9)"), 5000);
     heatmap_->setOf(HeatmapPanel::Of::AgainstB);
     heatmap_->setDisplay(HeatmapPanel::Display::Pane);
     tabs_->setCurrentWidget(heatmap_);
@@ -246,8 +281,9 @@ void MainWindow::buildActions() {
   }), tr("difference: the map of A against B"));
   auto* next = listed(action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
   next->setShortcutContext(Qt::ApplicationShortcut);
-  auto* prev = listed(action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Backtab), [this] { cyclePane(-1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
-  prev->setShortcuts({QKeySequence(Qt::SHIFT | Qt::Key_Backtab), QKeySequence(Qt::Key_Backtab)});
+  auto* prev = listed(action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Tab), [this] { cyclePane(-1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
+  // Shift+Tab arrives as Backtab (with or without Shift, by platform); the menu shows the first, as a user types it.
+  prev->setShortcuts({QKeySequence(Qt::SHIFT | Qt::Key_Tab), QKeySequence(Qt::SHIFT | Qt::Key_Backtab), QKeySequence(Qt::Key_Backtab)});
   auto* pick = view->addMenu(tr("Wipe pair"));
   const Source pairable[] = {Source::Noisy, Source::Denoised, Source::Compare, Source::Reference};
   for (Source sa : pairable) {
@@ -267,16 +303,29 @@ void MainWindow::buildActions() {
     listed(action(results, tr("Result %1 as A").arg(i), QKeySequence(Qt::Key_0 + i), [this, i] { pickResult(i - 1, false); }), tr("result 1-9 (Results tab rows) as A"), tr("1 - 9"));
     listed(action(results, tr("Result %1 as B").arg(i), QKeySequence(Qt::CTRL | (Qt::Key_0 + i)), [this, i] { pickResult(i - 1, true); }), tr("result 1-9 as B"), tr("Ctrl+1 - 9"));
   }
+  auto* themes = view->addMenu(tr("&Theme"));
+  for (Theme t : {Theme::System, Theme::Light, Theme::Dark}) {
+    const QString names[] = {tr("As the System"), tr("Light"), tr("Dark")};
+    QAction* a = action(themes, names[static_cast<int>(t)], QKeySequence(), [this, t] { setTheme(t); });
+    a->setCheckable(true);
+    a->setChecked(t == theme_);
+    a->setData(static_cast<int>(t));
+    theme_actions_.push_back(a);
+  }
   listed(action(view, tr("Side Bar"), QKeySequence(Qt::Key_F9), [this] {
     if (auto* d = findChild<QDockWidget*>("sideDock")) d->setVisible(!d->isVisible());
   }), tr("hide / show the side bar"));
   view->addSeparator();
   listed(action(view, tr("Fit"), QKeySequence(Qt::Key_F), [this] { canvas_->fit(); }), tr("fit"));
   listed(action(view, tr("1:1"), QKeySequence(Qt::CTRL | Qt::Key_0), [this] { canvas_->oneToOne(); }), tr("1:1 (a pixel per screen pixel)"));
-  auto* zin = listed(action(view, tr("Zoom in"), QKeySequence(Qt::Key_Plus), [this] { canvas_->zoomBy(2.0); }),
+  listed(action(view, tr("1:1 Device Pixels"), QKeySequence(Qt::ALT | Qt::Key_0), [this] {
+    canvas_->setView(1.0 / canvas_->devicePixelRatioF(), canvas_->center());
+  }), tr("1:1 in device pixels (a scaled screen)"));
+  // Half a stop of zoom a key press, as the wheel's notches come in quarters: x2 jumped past what one wanted.
+  auto* zin = listed(action(view, tr("Zoom in"), QKeySequence(Qt::Key_Plus), [this] { canvas_->zoomBy(ImageCanvas::kZoomStep); }),
                      tr("zoom (the wheel: about the cursor)"), tr("+  -  wheel"));
   zin->setShortcuts({QKeySequence(Qt::Key_Plus), QKeySequence(Qt::Key_Equal), QKeySequence::ZoomIn});
-  auto* zout = listed(action(view, tr("Zoom out"), QKeySequence(Qt::Key_Minus), [this] { canvas_->zoomBy(0.5); }),
+  auto* zout = listed(action(view, tr("Zoom out"), QKeySequence(Qt::Key_Minus), [this] { canvas_->zoomBy(1.0 / ImageCanvas::kZoomStep); }),
                       tr("zoom (the wheel: about the cursor)"), tr("+  -  wheel"));
   zout->setShortcuts({QKeySequence(Qt::Key_Minus), QKeySequence::ZoomOut});
   view->addSeparator();
@@ -299,7 +348,8 @@ void MainWindow::buildActions() {
   auto* den = menuBar()->addMenu(tr("&Denoise"));
   listed(action(den, tr("&Denoise"), QKeySequence(Qt::CTRL | Qt::Key_D), [this] { denoise_->start(); }), tr("denoise with the selected model"));
   listed(action(den, tr("Denoise &Every Frame"), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_D), [this] { denoiseEveryFrame(); }), tr("denoise every frame"));
-  action(den, tr("&Cancel"), QKeySequence(), [this] { denoise_->cancel(); });
+  // Esc is the window's (keyPressEvent: it stops playing or closes the help first); the menu names it after a tab.
+  action(den, tr("&Cancel") + '\t' + tr("Esc"), QKeySequence(), [this] { denoise_->cancel(); });
 
   auto* frames = menuBar()->addMenu(tr("F&rames"));
   listed(action(frames, tr("&Previous Frame"), QKeySequence(Qt::Key_Left), [this] { stepFrame(-1); }), tr("previous / next frame"));

@@ -24,7 +24,7 @@ QString errorText(const std::exception& e) { return QString::fromStdString(e.wha
 }  // namespace
 
 QString MainWindow::askSavePath(const QString& title, const QString& filter, const QString& suffix) {
-  QFileDialog dlg(this, title, QString(), filter);
+  QFileDialog dlg(this, title, startFolder(), filter);
   dlg.setAcceptMode(QFileDialog::AcceptSave);
   dlg.setDefaultSuffix(suffix);
   // The dialog asks before replacing an existing file (ConfirmOverwrite is on by default).
@@ -34,14 +34,14 @@ QString MainWindow::askSavePath(const QString& title, const QString& filter, con
 
 void MainWindow::runExport(const QString& what, QFuture<QString> future) {
   ++exports_running_;
-  statusBar()->showMessage(tr("Writing %1...").arg(what));
+  say(tr("Writing %1...").arg(what));
   auto* w = new QFutureWatcher<QString>(this);
   connect(w, &QFutureWatcherBase::finished, this, [this, w, what] {
     --exports_running_;
     const QString error = w->result();
-    if (error.isEmpty()) statusBar()->showMessage(tr("Wrote the %1").arg(what), 8000);
+    if (error.isEmpty()) say(tr("Wrote the %1").arg(what), 8000);
     else if (interactive_) QMessageBox::warning(this, tr("Export failed"), error);
-    else statusBar()->showMessage(error, 15000);
+    else say(error, 15000);
     w->deleteLater();
   });
   w->setFuture(future);
@@ -52,15 +52,11 @@ QFuture<QString> MainWindow::exportDenoisedExr(const QString& path, bool overwri
   const auto denoised = session_->denoisedShared();
   const auto stack = session_->stack();
   const Result* shown = session_->result(session_->a());
-  Result result = shown ? *shown : Result{};
-  result.name = session_->resultName(session_->a());  // as shown: at its strength
-  result.description = session_->denoisedDescription();
-  const float strength = session_->strength();
+  const Result result = shown ? *shown : Result{};
   return QtConcurrent::run([=]() -> QString {
     if (!denoised || !stack) return tr("Nothing to export: no denoised image.");
     try {
-      write_result_exr(path.toStdString(), *denoised, *stack, result, overwrite, half, compression.toStdString(),
-                       strength);
+      write_result_exr(path.toStdString(), *denoised, *stack, result, overwrite, half, compression.toStdString());
       return {};
     } catch (const std::exception& e) {
       return errorText(e);
@@ -178,16 +174,9 @@ QFuture<QString> MainWindow::exportMetrics(const QString& path, bool overwrite) 
 QFuture<QString> MainWindow::exportAll(const QString& folder, bool overwrite) {
   ExportAllInputs in;
   in.stack = session_->stack();
-  for (const auto& r : session_->results()) {
-    if (r.id == denoise_->controller()->runningResult()) continue;
-    Result copy = r;
-    copy.name = session_->resultName(r.id);
-    if (r.id == session_->a()) {  // as shown: at its strength
-      copy.image = std::const_pointer_cast<Image>(session_->denoisedShared());
-      copy.description = session_->denoisedDescription();
-    }
-    in.results.push_back(std::move(copy));
-  }
+  const int running = denoise_->controller()->runningResult();
+  for (const auto& r : session_->results())
+    if (r.id != running && !(r.atStrength() && r.base == running)) in.results.push_back(r);
   in.reference = shared(Source::Reference);
   in.options = metrics_->options();
   in.make_map = heatmap_->mapMaker(metrics_->options());

@@ -39,7 +39,7 @@ void MainWindow::buildFrameBar() {
     const int i = seq ? seq->indexOf(session_->frame()) : -1;
     if (!ok || i < 0 || i + 1 >= static_cast<int>(seq->frames.size())) {
       every_frame_ = false;
-      statusBar()->showMessage(ok ? tr("Every frame denoised: %1").arg(session_->denoisedDescription())
+      say(ok ? tr("Every frame denoised: %1").arg(session_->denoisedDescription())
                                   : tr("Denoising every frame stopped at frame %1: %2").arg(session_->frame()).arg(message),
                                15000);
       updateFrameBar();
@@ -118,7 +118,7 @@ void MainWindow::denoiseEveryFrame() {
   const auto& seq = session_->sequence();
   if (!seq) {
     last_error_ = tr("Open a frame of a sequence first (a file named like shot.0001.exr, with its other frames beside it).");
-    statusBar()->showMessage(last_error_, 8000);
+    say(last_error_, 8000);
     return;
   }
   if (denoise_->running()) return;
@@ -138,7 +138,7 @@ void MainWindow::computeTemporalMap() {
     const Result* r = session_->result(id);
     if (!r || !r->done()) return;
     subject = session_->resultName(id);
-    image = r->image;  // at strength 1, as frame t-1 keeps it
+    image = r->image;
     previous = session_->previousImage(r);
   };
   switch (heatmap_->of()) {

@@ -132,7 +132,7 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step) {
           break;
         case Source::Heatmap:
           pane.label = in.heat_title;
-          pane.placeholder = QStringLiteral("%1\n(needs a denoised image)").arg(in.heat_title);
+          pane.placeholder = in.heat_placeholder;
           pane.display = in.heat_image;
           pane.display_scale = 1;
           pane.values = in.heat_map;

@@ -25,6 +25,7 @@ struct PaneInputs {
   QImage heat_image;
   std::shared_ptr<const Image> heat_map;
   QString heat_title;
+  QString heat_placeholder;  // said while there is no map
   QString a_name, b_name;  // the results' names, for the pane labels
   std::shared_ptr<const DisplayTransform> display;
   DisplaySettings settings;

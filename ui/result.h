@@ -1,6 +1,8 @@
 // Result: one denoised image the viewer keeps, so that any two can be compared. A result is either a run of a
-// model in the viewer (its settings are its key: asking for them again shows it without a new run) or an image
-// the user added from a file (another denoiser's output, a colleague's render). The Session owns the list.
+// model in the viewer (its settings are its key: asking for them again shows it without a new run), an image
+// the user added from a file (another denoiser's output, a colleague's render), or another result at a strength
+// below 1 (core/denoise/strength.h: blended towards the noisy colour, "oidn fp32 @ 50 %"), kept beside it. The
+// Session owns the list.
 #pragma once
 
 #include <QString>
@@ -29,7 +31,10 @@ struct Result {
   RunState state = RunState::Done;
   QString stateText;             // said after the name unless Done: "running", "cancelled after 3 of 12 tiles"
   io::Provenance provenance;     // runs: what ran (method, architecture, backend, post-steps, time); files: none
+  int base = 0;                  // a result at a strength: the id of the result it blends (0: none)
+  float strength = 1.0f;         // ... and its strength; 1 for every other result
   bool fromFile() const { return key.isEmpty(); }
+  bool atStrength() const { return base != 0; }
   bool done() const { return state == RunState::Done; }
 };
 

@@ -206,6 +206,10 @@ void Session::enterFrame(const LoadResult& r) {
   const Result* old_a = result(a_);
   const Result* old_b = result(b_);
   const QString want_a = old_a ? series(*old_a) : QString(), want_b = old_b ? series(*old_b) : QString();
+  // A at a strength: on a frame that has its full result but not at that strength, it is made there.
+  const Result* old_a_base = old_a && old_a->atStrength() ? result(old_a->base) : nullptr;
+  const QString want_a_base = old_a_base ? series(*old_a_base) : QString();
+  const float a_strength = old_a ? old_a->strength : 1.0f;
   std::vector<std::pair<QString, QString>> files;  // files added on the frame shown, with their series
   for (const Result& x : results_)
     if (x.fromFile()) files.emplace_back(x.file, series(x));
@@ -228,10 +232,14 @@ void Session::enterFrame(const LoadResult& r) {
     if (!want_a.isEmpty() && series(x) == want_a) a_ = x.id;
     if (!want_b.isEmpty() && series(x) == want_b && x.id != a_) b_ = x.id;
   }
+  if (!want_a_base.isEmpty() && (a_ < 0 || series(*result(a_)) != want_a))
+    for (const Result& x : results_)
+      if (series(x) == want_a_base) {
+        a_ = deriveAtStrength(x.id, a_strength);
+        break;
+      }
   follow_a_ = want_a;
   follow_b_ = want_b;
-  blended_.reset();
-  reblend();
   // A numbered file added on the frame before brings its own file of this frame (at the same frame offset).
   for (const auto& [f, name] : files) {
     const auto p = io::FramePattern::of_numbered_file(f.toStdString());
@@ -297,7 +305,6 @@ void Session::clearResults() {
   follow_a_.clear();
   follow_b_.clear();
   a_ = b_ = -1;
-  blended_.reset();
   ++results_epoch_;
 }
 
@@ -315,13 +322,17 @@ const Result* Session::findRun(const QString& key) const {
   return nullptr;
 }
 
+QString Session::uniqueName(const QString& name, int id) const {
+  // Names are unique, so that a row, a pane label and an exported file name each say which result they are.
+  QString unique = name;
+  for (int n = 2; std::any_of(results_.begin(), results_.end(), [&](const Result& o) { return o.id != id && o.name == unique; }); ++n)
+    unique = QString("%1 (%2)").arg(name).arg(n);
+  return unique;
+}
+
 int Session::addResult(Result r) {
   r.id = next_id_++;
-  // Names are unique, so that a row, a pane label and an exported file name each say which result they are.
-  QString name = r.name;
-  for (int n = 2; std::any_of(results_.begin(), results_.end(), [&](const Result& o) { return o.name == name; }); ++n)
-    name = QString("%1 (%2)").arg(r.name).arg(n);
-  r.name = name;
+  r.name = uniqueName(r.name, r.id);
   results_.push_back(std::move(r));
   emit resultsChanged();
   return results_.back().id;
@@ -335,10 +346,8 @@ void Session::setResultTile(int id, const Rect& rect, const Image& pixels) {
   for (int64_t y = 0; y < rect.height; ++y)
     for (int64_t x = 0; x < rect.width; ++x)
       for (int c = 0; c < 3; ++c) r->image->at(rect.x + x, rect.y + y, c) = pixels.at(x, y, c);
-  if (id == a_) {
-    reblend(rect);
-    emit denoisedTileChanged(rect);
-  }
+  if (id == a_) emit denoisedTileChanged(rect);
+  reblendFrom(id, rect);
 }
 
 void Session::updateResult(int id, const std::function<void(Result&)>& edit) {
@@ -348,15 +357,24 @@ void Session::updateResult(int id, const std::function<void(Result&)>& edit) {
   edit(*r);
   emit resultsChanged();
   if (r->image.get() != before) {
-    if (id == a_) {
-      reblend();
-      emit denoisedChanged();
-    }
+    if (id == a_) emit denoisedChanged();
     if (id == b_) emit compareChanged();
   }
+  reblendFrom(id, std::nullopt, r->image.get() != before);  // its blends: their state, and their pixels if need be
 }
 
 void Session::removeResult(int id) {
+  if (!find(id)) return;
+  // Its blends at a strength go with it: they are it, re-blended.
+  std::vector<int> derived;
+  for (const Result& r : results_)
+    if (r.base == id) derived.push_back(r.id);
+  for (int d : derived) removeOne(d);
+  removeOne(id);
+  emit resultsChanged();
+}
+
+void Session::removeOne(int id) {
   const auto it = std::find_if(results_.begin(), results_.end(), [&](const Result& r) { return r.id == id; });
   if (it == results_.end()) return;
   results_.erase(it);
@@ -370,10 +388,8 @@ void Session::removeResult(int id) {
       b_ = -1;
       emit compareChanged();
     }
-    reblend();
     emit denoisedChanged();
   }
-  emit resultsChanged();
 }
 
 void Session::setA(int id) {
@@ -383,7 +399,6 @@ void Session::setA(int id) {
     emit compareChanged();
   }
   a_ = id;
-  reblend();
   emit denoisedChanged();
   emit resultsChanged();
 }
@@ -392,7 +407,6 @@ void Session::setB(int id) {
   if (id >= 0 && !find(id)) return;
   if (id == a_ && id >= 0) {
     a_ = b_;
-    reblend();
     emit denoisedChanged();
   }
   b_ = id;
@@ -402,8 +416,7 @@ void Session::setB(int id) {
 
 std::shared_ptr<const Image> Session::denoisedShared() const {
   const Result* r = result(a_);
-  if (!r) return nullptr;
-  return strength_ < 1.0f && blended_ ? blended_ : r->image;
+  return r ? r->image : nullptr;
 }
 
 std::shared_ptr<const Image> Session::compareShared() const {
@@ -458,44 +471,93 @@ void Session::addResultFile(const std::filesystem::path& file) {
 
 void Session::setStrength(float strength) {
   check_strength(strength);
-  if (strength == strength_) return;
-  strength_ = strength;
-  reblend();
-  emit denoisedChanged();
+  const Result* a = result(a_);
+  if (!a || a->strength == strength) return;
+  const int base = a->atStrength() ? a->base : a->id;
+  if (!result(base) || !result(base)->image) return;
+  if (strength >= 1.0f) {  // the full result itself: the blend goes
+    const int blend = a_;
+    setA(base);
+    removeResult(blend);
+    return;
+  }
+  if (a->atStrength()) {  // moving the slider re-blends the result at a strength shown, in place
+    const Result* b = result(base);
+    const QString name = uniqueName(b->name + QString(" @ %1 %").arg(static_cast<double>(strength) * 100.0, 0, 'f', 0), a_);
+    updateResult(a_, [&](Result& r) {
+      r.strength = strength;
+      r.name = name;
+      r.key = b->key + QString("@strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
+      r.description = b->description + QString(", strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
+    });
+    reblendFrom(base);
+    return;
+  }
+  // From a full result: a blend at this strength already kept is shown rather than made twice.
+  for (const Result& r : results_)
+    if (r.base == base && r.strength == strength) return setA(r.id);
+  setA(deriveAtStrength(base, strength));
+}
+
+int Session::deriveAtStrength(int base, float strength) {
+  const Result* b = result(base);
+  Result r;
+  r.base = base;
+  r.strength = strength;
+  r.name = b->name + QString(" @ %1 %").arg(static_cast<double>(strength) * 100.0, 0, 'f', 0);
+  // A key of its own (never a run's: asking for the run's settings shows the full result), and for sequences the
+  // series of "this run at this strength".
+  r.key = (b->fromFile() ? "file:" + b->file : b->key) + QString("@strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
+  r.description = b->description + QString(", strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
+  r.file = b->file;
+  r.provenance = b->provenance;
+  r.flop = b->flop;
+  const int id = addResult(std::move(r));
+  reblendFrom(base);
+  return id;
+}
+
+float Session::strength() const {
+  const Result* a = result(a_);
+  return a ? a->strength : 1.0f;
 }
 
 QString Session::denoisedDescription() const {
   const Result* r = result(a_);
-  if (!r) return {};
-  if (strength_ >= 1.0f) return r->description;
-  return r->description + QString(", strength %1").arg(static_cast<double>(strength_), 0, 'f', 2);
+  return r ? r->description : QString();
 }
 
 QString Session::resultName(int id) const {
   const Result* r = result(id);
-  if (!r) return {};
-  if (id != a_ || strength_ >= 1.0f) return r->name;
-  return r->name + QString(" @ %1 %").arg(static_cast<double>(strength_) * 100.0, 0, 'f', 0);
+  return r ? r->name : QString();
 }
 
-// Re-makes the shown image from the result at strength 1: all of it, or one rectangle (a tile just written).
-void Session::reblend(const std::optional<Rect>& rect) {
-  const Result* a = result(a_);
-  if (strength_ >= 1.0f || !a || !a->image || !stack_) {
-    blended_.reset();
-    return;
-  }
-  const Image& result = *a->image;
+void Session::reblendFrom(int base, const std::optional<Rect>& rect, bool pixels) {
+  const Result* b = result(base);
+  if (!b || !b->image || !stack_) return;
+  const Image& full = *b->image;
   const Image& noisy = stack_->color.image;
-  if (!rect || !blended_) {
-    blended_ = std::make_shared<Image>(with_strength(noisy, result, strength_));
-    return;
+  for (Result& r : results_) {
+    if (r.base != base) continue;
+    r.complete = b->complete;
+    r.rects = b->rects;
+    r.state = b->state;
+    r.stateText = b->stateText;
+    r.seconds = b->seconds;
+    if (!pixels && r.image) continue;
+    if (!rect || !r.image) {
+      r.image = std::make_shared<Image>(with_strength(noisy, full, r.strength));
+      if (r.id == a_) emit denoisedChanged();
+      if (r.id == b_) emit compareChanged();
+      continue;
+    }
+    if (r.image.use_count() > 1) r.image = std::make_shared<Image>(*r.image);  // copy on write, as above
+    for (int64_t y = rect->y; y < rect->y + rect->height; ++y)
+      for (int64_t x = rect->x; x < rect->x + rect->width; ++x)
+        for (int c = 0; c < 3; ++c) r.image->at(x, y, c) = full.at(x, y, c);
+    apply_strength(noisy, 0, *r.image, 0, *rect, rect->y, rect->height, r.strength);
+    if (r.id == a_) emit denoisedTileChanged(*rect);
   }
-  if (blended_.use_count() > 1) blended_ = std::make_shared<Image>(*blended_);  // copy on write, as above
-  for (int64_t y = rect->y; y < rect->y + rect->height; ++y)
-    for (int64_t x = rect->x; x < rect->x + rect->width; ++x)
-      for (int c = 0; c < 3; ++c) blended_->at(x, y, c) = result.at(x, y, c);
-  apply_strength(noisy, 0, *blended_, 0, *rect, rect->y, rect->height, strength_);
 }
 
 }  // namespace residue::ui

@@ -97,18 +97,19 @@ class Session : public QObject {
   void setA(int id);  // -1: none
   void setB(int id);
 
-  // Result A as shown, at the current strength; null when there is none. Tiles of a running denoise of A are
-  // written into it.
+  // Result A's image; null when there is none. Tiles of a running denoise of A are written into it.
   const Image* denoised() const { return denoisedShared().get(); }
   // A snapshot for a worker thread: tiles that arrive later go to a copy, never into this one.
   std::shared_ptr<const Image> denoisedShared() const;
-  std::shared_ptr<const Image> compareShared() const;  // result B (at strength 1); null when none
-  // Denoising strength (core/denoise/strength.h) of A: 1 shows the result, 0 the noisy colour, between a blend,
-  // re-made from the kept result at once (no network run). Emits denoisedChanged().
+  std::shared_ptr<const Image> compareShared() const;  // result B; null when none
+  // Denoising strength (core/denoise/strength.h) of A: 1 the result, 0 the noisy colour, between a blend made
+  // at once from the result (no network run). Below 1 it is a result of its own beside the full one
+  // ("oidn fp32 @ 50 %"), which becomes A: made when A is a full result, re-blended in place when A is already
+  // one at a strength; at 1 that one goes and its full result is A again.
   void setStrength(float strength);
-  float strength() const { return strength_; }
-  QString denoisedDescription() const;  // A's description, with the strength when below 1
-  QString resultName(int id) const;     // A's name with its strength, others' names; empty for none
+  float strength() const;               // A's: 1 unless A is a result at a strength
+  QString denoisedDescription() const;  // A's description (with its strength)
+  QString resultName(int id) const;     // empty for none
 
  signals:
   void loadStarted(QString what);
@@ -133,7 +134,12 @@ class Session : public QObject {
   std::vector<std::filesystem::path> inputs_;
   QString live_name_;
   LoadOptions options_;
-  void reblend(const std::optional<Rect>& rect = std::nullopt);
+  // The results at a strength made from result `base`: blended again from it, all of them or one rectangle (a
+  // tile just written), with its state; emits what changed for A and B.
+  void reblendFrom(int base, const std::optional<Rect>& rect = std::nullopt, bool pixels = true);
+  int deriveAtStrength(int base, float strength);  // a new result `base` at `strength`; its id
+  void removeOne(int id);
+  QString uniqueName(const QString& name, int id) const;  // `name`, or "name (2)" when another result has it
 
   Result* find(int id);
   void clearResults();
@@ -152,8 +158,6 @@ class Session : public QObject {
   int next_id_ = 1;
   int a_ = -1, b_ = -1;
   int results_epoch_ = 0;  // a file added for an earlier render is dropped when it arrives
-  std::shared_ptr<Image> blended_;   // A at strength_, when below 1
-  float strength_ = 1.0f;
   bool loading_ = false;
   int generation_ = 0;
   QFutureWatcher<std::shared_ptr<LoadResult>>* watcher_ = nullptr;

@@ -6,7 +6,9 @@
 #include <QFutureWatcher>
 #include <QIcon>
 #include <QScreen>
+#include <QSettings>
 #include <QTabWidget>
+#include <QTemporaryDir>
 #include <QRegularExpression>
 #include <QTimer>
 #include <cmath>
@@ -99,6 +101,8 @@ int main(int argc, char** argv) {
   const QCommandLineOption roi("roi", "Region of interest x,y,w,h.", "rect");
   const QCommandLineOption zoom("zoom", "Zoom (screen pixels per image pixel) instead of fit.", "factor");
   const QCommandLineOption size("size", "Window size WxH.", "size");
+  const QCommandLineOption channel("channel", "Show one channel alone, as grey: r, g, b or luminance (rgb: all).", "channel");
+  const QCommandLineOption theme("theme", "system, light or dark (View > Theme; remembered).", "theme");
   const QCommandLineOption timing("timing", "Print when the render is loaded, first shown and fully analysed.");
   const QCommandLineOption cancel_after("cancel-after", "Cancel each denoise S seconds after it starts and print how "
                                         "long it took to stop (the viewer's Cancel, measured).", "seconds");
@@ -112,7 +116,7 @@ int main(int argc, char** argv) {
                                       "MiB (default: a quarter of this machine's RAM).", "MiB");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
                         &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
-                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame})
+                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame, &theme, &channel})
     cli.addOption(*o);
   cli.process(app);
 
@@ -141,6 +145,8 @@ int main(int argc, char** argv) {
     checked.errors << QStringLiteral("--every-frame needs --denoise: it says how --denoise runs");
   checked.one_of(cli, precision, {"fp32", "bf16"});
   checked.one_of(cli, tab, residue::ui::MainWindow::sideTabNames());
+  checked.one_of(cli, theme, {"system", "light", "dark"});
+  checked.one_of(cli, channel, {"rgb", "r", "g", "b", "luminance"});
   checked.one_of(cli, aov, {"color", "albedo", "normal", "depth", "variance", "motion"});
   if (cli.value(when).startsWith("progress:") && !cli.isSet(denoise))
     checked.errors << QStringLiteral("--screenshot-when %1 needs --denoise: no denoise would get there").arg(cli.value(when));
@@ -149,7 +155,16 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  // RESIDUE_SETTINGS_ISOLATED (the tests): settings in a folder of their own that goes with the process, so that
+  // no run reads what another saved.
+  QTemporaryDir isolated_settings;
+  if (qEnvironmentVariableIsSet("RESIDUE_SETTINGS_ISOLATED"))
+    QSettings::setPath(QSettings::NativeFormat, QSettings::UserScope, isolated_settings.path());
   MainWindow window;
+  // A screenshot shows the defaults, whatever the last session left.
+  if (!cli.isSet(screenshot)) window.restoreSettings();
+  if (cli.isSet(theme)) window.setTheme(*MainWindow::themeFromName(cli.value(theme)));  // checked above
+  if (cli.isSet(channel)) window.setChannel(*residue::ui::display_channel_from_string(cli.value(channel).toStdString()));
   if (const auto icon = residue::find_resource("icons/hicolor/256x256/apps/residue.png"))
     QApplication::setWindowIcon(QIcon::fromTheme("residue", QIcon(QString::fromStdString(icon->string()))));
   if (cli.isSet(size)) {

@@ -4,6 +4,7 @@
 #include <QTemporaryDir>
 #include <QtTest>
 
+#include <array>
 #include <cmath>
 #include <ctime>
 #include <fstream>
@@ -229,6 +230,41 @@ class TestDisplayTransform : public QObject {
         check_render(*shipped_, img, 2, 2, rect, s, Encoding::SceneLinear);
         check_render(*shipped_, img, 0, 4, rect, s, Encoding::Data);
       }
+  }
+
+  // One channel alone is that channel as grey through the same view: the image with it in all three channels;
+  // luminance is Rec. 709's Y (issue 53, item 16).
+  void aChannelAloneIsItsGrey() {
+    const Image img = test_image();
+    for (const char* view : {"Filmic (Hable)", "Standard"}) {
+      for (auto [channel, weights] : std::vector<std::pair<residue::ui::DisplayChannel, std::array<double, 3>>>{
+               {residue::ui::DisplayChannel::R, {1, 0, 0}},
+               {residue::ui::DisplayChannel::G, {0, 1, 0}},
+               {residue::ui::DisplayChannel::B, {0, 0, 1}},
+               {residue::ui::DisplayChannel::Luminance, {0.2126, 0.7152, 0.0722}}}) {
+        Image grey(img.width(), img.height(), 3);
+        for (int64_t y = 0; y < img.height(); ++y)
+          for (int64_t x = 0; x < img.width(); ++x) {
+            // Exposure first: it scales every channel alike, so the weights may come before it.
+            const double v = weights[0] * img.at(x, y, 0) + weights[1] * img.at(x, y, 1) + weights[2] * img.at(x, y, 2);
+            for (int c = 0; c < 3; ++c) grey.at(x, y, c) = static_cast<float>(v);
+          }
+        DisplaySettings alone{0.7, 0.0, "sRGB", view, channel};
+        const DisplaySettings all{0.7, 0.0, "sRGB", view};
+        const QImage a = shipped_->render(img, 0, 3, img.bounds(), alone, Encoding::SceneLinear);
+        const QImage b = shipped_->render(grey, 0, 3, grey.bounds(), all, Encoding::SceneLinear);
+        for (int y = 0; y < a.height(); ++y)
+          for (int x = 0; x < a.width(); ++x) {
+            const QRgb p = a.pixel(x, y), q = b.pixel(x, y);
+            if (q == 0xffff00ffu) continue;  // a non-finite pixel of the grey image (a NaN spreads in the sum)
+            QVERIFY2(std::abs(qRed(p) - qRed(q)) <= 1 && qRed(p) == qGreen(p) && qGreen(p) == qBlue(p),
+                     qPrintable(QString("%1 at %2,%3: %4 vs %5").arg(residue::ui::to_string(channel)).arg(x).arg(y)
+                                    .arg(qRed(p)).arg(qRed(q))));
+          }
+        QCOMPARE(residue::ui::display_channel_from_string(residue::ui::to_string(channel)), std::optional(channel));
+      }
+    }
+    QVERIFY(!residue::ui::display_channel_from_string("alpha"));
   }
 
   void renderFlagsNonFiniteAndDrawsGrey() {

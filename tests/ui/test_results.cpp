@@ -28,6 +28,7 @@
 #include "ui/pixel_inspector.h"
 #include "ui/heatmap_panel.h"
 #include "ui/histogram.h"
+#include "ui/help_overlay.h"
 #include "ui/main_window.h"
 #include "viewer_test_support.h"
 #include "ui/metrics_panel.h"
@@ -459,6 +460,10 @@ class TestResults : public QObject {
       for (int x = 0; x < shot.width(); x += 2)
         if (const QColor c = shot.pixelColor(x, y); c.red() > 200 && c.green() > 170 && c.blue() < 140) lowest = y;
     QVERIFY2(lowest > 0 && lowest < shot.height() - 4, qPrintable(QString::number(lowest)));
+    // ... and every description whole, at 1280x720 with the side bar shown (issue 53, item 11).
+    const auto plan = static_cast<HelpOverlay*>(help)->plan();
+    QVERIFY2(!plan.shortened, qPrintable(QString("%1 columns of %2 px, %3 pt").arg(plan.columns).arg(plan.column_width)
+                                             .arg(plan.font.pointSizeF())));
     QTest::keyClick(&w, Qt::Key_Escape);
     QVERIFY(!help->isVisible());
     // The side bar can be closed (F9) for the whole window.

@@ -220,7 +220,7 @@ class TevStreamTest : public QObject {
     QVERIFY(client.waitForConnected(5000));
     for (int i = 0; i < 20; ++i)
       QVERIFY(send(client, TevPacket(7).u8(1).str("/no/such/render" + std::to_string(i) + ".exr").str("").done()));
-    QVERIFY(QTest::qWaitFor([&] { return w.statusBar()->currentMessage().contains("render19.exr"); }, 10000));
+    QVERIFY(QTest::qWaitFor([&] { return w.statusText().contains("render19.exr"); }, 10000));
     QSignalSpy errors(w.tevServer(), &TevServer::protocolError);
     TevPacket huge(4);
     huge.u8(1).str("huge").i32(16384).i32(16384).i32(4).str("R").str("G").str("B").str("A");

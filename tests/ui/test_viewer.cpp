@@ -2,16 +2,22 @@
 // check what was mapped, set a ROI and compare the metrics shown with core's, denoise through the UI action,
 // cancel one, export and read the files back.
 #include <QAction>
+#include <QApplication>
 #include <QComboBox>
+#include <QDir>
 #include <QDoubleSpinBox>
+#include <QFile>
+#include <QFileInfo>
 #include <QLabel>
 #include <QLineEdit>
 #include <QMenu>
+#include <QPalette>
 #include <QPushButton>
-#include <QSlider>
-#include <QStatusBar>
+#include <QSettings>
 #include <QSignalSpy>
+#include <QSlider>
 #include <QStandardPaths>
+#include <QStatusBar>
 #include <QTableWidget>
 #include <QTemporaryDir>
 #include <QtTest>
@@ -206,29 +212,54 @@ class TestViewer : public QObject {
     QVERIFY(!w.denoisePanel()->running());
   }
 
-  void strengthReblendsWithoutARun() {
+  // The Strength slider makes a result of its own beside the full one, at once and without a run (issue 53,
+  // item 7): moving it re-blends that one, 100 % takes it away, and the full result is never touched.
+  void strengthMakesAResultBesideTheFullOne() {
     MainWindow w;
     w.setInteractive(false);
     w.show();
     openExample(w);
     runModel(w, "tiny");
     const auto stack = w.session()->stack();
+    const int full_id = w.session()->a();
+    const QString full_name = w.session()->resultName(full_id);
     const Image full = *w.session()->denoised();
     auto* slider = w.denoisePanel()->findChild<QSlider*>("strength");
     QVERIFY(slider);
     slider->setValue(50);
     QVERIFY(!w.denoisePanel()->running());
+    QCOMPARE(w.session()->results().size(), size_t(2));
+    const int half_id = w.session()->a();
+    QVERIFY(half_id != full_id);
+    QCOMPARE(w.session()->resultName(half_id), full_name + " @ 50 %");
     QCOMPARE(maxAbsDiff(*w.session()->denoised(), with_strength(stack->color.image, full, 0.5f), 3), 0.0);
+    QCOMPARE(maxAbsDiff(*w.session()->result(full_id)->image, full, 3), 0.0);
     QVERIFY(w.session()->denoisedDescription().endsWith("strength 0.50"));
-    // The metrics follow the shown image.
+    // Each is scored as what it is.
     QVERIFY(settle(w, [&] {
       const auto& rows = w.metricsPanel()->report().rows;
-      return rows.size() == 2 && rows[1].scores.relmse == metrics::compare(*w.session()->denoised(), stack->reference->image).relmse;
+      return rows.size() == 3 &&
+             rows[1].scores.relmse == metrics::compare(full, stack->reference->image).relmse &&
+             rows[2].scores.relmse == metrics::compare(*w.session()->denoised(), stack->reference->image).relmse;
     }));
+    // Moving on re-blends the same one.
     slider->setValue(0);
+    QCOMPARE(w.session()->a(), half_id);
+    QCOMPARE(w.session()->results().size(), size_t(2));
+    QCOMPARE(w.session()->resultName(half_id), full_name + " @ 0 %");
     QCOMPARE(maxAbsDiff(*w.session()->denoised(), stack->color.image, 3), 0.0);
-    // Back to 100 %: the kept result, untouched by the blends.
+    // Picking the full result shows it at 100 %; the slider then makes a second blend beside the first.
+    w.session()->setA(full_id);
+    QCOMPARE(slider->value(), 100);
+    slider->setValue(75);
+    QCOMPARE(w.session()->results().size(), size_t(3));
+    QCOMPARE(w.session()->resultName(w.session()->a()), full_name + " @ 75 %");
+    w.session()->setA(half_id);
+    QCOMPARE(slider->value(), 0);  // the slider shows A's strength
+    // Back to 100 %: that blend goes, and the full result is A again, untouched.
     slider->setValue(100);
+    QCOMPARE(w.session()->results().size(), size_t(2));
+    QCOMPARE(w.session()->a(), full_id);
     QCOMPARE(maxAbsDiff(*w.session()->denoised(), full, 3), 0.0);
     // An export at 25 % writes what is shown and says so.
     slider->setValue(25);
@@ -241,6 +272,9 @@ class TestViewer : public QObject {
     auto in = OIIO::ImageInput::open(path.toStdString());
     QVERIFY(in);
     QCOMPARE(in->spec().get_float_attribute("residue:strength", -1.0f), 0.25f);
+    // Removing the full result takes its blends with it.
+    w.session()->removeResult(full_id);
+    QVERIFY(w.session()->results().empty());
   }
 
   // Issue 53, item 2: with a region, a result's name and its region scores are visible together, at 1280x720
@@ -502,6 +536,169 @@ class TestViewer : public QObject {
     QVERIFY2(status->text().isEmpty(), qPrintable(status->text()));
   }
 
+  // Open Recent lists a render once however its path was written (relative or absolute, a folder with or without
+  // "/"), tells alike files apart by their folder, and opens a render again with the reference it was compared
+  // with (issue 53, item 13).
+  void openRecentListsEachRenderOnceWithItsFolderAndReference() {
+    QSettings().clear();
+    QTemporaryDir dir;
+    for (const char* folder : {"kitchen", "hall"}) {
+      QVERIFY(QDir(dir.path()).mkpath(folder));
+      QVERIFY(QFile::copy(QString::fromStdString((kExample / "noisy.exr").string()), dir.filePath(QString(folder) + "/noisy.exr")));
+    }
+    const QString kitchen = dir.filePath("kitchen/noisy.exr"), hall = dir.filePath("hall/noisy.exr");
+    const QString reference = QString::fromStdString((kExample / "reference.exr").string());
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    const auto open = [&](const QString& file, const LoadOptions& o = {}) {
+      w.openFiles({file}, o);
+      QVERIFY(settle(w, [&] { return !w.session()->loading(); }));
+    };
+    open(QDir::current().relativeFilePath(kitchen));
+    open(hall);
+    open(dir.filePath("kitchen") + "/");
+    open(dir.filePath("kitchen"));
+    open(kitchen);
+    auto* menu = w.findChild<QMenu*>("recentMenu");
+    QVERIFY(menu);
+    QStringList labels;
+    for (const QAction* a : menu->actions()) labels << a->text();
+    QCOMPARE(labels.size(), 3);  // kitchen/noisy.exr, the kitchen folder, hall/noisy.exr
+    QVERIFY2(labels[0].startsWith("noisy.exr") && labels[0].contains("kitchen"), qPrintable(labels.join(" | ")));
+    QVERIFY2(labels[1].startsWith("kitchen/"), qPrintable(labels.join(" | ")));
+    QVERIFY2(labels[2].startsWith("noisy.exr") && labels[2].contains("hall"), qPrintable(labels.join(" | ")));
+
+    // A reference opened after the render is remembered with it.
+    QVERIFY(!w.session()->reference());
+    w.openReferenceFile(reference);
+    QVERIFY(settle(w, [&] { return w.session()->reference() != nullptr; }));
+    open(hall);
+    QVERIFY(!w.session()->reference());
+    QAction* again = nullptr;
+    for (QAction* a : menu->actions())
+      if (a->text().contains("kitchen") && a->text().startsWith("noisy.exr")) again = a;
+    QVERIFY(again && again->toolTip().contains("reference.exr"));
+    again->trigger();
+    QVERIFY(settle(w, [&] { return !w.session()->loading() && w.session()->reference(); }));
+    QCOMPARE(QFileInfo(QString::fromStdString(w.session()->inputs().front().string())).canonicalFilePath(),
+             QFileInfo(kitchen).canonicalFilePath());
+  }
+
+  // What the viewer remembers across restarts (issue 53, item 15), and that a window which never restored its
+  // settings (a test, a screenshot) leaves them alone.
+  void settingsAreKeptAcrossRestarts() {
+    QSettings().clear();
+    {
+      MainWindow w;
+      w.restoreSettings();
+      w.show();
+      w.setLayout(ImageCanvas::Layout::Wipe);
+      w.setTheme(MainWindow::Theme::Dark);
+      w.heatmapPanel()->setColormap(Colormap::Magma);
+      w.heatmapPanel()->setLog(true);
+      QVERIFY(w.denoisePanel()->selectModel("tiny"));
+      w.resize(1000, 650);
+      w.close();
+    }
+    {
+      MainWindow w;
+      w.restoreSettings();
+      QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Wipe);
+      QCOMPARE(w.theme(), MainWindow::Theme::Dark);
+      QVERIFY(QApplication::palette().color(QPalette::Window).lightness() < 80);
+      QCOMPARE(w.heatmapPanel()->colormap(), Colormap::Magma);
+      QVERIFY(w.heatmapPanel()->scale().log);
+      QCOMPARE(w.denoisePanel()->selectedModel(), QString("tiny"));
+      QCOMPARE(w.size(), QSize(1000, 650));
+      w.setTheme(MainWindow::Theme::System);
+      QVERIFY(QApplication::palette().color(QPalette::Window).lightness() > 150);
+    }
+    QSettings().clear();
+    {
+      MainWindow w;
+      w.show();
+      w.setLayout(ImageCanvas::Layout::Wipe);
+      w.close();
+    }
+    QVERIFY(QSettings().allKeys().filter("viewer/").isEmpty());
+  }
+
+  // Every toolbar control is named by a label; the menus show the keys as they are typed (issue 53, item 14).
+  void toolbarControlsAreLabelledAndMenusShowTheirKeys() {
+    MainWindow w;
+    for (const char* name : {"layoutBox", "aovBox", "exposureBox", "offsetBox", "displayBox", "viewBox"}) {
+      auto* control = w.findChild<QWidget*>(name);
+      QVERIFY(control);
+      bool labelled = false;
+      for (const QLabel* l : w.findChildren<QLabel*>()) labelled |= l->buddy() == control && !l->text().isEmpty();
+      QVERIFY2(labelled, name);
+    }
+    QCOMPARE(w.findChild<QDoubleSpinBox*>("offsetBox")->prefix(), QString());  // "+ -0.010" read as a sum
+    bool previous = false, cancel = false;
+    for (const QAction* a : w.findChildren<QAction*>()) {
+      if (a->text() == "Previous pane") previous = a->shortcut().toString() == "Shift+Tab";
+      if (a->text().startsWith("&Cancel")) cancel = a->text().endsWith("\tEsc");
+    }
+    QVERIFY(previous && cancel);
+  }
+
+  // A status message wider than the bar is shortened in its middle, whole in the tooltip and statusText().
+  void aLongStatusMessageIsShortenedInItsMiddle() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.resize(900, 600);
+    w.show();
+    const QString missing = QDir::temp().filePath(QString("deep/").repeated(40) + "no-such-render.exr");
+    w.openFiles({missing});
+    QVERIFY(settle(w, [&] { return !w.lastError().isEmpty(); }));
+    QVERIFY2(w.statusText().contains("no-such-render.exr") && w.statusText().contains(QString("deep/").repeated(40)),
+             qPrintable(w.statusText()));
+    const QString shown = w.statusBar()->currentMessage();
+    QVERIFY2(shown.size() < w.statusText().size() && shown.contains(QChar(0x2026)), qPrintable(shown));
+    QVERIFY(shown.startsWith("Could not load"));
+    QCOMPARE(w.statusBar()->toolTip(), w.statusText());
+  }
+
+  // A pixel's values, written in its cell at high zoom, fit the cell: fewer digits rather than a number running into
+  // the next cell (issue 53, item 12).
+  void valuesWrittenInACellFitIt() {
+    QFont f;
+    f.setPixelSize(9);
+    const QFontMetrics fm(f);
+    for (double v : {-0.000123456, 12345.678, 0.5, -1.0e-30, 3.0e38}) {
+      const QString text = ImageCanvas::fittedValueText(v, ImageCanvas::kValueTextZoom - 4, fm);
+      QVERIFY2(!text.isEmpty() && fm.horizontalAdvance(text) <= ImageCanvas::kValueTextZoom - 4, qPrintable(text));
+      QVERIFY2(std::abs(text.toDouble() - v) <= std::abs(v) * 0.5, qPrintable(text));  // still the value, rounded
+    }
+    QCOMPARE(ImageCanvas::fittedValueText(0.5, 60, fm), QString("0.5"));
+    QCOMPARE(ImageCanvas::fittedValueText(0.123456, 200, fm), QString("0.1235"));
+    QVERIFY(ImageCanvas::fittedValueText(-0.000123456, 3, fm).isEmpty());
+  }
+
+  // The heatmap pane of a render without results says why it is empty, and never names the last render's result
+  // (issue 53, item 4).
+  void theHeatmapPlaceholderNamesOnlyWhatThisRenderHas() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    runModel(w, "tiny");
+    const QString name = w.session()->resultName(w.session()->a());
+    QVERIFY(!name.isEmpty());
+    const auto heat = [&]() -> const Pane* {
+      const int i = w.paneIndex(Source::Heatmap);
+      return i < 0 ? nullptr : &w.canvas()->panes()[static_cast<size_t>(i)];
+    };
+    QVERIFY(settle(w, [&] { return heat() && !heat()->display.isNull(); }));
+    QVERIFY2(heat()->label.contains(name), qPrintable(heat()->label));
+    openExample(w);
+    QVERIFY(settle(w, [&] { return w.session()->results().empty() && heat() && heat()->display.isNull(); }));
+    for (const QString& text : {heat()->label, heat()->placeholder})
+      QVERIFY2(!text.contains(name), qPrintable(text + " names " + name));
+    QVERIFY2(heat()->placeholder.contains("no result A yet"), qPrintable(heat()->placeholder));
+  }
+
   // A region drawn on one render never reaches outside the next one (issue 53, item 1): it is clipped to a smaller
   // render, cleared when none of it is inside, and the whole image's scores are there either way.
   void aRegionIsClippedOrClearedWhenAnotherRenderOpens() {
@@ -537,7 +734,7 @@ class TestViewer : public QObject {
     QCOMPARE(w.canvas()->roi(), std::optional<Rect>(Rect{40, 50, 56, 46}));
     QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.roi == std::optional<Rect>(Rect{40, 50, 56, 46}); }));
     QCOMPARE(w.metricsPanel()->report().rows[0].scores.pixels, int64_t(56 * 46));
-    QVERIFY2(w.statusBar()->currentMessage().contains("clipped"), qPrintable(w.statusBar()->currentMessage()));
+    QVERIFY2(w.statusText().contains("clipped"), qPrintable(w.statusText()));
 
     openExample(w);
     w.setRoi(Rect{120, 130, 50, 40});  // wholly outside the 96 x 96 render
@@ -545,7 +742,7 @@ class TestViewer : public QObject {
     QVERIFY(!w.canvas()->roi());
     QVERIFY(settle(w, [&] { return !w.metricsPanel()->report().options.roi; }));
     QCOMPARE(w.metricsPanel()->report().rows[0].scores.relmse, whole(w));
-    QVERIFY2(w.statusBar()->currentMessage().contains("cleared"), qPrintable(w.statusBar()->currentMessage()));
+    QVERIFY2(w.statusText().contains("cleared"), qPrintable(w.statusText()));
     auto* table = w.metricsPanel()->findChild<QTableWidget*>("metricsTable");
     QVERIFY(table && table->rowCount() > 0);
     bool shown = false;  // the whole image's relMSE is in the table, not "..."
@@ -663,6 +860,10 @@ class TestViewer : public QObject {
     QTest::keyClick(&w, Qt::Key_BracketLeft);
     QCOMPARE(w.aov(), AovRole::Color);
     const double fit = w.canvas()->zoom();
+    QTest::keyClick(&w, Qt::Key_Plus);  // half a stop (issue 53, item 15)
+    QVERIFY(std::abs(w.canvas()->zoom() / fit - std::sqrt(2.0)) < 1e-9);
+    QTest::keyClick(&w, Qt::Key_Minus);
+    QVERIFY(std::abs(w.canvas()->zoom() / fit - 1.0) < 1e-9);
     QTest::keyClick(&w, Qt::Key_0, Qt::ControlModifier);
     QCOMPARE(w.canvas()->zoom(), 1.0);
     QTest::keyClick(&w, Qt::Key_F);
