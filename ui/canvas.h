@@ -66,6 +66,7 @@ class ImageCanvas : public QWidget {
   double zoom() const { return zoom_; }             // screen pixels per image pixel
   QPointF center() const { return center_; }
   void setView(double zoom, QPointF center);
+  bool autoFit() const { return auto_fit_; }        // fitted, and following the widget's size
 
   // Region of interest in image pixels; empty = none.
   void setRoi(std::optional<Rect> roi);

@@ -33,8 +33,14 @@ DenoiseController::DenoiseController(Session* session, std::vector<nn::ModelCard
   poll_ = new QTimer(this);
   poll_->setInterval(50);
   connect(poll_, &QTimer::timeout, this, &DenoiseController::poll);
-  // A new render drops every result: a run for the old one is stopped.
-  connect(session_, &Session::loaded, this, &DenoiseController::cancel);
+  // A reload, another frame or a closed render drops the run's result: the run is stopped. Showing another open
+  // render does not: the run goes on into its own render's list.
+  connect(session_, &Session::loaded, this, [this] {
+    if (!session_->switchedRender()) cancel();
+  });
+  connect(session_, &Session::renderListChanged, this, [this] {
+    if (running() && !session_->holds(result_id_)) cancel();
+  });
   // The speeds measured on this CPU in earlier sessions (a model's "here" column survives a restart; another CPU
   // starts afresh).
   QSettings settings;

@@ -35,6 +35,7 @@
 #include "ui/pane_renderer.h"
 #include "ui/pixel_inspector.h"
 #include "ui/recent_renders.h"
+#include "ui/render_list.h"
 #include "ui/tev_server.h"
 
 namespace residue::ui {
@@ -124,6 +125,11 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     say(tr("Loading %1...").arg(what));
   });
   connect(session_, &Session::loaded, this, &MainWindow::onLoaded);
+  connect(session_, &Session::aboutToSwitch, this, [this] {
+    views_[session_->renderId(session_->currentRender())] =
+        SavedView{canvas_->autoFit(), canvas_->zoom(), canvas_->center(), canvas_->roi()};
+  });
+  connect(session_, &Session::renderListChanged, this, &MainWindow::updateTitle);
   watcher_ = new QFileSystemWatcher(this);
   reload_timer_ = new QTimer(this);
   reload_timer_->setSingleShot(true);
@@ -220,6 +226,11 @@ MainWindow::~MainWindow() { render_.reset(); }  // first: its jobs post to this 
 
 void MainWindow::showRendered(Rendered&& r) {
   canvas_->setPanes(std::move(r.panes), r.size);
+  if (pending_view_) {  // a render switched to: the view it was left with
+    if (pending_view_->fitted) canvas_->fit();
+    else canvas_->setView(pending_view_->zoom, pending_view_->center);
+    pending_view_.reset();
+  }
   setWipePair(wipe_a_, wipe_b_);
   if (pending_pane_ && paneIndex(*pending_pane_) >= 0) {
     showPane(*pending_pane_);
@@ -239,14 +250,14 @@ void MainWindow::showRendered(Rendered&& r) {
 // ---------------------------------------------------------------------------------------------------------------
 // Construction
 
-void MainWindow::openFiles(const QStringList& files, const LoadOptions& options) {
+void MainWindow::openFiles(const QStringList& files, const LoadOptions& options, bool focus) {
   if (files.isEmpty()) return;
   std::vector<std::filesystem::path> inputs;
   for (const auto& f : files) inputs.emplace_back(f.toStdString());
   last_error_.clear();
   mapping_retry_ = false;
   load_from_renderer_ = false;
-  session_->open(inputs, options);
+  session_->open(inputs, options, focus);
   addRecent(files, options.reference ? QString::fromStdString(options.reference->string()) : QString());
 }
 
@@ -283,6 +294,16 @@ bool MainWindow::looksLikeResult(const QString& file) const {
 void MainWindow::onLoaded() {
   const auto stack = session_->stack();
   last_error_.clear();
+  if (!stack) {  // the last render was closed
+    setRoi(std::nullopt);
+    metrics_->compute({});
+    heatmap_->computeMap(nullptr, QString(), tr("no render"));
+    updateTitle();
+    refreshPanes();
+    updateStatus();
+    watchInputs();
+    return;
+  }
   // Fall back to colour when the new render lacks the AOV being shown.
   if (!session_->hasAov(aov_)) setAov(AovRole::Color);
   for (int i = 0; i < aov_box_->count(); ++i) {
@@ -292,9 +313,14 @@ void MainWindow::onLoaded() {
   }
   QStringList notes;
   for (const auto& n : stack->notes) notes << QString::fromStdString(n);
-  // A region drawn on the last render is kept where it lies inside this one (a reload, another frame), clipped
-  // to it otherwise, and dropped when none of it is inside: a region never reaches outside the image.
-  if (const auto roi = canvas_->roi()) {
+  // Another open render shown again: its own region and view, as it was left.
+  if (session_->switchedRender()) {
+    const auto it = views_.find(session_->renderId(session_->currentRender()));
+    pending_view_ = it != views_.end() ? it->second : SavedView{};
+    setRoi(pending_view_->roi);
+  } else if (const auto roi = canvas_->roi()) {
+    // A region drawn on the last render is kept where it lies inside this one (a reload, another frame, another
+    // render), clipped to it otherwise, and dropped when none of it is inside: it never reaches outside the image.
     const Rect& d = stack->data_window;
     const int64_t x0 = std::max<int64_t>(roi->x, 0), y0 = std::max<int64_t>(roi->y, 0);
     const int64_t x1 = std::min(roi->x + roi->width, d.width), y1 = std::min(roi->y + roi->height, d.height);
@@ -491,6 +517,14 @@ void MainWindow::pickResult(int index, bool as_b) {
   if (as_b) session_->setB(id);
   else session_->setA(id);
   say(tr("%1: %2").arg(as_b ? "B" : "A", session_->resultName(id)), 4000);
+}
+
+void MainWindow::stepRender(int step) {
+  const int n = session_->renderCount();
+  if (n < 2) return;
+  const int i = (session_->currentRender() + step + n) % n;
+  session_->showRender(i);
+  say(tr("Render %1 of %2: %3").arg(i + 1).arg(n).arg(session_->title()), 4000);
 }
 
 int MainWindow::paneIndex(Source s) const {
@@ -744,7 +778,11 @@ QString MainWindow::listenForRenderers(quint16 port, size_t max_bytes) {
     live_quiet_ = new QTimer(this);
     live_quiet_->setSingleShot(true);
     live_quiet_->setInterval(1000);
-    connect(tev_, &TevServer::liveImageChanged, this, [this](const QString& name) {
+    connect(tev_, &TevServer::liveImageChanged, this, [this](const QString& name, bool focus) {
+      // A stream takes the canvas when it asks (tev's grab_focus: on creating an image, usually), never by
+      // merely updating: the render you switched to stays shown.
+      if (name != live_pending_) live_focus_ = false;
+      live_focus_ = live_focus_ || focus;
       live_pending_ = name;
       if (!live_timer_->isActive()) live_timer_->start();
       live_quiet_->start();  // restarted by every update: fires once the stream pauses
@@ -759,19 +797,21 @@ QString MainWindow::listenForRenderers(quint16 port, size_t max_bytes) {
       if (!live) return;
       try {
         session_->adoptLive(std::make_shared<const AovStack>(ipc::live_aov_stack(live_pending_.toStdString(), *live)),
-                            live_pending_);
+                            live_pending_, live_focus_);
+        live_focus_ = false;
       } catch (const std::exception& e) {
         say(errorText(e), 10000);
       }
     });
-    connect(tev_, &TevServer::openRequested, this, [this](const QString& path, const QString& channels) {
+    connect(tev_, &TevServer::openRequested, this, [this](const QString& path, const QString& channels, bool focus) {
       if (!channels.isEmpty())
         say(tr("Opening %1 (channel selector \"%2\" ignored: AOVs are recognised by name)")
                                      .arg(path, channels), 10000);
-      openFiles({path});
+      openFiles({path}, {}, focus);
       load_from_renderer_ = true;  // a failure goes to the status bar: a client's requests never stack dialogs
     });
     connect(tev_, &TevServer::reloadRequested, this, [this] { session_->reload(); });
+    connect(tev_, &TevServer::closeRequested, session_, &Session::closeLive);
     connect(tev_, &TevServer::protocolError, this, [this](const QString& message) {
       say(message, 15000);
     });
@@ -782,6 +822,7 @@ QString MainWindow::listenForRenderers(quint16 port, size_t max_bytes) {
 
 void MainWindow::updateTitle() {
   QString t = session_->hasStack() ? session_->title() + " - Residue" : QStringLiteral("Residue");
+  if (session_->renderCount() > 1) t += tr(" (%1 of %2)").arg(session_->currentRender() + 1).arg(session_->renderCount());
   setWindowTitle(t);
 }
 
@@ -801,7 +842,7 @@ void MainWindow::closeEvent(QCloseEvent* e) {
   QMainWindow::closeEvent(e);
 }
 
-QStringList MainWindow::sideTabNames() { return {"results", "denoise", "heatmap", "pixel"}; }
+QStringList MainWindow::sideTabNames() { return {"results", "denoise", "heatmap", "pixel", "renders"}; }
 
 std::optional<MainWindow::SideTab> MainWindow::sideTabFromName(const QString& name) {
   const qsizetype i = sideTabNames().indexOf(name.toLower());
@@ -810,7 +851,7 @@ std::optional<MainWindow::SideTab> MainWindow::sideTabFromName(const QString& na
 }
 
 void MainWindow::showSideTab(SideTab tab) {
-  QWidget* pages[] = {metrics_, denoise_, heatmap_, inspector_};
+  QWidget* pages[] = {metrics_, denoise_, heatmap_, inspector_, render_list_};
   tabs_->setCurrentWidget(pages[static_cast<int>(tab)]);
 }
 

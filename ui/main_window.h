@@ -10,6 +10,7 @@
 #include <QFutureWatcher>
 #include <QElapsedTimer>
 #include <QMainWindow>
+#include <map>
 #include <memory>
 #include <optional>
 
@@ -49,10 +50,11 @@ class MainWindow : public QMainWindow {
   HeatmapPanel* heatmapPanel() const { return heatmap_; }
   DenoisePanel* denoisePanel() const { return denoise_; }
   PixelInspector* inspector() const { return inspector_; }
+  class RenderList* renderList() const { return render_list_; }
   QTabWidget* sideTabs() const { return tabs_; }
   // The side bar's tabs by what they are, whatever language their titles are in. Names: "results", "denoise",
-  // "heatmap", "pixel" (--tab).
-  enum class SideTab { Results, Denoise, Heatmap, Pixel };
+  // "heatmap", "pixel", "renders" (--tab).
+  enum class SideTab { Results, Denoise, Heatmap, Pixel, Renders };
   static QStringList sideTabNames();
   static std::optional<SideTab> sideTabFromName(const QString& name);
   void showSideTab(SideTab tab);
@@ -69,7 +71,9 @@ class MainWindow : public QMainWindow {
   static std::optional<Theme> themeFromName(const QString& name);
 
   // Opening. Errors go to a message box, or to the mapping dialog when the channels could not be mapped.
-  void openFiles(const QStringList& files, const LoadOptions& options = {});
+  // A render joins the image list (Session) and is shown; without `focus` (a client's grab_focus off) it joins
+  // unshown.
+  void openFiles(const QStringList& files, const LoadOptions& options = {}, bool focus = true);
   void openReferenceFile(const QString& file);
   // Adds images to compare with the render (another denoiser's output, ...) to the result list.
   void addResultFiles(const QStringList& files);
@@ -163,6 +167,7 @@ class MainWindow : public QMainWindow {
   void cycleAov(int step);
   void cyclePane(int step);
   void pickResult(int index, bool as_b);  // keys 1-9 / Ctrl+1-9
+  void stepRender(int step);              // PgUp / PgDn through the open renders
   void exportAllDialog();
   static const QString kImageFilter;  // the Open dialogs' file types
   QString startFolder() const;        // where they start: the render's folder, else the last render's
@@ -191,6 +196,17 @@ class MainWindow : public QMainWindow {
   HeatmapPanel* heatmap_ = nullptr;
   DenoisePanel* denoise_ = nullptr;
   PixelInspector* inspector_ = nullptr;
+  class RenderList* render_list_ = nullptr;
+  // Each open render's view, kept while another is shown (Session::renderId -> zoom, centre, region).
+  struct SavedView {
+    bool fitted = true;
+    double zoom = 1;
+    QPointF center;
+    std::optional<Rect> roi;
+  };
+  std::map<int, SavedView> views_;
+  std::optional<SavedView> pending_view_;  // set on the canvas once the render switched to has its panes
+  bool live_focus_ = true;                 // the pending streamed image's grab_focus
   HelpOverlay* help_ = nullptr;
   QTabWidget* tabs_ = nullptr;
 

@@ -28,6 +28,7 @@
 #include "ui/pane_renderer.h"
 #include "ui/pixel_inspector.h"
 #include "ui/recent_renders.h"
+#include "ui/render_list.h"
 #include "ui/tev_server.h"
 
 namespace residue::ui {
@@ -73,8 +74,10 @@ void MainWindow::buildDocks() {
   metrics_ = new MetricsPanel(this);
   heatmap_ = new HeatmapPanel(this);
   inspector_ = new PixelInspector(this);
+  render_list_ = new RenderList(session_, this);
   tabs_ = new QTabWidget(this);
   tabs_->setObjectName("sideTabs");
+  tabs_->addTab(render_list_, tr("Renders"));
   tabs_->addTab(metrics_, tr("Results"));
   tabs_->addTab(denoise_, tr("Denoise"));
   tabs_->addTab(heatmap_, tr("Heatmap"));
@@ -207,6 +210,11 @@ void MainWindow::buildActions() {
     const QStringList files = QFileDialog::getOpenFileNames(this, tr("Add results to compare"), startFolder(), kImageFilter);
     addResultFiles(files);
   }), tr("add a result to compare (or drop it)"));
+  listed(action(file, tr("Previous Render"), QKeySequence(Qt::Key_PageUp), [this] { stepRender(-1); }), tr("previous / next open render"));
+  listed(action(file, tr("Next Render"), QKeySequence(Qt::Key_PageDown), [this] { stepRender(+1); }), tr("previous / next open render"));
+  listed(action(file, tr("Close Render"), QKeySequence(Qt::CTRL | Qt::Key_W), [this] {
+    session_->closeRender(session_->currentRender());
+  }), tr("close the render shown (its results go with it)"));
   recent_menu_ = file->addMenu(tr("Open Re&cent"));
   recent_menu_->setObjectName("recentMenu");
   recent_menu_->setToolTipsVisible(true);  // the full paths and the reference

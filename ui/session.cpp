@@ -29,6 +29,8 @@ QString display_name(AovRole role) {
 struct Session::LoadResult {
   int generation = 0;
   bool reference_only = false;
+  bool reload = false;  // the shown render read again, in place
+  bool focus = true;    // a new render is shown (else it joins the list unshown)
   bool step = false;  // another frame of the sequence shown (showFrame), not a new render
   std::vector<std::filesystem::path> inputs;
   LoadOptions options;
@@ -60,8 +62,16 @@ Session::Session(QObject* parent) : QObject(parent) {
 
 Session::~Session() { watcher_->waitForFinished(); }
 
-void Session::open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options) {
-  startLoad(inputs, options, false);
+void Session::open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options, bool focus) {
+  if (const int open = findRender(inputs, {}); open >= 0) {
+    if (focus) showRender(open);
+    return;
+  }
+  startLoad(inputs, options, false, std::nullopt, false, focus);
+}
+
+void Session::closeLive(const QString& name) {
+  if (const int i = findRender({}, name); i >= 0) closeRender(i);
 }
 
 void Session::openReference(const std::filesystem::path& file) {
@@ -72,7 +82,7 @@ void Session::openReference(const std::filesystem::path& file) {
 }
 
 void Session::reload() {
-  if (!inputs_.empty()) startLoad(inputs_, options_, false);
+  if (!inputs_.empty()) startLoad(inputs_, options_, false, std::nullopt, true);
 }
 
 bool Session::showFrame(int64_t frame) {
@@ -105,7 +115,7 @@ std::shared_ptr<const Image> Session::previousImage(const Result* r) const {
 }
 
 void Session::startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only,
-                        std::optional<int64_t> frame) {
+                        std::optional<int64_t> frame, bool reload, bool focus) {
   const int generation = ++generation_;
   loading_ = true;
   QStringList names;
@@ -126,6 +136,8 @@ void Session::startLoad(std::vector<std::filesystem::path> inputs, LoadOptions o
     auto r = std::make_shared<LoadResult>();
     r->generation = generation;
     r->reference_only = reference_only;
+    r->reload = reload;
+    r->focus = focus;
     r->step = frame.has_value();
     r->inputs = inputs;
     r->options = options;
@@ -178,6 +190,31 @@ void Session::finishLoad() {
     return;
   }
   const bool same_grid = stack_ && stack_->width() == r->stack->width() && stack_->height() == r->stack->height();
+  // A new render joins the list after the one shown, which keeps everything; a reload, another frame or another
+  // reference stays in the shown render's entry.
+  if (!r->reload && !r->step && !r->reference_only) {
+    if (!r->focus && current_ >= 0) {
+      Render unshown;
+      unshown.id = next_render_id_++;
+      unshown.stack = r->stack;
+      unshown.inputs = r->inputs;
+      unshown.options = r->options;
+      unshown.sequence = r->sequence;
+      unshown.frame = r->frame;
+      unshown.nearby = r->nearby;
+      renders_.insert(renders_.begin() + current_ + 1, std::move(unshown));
+      emit renderListChanged();
+      return;
+    }
+    if (current_ >= 0) {
+      emit aboutToSwitch();
+      renders_[static_cast<size_t>(current_)] = stash();
+    }
+    Render fresh;
+    fresh.id = next_render_id_++;
+    current_ = current_ < 0 ? 0 : current_ + 1;
+    renders_.insert(renders_.begin() + current_, std::move(fresh));
+  }
   inputs_ = r->inputs;
   live_name_.clear();
   options_ = r->options;
@@ -199,6 +236,7 @@ void Session::finishLoad() {
   frame_ = r->frame;
   nearby_ = r->nearby;
   emit loaded();
+  emit renderListChanged();
 }
 
 void Session::enterFrame(const LoadResult& r) {
@@ -252,7 +290,38 @@ void Session::enterFrame(const LoadResult& r) {
   }
 }
 
-void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& name) {
+void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& name, bool focus) {
+  const int i = findRender({}, name);
+  if (i != current_ || current_ < 0) {
+    if (!focus && current_ >= 0) {  // into its entry (a new one after the one shown), unshown
+      Render* r = nullptr;
+      if (i >= 0) {
+        r = &renders_[static_cast<size_t>(i)];
+      } else {
+        Render fresh;
+        fresh.id = next_render_id_++;
+        fresh.live_name = name;
+        r = &*renders_.insert(renders_.begin() + current_ + 1, std::move(fresh));
+      }
+      r->stack = std::move(stack);
+      r->results.clear();  // they were of the pixels before
+      r->memories.clear();
+      r->a = r->b = -1;
+      ++r->epoch;
+      emit renderListChanged();
+      return;
+    }
+    if (current_ >= 0) emit aboutToSwitch();
+    if (i >= 0) {
+      switchTo(i);
+    } else {
+      if (current_ >= 0) renders_[static_cast<size_t>(current_)] = stash();
+      Render fresh;
+      fresh.id = next_render_id_++;
+      current_ = current_ < 0 ? 0 : current_ + 1;
+      renders_.insert(renders_.begin() + current_, std::move(fresh));
+    }
+  }
   ++generation_;  // a file load still in flight is dropped when it ends
   loading_ = false;
   inputs_.clear();
@@ -262,6 +331,148 @@ void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& na
   sequence_.reset();
   nearby_.clear();
   emit loaded();
+  emit renderListChanged();
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// The image list
+
+Session::Render Session::stash() {
+  Render r;
+  r.id = current_ >= 0 ? renders_[static_cast<size_t>(current_)].id : 0;
+  r.stack = std::move(stack_);
+  r.inputs = std::move(inputs_);
+  r.live_name = std::move(live_name_);
+  r.options = std::move(options_);
+  r.results = std::move(results_);
+  r.a = a_;
+  r.b = b_;
+  r.sequence = std::move(sequence_);
+  r.frame = frame_;
+  r.memories = std::move(memories_);
+  r.nearby = std::move(nearby_);
+  r.follow_a = std::move(follow_a_);
+  r.follow_b = std::move(follow_b_);
+  r.epoch = results_epoch_;
+  stack_.reset();
+  inputs_.clear();
+  live_name_.clear();
+  options_ = {};
+  results_.clear();
+  a_ = b_ = -1;
+  sequence_.reset();
+  frame_ = 0;
+  memories_.clear();
+  nearby_.clear();
+  follow_a_.clear();
+  follow_b_.clear();
+  return r;
+}
+
+void Session::unstash(Render&& r) {
+  stack_ = std::move(r.stack);
+  inputs_ = std::move(r.inputs);
+  live_name_ = std::move(r.live_name);
+  options_ = std::move(r.options);
+  results_ = std::move(r.results);
+  a_ = r.a;
+  b_ = r.b;
+  sequence_ = std::move(r.sequence);
+  frame_ = r.frame;
+  memories_ = std::move(r.memories);
+  nearby_ = std::move(r.nearby);
+  follow_a_ = std::move(r.follow_a);
+  follow_b_ = std::move(r.follow_b);
+  results_epoch_ = r.epoch;
+}
+
+void Session::switchTo(int index) {
+  if (index == current_) return;
+  if (current_ >= 0) renders_[static_cast<size_t>(current_)] = stash();
+  current_ = index;
+  const int id = renders_[static_cast<size_t>(index)].id;
+  unstash(std::move(renders_[static_cast<size_t>(index)]));
+  renders_[static_cast<size_t>(index)] = Render{};
+  renders_[static_cast<size_t>(index)].id = id;
+}
+
+int Session::findRender(const std::vector<std::filesystem::path>& inputs, const QString& live_name) const {
+  const auto same = [](const std::vector<std::filesystem::path>& a, const std::vector<std::filesystem::path>& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t i = 0; i < a.size(); ++i) {
+      std::error_code ec;
+      if (!std::filesystem::equivalent(a[i], b[i], ec)) return false;
+    }
+    return true;
+  };
+  for (int i = 0; i < renderCount(); ++i) {
+    const bool shown = i == current_;
+    const auto& in = shown ? inputs_ : renders_[static_cast<size_t>(i)].inputs;
+    const QString& live = shown ? live_name_ : renders_[static_cast<size_t>(i)].live_name;
+    if (!live_name.isEmpty() ? live == live_name : (!inputs.empty() && live.isEmpty() && same(in, inputs))) return i;
+  }
+  return -1;
+}
+
+QString Session::renderTitle(int index) const {
+  if (index == current_) return title();
+  if (index < 0 || index >= renderCount()) return {};
+  const Render& r = renders_[static_cast<size_t>(index)];
+  if (!r.live_name.isEmpty()) return tr("%1 (live)").arg(r.live_name);
+  QStringList names;
+  for (const auto& p : r.inputs)
+    names << QString::fromStdString((p.has_filename() ? p.filename() : p.parent_path().filename()).string());
+  if (r.sequence) names.back() += tr(" (frame %1)").arg(r.frame);
+  return names.join(", ");
+}
+
+QStringList Session::renderInputs(int index) const {
+  if (index < 0 || index >= renderCount()) return {};
+  QStringList out;
+  for (const auto& p : index == current_ ? inputs_ : renders_[static_cast<size_t>(index)].inputs)
+    out << QString::fromStdString(p.string());
+  return out;
+}
+
+int Session::renderResultCount(int index) const {
+  if (index == current_) return static_cast<int>(results_.size());
+  if (index < 0 || index >= renderCount()) return 0;
+  return static_cast<int>(renders_[static_cast<size_t>(index)].results.size());
+}
+
+int Session::renderId(int index) const {
+  return index < 0 || index >= renderCount() ? 0 : renders_[static_cast<size_t>(index)].id;
+}
+
+void Session::showRender(int index) {
+  if (index < 0 || index >= renderCount()) return;
+  ++generation_;  // a load in flight (a frame step, a reference) was for the render shown: dropped
+  loading_ = false;
+  emit aboutToSwitch();
+  switchTo(index);
+  switching_ = true;
+  emit loaded();
+  switching_ = false;
+  emit renderListChanged();
+}
+
+void Session::closeRender(int index) {
+  if (index < 0 || index >= renderCount()) return;
+  if (index != current_) {
+    renders_.erase(renders_.begin() + index);
+    if (index < current_) --current_;
+    emit renderListChanged();
+    return;
+  }
+  ++generation_;
+  loading_ = false;
+  emit aboutToSwitch();
+  stash();  // the shown one's members go with it
+  renders_.erase(renders_.begin() + index);
+  current_ = -1;
+  if (!renders_.empty()) switchTo(std::min(index, renderCount() - 1));
+  emit loaded();  // not a switch: a run for the closed render stops
+  emit renderListChanged();
 }
 
 QString Session::title() const {
@@ -309,12 +520,29 @@ void Session::clearResults() {
 }
 
 Result* Session::find(int id) {
-  for (auto& r : results_)
+  if (std::vector<Result>* list = listOf(id))
+    for (auto& r : *list)
+      if (r.id == id) return &r;
+  return nullptr;
+}
+
+std::vector<Result>* Session::listOf(int id) {
+  const auto has = [id](const std::vector<Result>& l) {
+    return std::any_of(l.begin(), l.end(), [id](const Result& r) { return r.id == id; });
+  };
+  if (has(results_)) return &results_;
+  for (Render& r : renders_)
+    if (has(r.results)) return &r.results;
+  return nullptr;
+}
+
+const Result* Session::result(int id) const {
+  for (const auto& r : results_)
     if (r.id == id) return &r;
   return nullptr;
 }
 
-const Result* Session::result(int id) const { return const_cast<Session*>(this)->find(id); }
+bool Session::holds(int id) const { return const_cast<Session*>(this)->find(id) != nullptr; }
 
 const Result* Session::findRun(const QString& key) const {
   for (const auto& r : results_)
@@ -364,7 +592,7 @@ void Session::updateResult(int id, const std::function<void(Result&)>& edit) {
 }
 
 void Session::removeResult(int id) {
-  if (!find(id)) return;
+  if (!result(id)) return;
   // Its blends at a strength go with it: they are it, re-blended.
   std::vector<int> derived;
   for (const Result& r : results_)
@@ -393,7 +621,7 @@ void Session::removeOne(int id) {
 }
 
 void Session::setA(int id) {
-  if (id >= 0 && !find(id)) return;
+  if (id >= 0 && !result(id)) return;
   if (id == b_ && id >= 0) {  // picking B as A swaps them, as a flip would
     b_ = a_;
     emit compareChanged();
@@ -404,7 +632,7 @@ void Session::setA(int id) {
 }
 
 void Session::setB(int id) {
-  if (id >= 0 && !find(id)) return;
+  if (id >= 0 && !result(id)) return;
   if (id == a_ && id >= 0) {
     a_ = b_;
     emit denoisedChanged();
@@ -428,12 +656,25 @@ void Session::addResultFile(const std::filesystem::path& file) {
   if (!stack_) return emit resultFailed(tr("Open a render before adding results to compare with it."));
   const int64_t w = stack_->width(), h = stack_->height();
   const int epoch = results_epoch_;
+  const int render = renderId(current_);
   auto* watcher = new QFutureWatcher<Result>(this);
   auto error = std::make_shared<QString>();
-  connect(watcher, &QFutureWatcherBase::finished, this, [this, watcher, epoch, error] {
+  connect(watcher, &QFutureWatcherBase::finished, this, [this, watcher, epoch, error, render] {
     watcher->deleteLater();
-    if (epoch != results_epoch_) return;  // the render changed meanwhile
     if (!error->isEmpty()) return emit resultFailed(*error);
+    // Another render is shown now: the file joins its own render's list, if that is still open and unchanged.
+    if (render != renderId(current_)) {
+      for (Render& x : renders_)
+        if (x.id == render && x.epoch == epoch) {
+          Result r = watcher->result();
+          r.id = next_id_++;
+          x.results.push_back(std::move(r));
+          if (x.a < 0) x.a = x.results.back().id;
+          emit renderListChanged();
+        }
+      return;
+    }
+    if (epoch != results_epoch_) return;  // the render changed meanwhile
     const int id = addResult(watcher->result());
     const QString s = series(*result(id));
     if (a_ < 0 || s == follow_a_) setA(id);
@@ -533,11 +774,18 @@ QString Session::resultName(int id) const {
 }
 
 void Session::reblendFrom(int base, const std::optional<Rect>& rect, bool pixels) {
-  const Result* b = result(base);
-  if (!b || !b->image || !stack_) return;
+  std::vector<Result>* list = listOf(base);
+  const Result* b = find(base);
+  if (!list || !b || !b->image) return;
+  // The noisy colour of the render the result belongs to (a run goes on while another render is shown).
+  std::shared_ptr<const AovStack> stack = stack_;
+  if (list != &results_)
+    for (const Render& x : renders_)
+      if (&x.results == list) stack = x.stack;
+  if (!stack) return;
   const Image& full = *b->image;
-  const Image& noisy = stack_->color.image;
-  for (Result& r : results_) {
+  const Image& noisy = stack->color.image;
+  for (Result& r : *list) {
     if (r.base != base) continue;
     r.complete = b->complete;
     r.rects = b->rects;

@@ -1,5 +1,7 @@
-// Session: the one document the viewer shows. It owns the loaded AOV stack (noisy colour, AOVs, reference) and
-// the denoised colour, loads on a worker thread, and tells the widgets what changed. Widgets never touch files.
+// Session: the renders the viewer holds open (its image list, as tev's) and the one it shows. Each render keeps
+// its AOV stack (noisy colour, AOVs, reference), its results with A and B, and its sequence; the one shown is
+// in the members below, the others wait in the list. It loads on a worker thread and tells the widgets what
+// changed. Widgets never touch files.
 #pragma once
 
 #include <QFutureWatcher>
@@ -36,15 +38,34 @@ class Session : public QObject {
   ~Session() override;
 
   // Starts loading `inputs` (one file, a folder, or a set of single-AOV files) with `options` on a worker
-  // thread; loaded() or loadFailed() follows. A load in flight is superseded.
-  void open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {});
+  // thread; loaded() or loadFailed() follows. A load in flight is superseded. The render joins the list after
+  // the one shown and is shown (without `focus`: it joins the list unshown, unless nothing is shown); the others
+  // keep everything. Inputs already open show that render instead.
+  void open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {}, bool focus = true);
+
+  // The image list. Every render opened (a file, a drop, a stream) is an entry until it is closed.
+  int renderCount() const { return static_cast<int>(renders_.size()); }
+  int currentRender() const { return current_; }  // -1 when none is open
+  QString renderTitle(int index) const;           // as title() says it for the one shown
+  QStringList renderInputs(int index) const;      // its files in full (none for a stream)
+  int renderResultCount(int index) const;
+  int renderId(int index) const;                  // stable while it is open (views, regions kept per render)
+  // Shows another open render as it was left: its results, A and B, frame. Emits aboutToSwitch(), then loaded()
+  // (switchedRender() is true while it is handled) and renderListChanged().
+  void showRender(int index);
+  // Closes an entry: the one shown gives way to its neighbour (or to nothing). A run for it is stopped.
+  void closeRender(int index);
+  bool switchedRender() const { return switching_; }
+  void closeLive(const QString& name);  // the entry of a stream, when it is open (tev's "close image")
   // Loads a reference colour from another file for the current stack (worker thread).
   void openReference(const std::filesystem::path& file);
   // Loads the same inputs again (F5), keeping the reference file and mapping; the results are dropped.
   void reload();
-  // Shows a stack that came from no file (an image a renderer streams, ui/tev_server.h), named `name`.
-  // Supersedes a load in flight; the results are cleared as for a new file.
-  void adoptLive(std::shared_ptr<const AovStack> stack, const QString& name);
+  // Shows a stack that came from no file (an image a renderer streams, ui/tev_server.h), named `name`: its entry
+  // of the list (made on its first image) gets the new pixels and loses its results, which were of the old ones.
+  // Without `focus` (tev's grab_focus off) a stream that is not the one shown stays in the list, unshown.
+  // Supersedes a load in flight when it is shown.
+  void adoptLive(std::shared_ptr<const AovStack> stack, const QString& name, bool focus = true);
   QString liveName() const { return live_name_; }  // empty unless the stack came from adoptLive()
   bool loading() const { return loading_; }
 
@@ -76,11 +97,12 @@ class Session : public QObject {
   const Image* image(Source s, AovRole aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
   bool hasAov(AovRole role) const;
 
-  // Results (ui/result.h): every denoise run and every image added from a file, in the order they came; a new
-  // render empties the list. A and B are the two being compared (ids, -1 for none): A is "the denoised image"
+  // Results (ui/result.h) of the render shown: every denoise run and every image added from a file, in the
+  // order they came (each open render has its own list; a reload empties it). A and B are the two being compared (ids, -1 for none): A is "the denoised image"
   // of the panes, the metrics and the exports; B is shown beside it, wiped or flipped against it.
   const std::vector<Result>& results() const { return results_; }
-  const Result* result(int id) const;
+  const Result* result(int id) const;  // of the render shown
+  bool holds(int id) const;            // in any open render (a run goes on into a render not shown)
   const Result* findRun(const QString& key) const;  // the run made with these settings, if kept
   int addResult(Result r);                          // assigns the id; emits resultsChanged()
   // A run's tile (GUI thread): copied into the result; shown at once when it is A (denoisedTileChanged).
@@ -122,11 +144,13 @@ class Session : public QObject {
   void resultsChanged();    // a result was added, removed, renamed or finished
   void resultFailed(QString message);  // addResultFile() could not use the file
   void frameChanged();      // another frame of the sequence is shown (after loaded())
+  void aboutToSwitch();     // another open render is about to be shown: the one shown is still current
+  void renderListChanged(); // an entry was added, closed, renamed, or another is shown
 
  private:
   struct LoadResult;
   void startLoad(std::vector<std::filesystem::path> inputs, LoadOptions options, bool reference_only,
-                 std::optional<int64_t> frame = std::nullopt);
+                 std::optional<int64_t> frame = std::nullopt, bool reload = false, bool focus = true);
   void finishLoad();
   void enterFrame(const LoadResult& r);  // a frame of the sequence replaces the shown one
 
@@ -141,15 +165,41 @@ class Session : public QObject {
   void removeOne(int id);
   QString uniqueName(const QString& name, int id) const;  // `name`, or "name (2)" when another result has it
 
-  Result* find(int id);
+  Result* find(int id);                 // in any open render: a run goes on into its render while another is shown
+  std::vector<Result>* listOf(int id);  // the result list holding `id` (the shown one's or another render's)
   void clearResults();
 
-  std::vector<Result> results_;
-  // The sequence's other frames: their results (kept while the render is open) and the stacks of t-1 and t+1.
+  // An open render that is not shown: what the members below hold for the one that is.
   struct FrameMemory {
     std::vector<Result> results;
     int a = -1, b = -1;
   };
+  struct Render {
+    int id = 0;
+    std::shared_ptr<const AovStack> stack;
+    std::vector<std::filesystem::path> inputs;
+    QString live_name;
+    LoadOptions options;
+    std::vector<Result> results;
+    int a = -1, b = -1;
+    std::optional<FrameSequence> sequence;
+    int64_t frame = 0;
+    std::map<int64_t, FrameMemory> memories;
+    std::map<int64_t, std::shared_ptr<const AovStack>> nearby;
+    QString follow_a, follow_b;
+    int epoch = 0;
+  };
+  Render stash();               // moves the shown render's members out
+  void unstash(Render&& r);     // ... and another's in
+  void switchTo(int index);     // stash the shown one into its entry, unstash `index`
+  int findRender(const std::vector<std::filesystem::path>& inputs, const QString& live_name) const;
+  std::vector<Render> renders_;  // the list; the entry at current_ is a husk whose members are in use below
+  int current_ = -1;
+  int next_render_id_ = 1;
+  bool switching_ = false;
+
+  std::vector<Result> results_;
+  // The sequence's other frames: their results (kept while the render is open) and the stacks of t-1 and t+1.
   std::optional<FrameSequence> sequence_;
   int64_t frame_ = 0;
   std::map<int64_t, FrameMemory> memories_;

@@ -68,7 +68,7 @@ void TevServer::handle(const ipc::TevPacket& packet) {
       [this](const auto& p) {
         using T = std::decay_t<decltype(p)>;
         if constexpr (std::is_same_v<T, ipc::OpenImage>) {
-          emit openRequested(QString::fromStdString(p.path), QString::fromStdString(p.channel_selector));
+          emit openRequested(QString::fromStdString(p.path), QString::fromStdString(p.channel_selector), p.grab_focus);
         } else if constexpr (std::is_same_v<T, ipc::ReloadImage>) {
           emit reloadRequested(QString::fromStdString(p.name));
         } else if constexpr (std::is_same_v<T, ipc::CloseImage>) {
@@ -76,9 +76,9 @@ void TevServer::handle(const ipc::TevPacket& packet) {
           emit closeRequested(QString::fromStdString(p.name));
         } else if constexpr (std::is_same_v<T, ipc::CreateImage>) {
           images_.apply(p);
-          emit liveImageChanged(QString::fromStdString(p.name));
+          emit liveImageChanged(QString::fromStdString(p.name), p.grab_focus);
         } else {
-          if (!images_.apply(p).empty()) emit liveImageChanged(QString::fromStdString(p.name));
+          if (!images_.apply(p).empty()) emit liveImageChanged(QString::fromStdString(p.name), p.grab_focus);
         }
       },
       packet);

@@ -35,10 +35,10 @@ class TevServer : public QObject {
   int connections() const { return static_cast<int>(streams_.size()); }
 
  signals:
-  void openRequested(QString path, QString channel_selector);
+  void openRequested(QString path, QString channel_selector, bool grab_focus);
   void reloadRequested(QString name);
   void closeRequested(QString name);
-  void liveImageChanged(QString name);  // created, or a rectangle of it updated
+  void liveImageChanged(QString name, bool grab_focus);  // created, or a rectangle of it updated
   void protocolError(QString message);  // the client was disconnected
 
  private:

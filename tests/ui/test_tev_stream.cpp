@@ -15,6 +15,7 @@
 #include "support/tev_packet.h"
 #include "ui/denoise_panel.h"
 #include "ui/main_window.h"
+#include "ui/session.h"
 #include "ui/tev_server.h"
 
 using namespace residue;
@@ -179,6 +180,46 @@ class TevStreamTest : public QObject {
     QVERIFY(QTest::qWaitFor([&] { return shown("beauty", 512); }, 20000));
     QVERIFY(w.canvas()->zoom() < ImageCanvas::kValueTextZoom);  // fitted to the new size
     QCOMPARE(w.session()->stack()->color.image.at(511, 511, 0), 0.25f);
+  }
+
+  // A stream never replaces the render shown unless it asks (grab_focus): an image created without it joins the
+  // image list unshown and its updates stay there; one created with it is shown; "close image" closes its entry
+  // (issue 53, item 6).
+  void aStreamWithoutGrabFocusJoinsTheListUnshown() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    const std::filesystem::path example = std::filesystem::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
+    w.openFiles({QString::fromStdString((example / "noisy.exr").string())});
+    QVERIFY(QTest::qWaitFor([&] { return w.session()->hasStack() && !w.busy(); }, 30000));
+    QCOMPARE(w.listenForRenderers(0), QString());
+    QTcpSocket client;
+    client.connectToHost(QHostAddress::LocalHost, w.tevServer()->port());
+    QVERIFY(client.waitForConnected(5000));
+    const auto create = [&](const std::string& name, bool focus) {
+      TevPacket p(4);
+      p.u8(focus ? 1 : 0).str(name).i32(2).i32(2).i32(3).str("R").str("G").str("B");
+      QVERIFY(send(client, p.done()));
+      TevPacket update(3);
+      update.u8(0).str(name).str("R").i32(0).i32(0).i32(2).i32(2);
+      for (int i = 0; i < 4; ++i) update.f32(0.5f);
+      QVERIFY(send(client, update.done()));
+    };
+    QStringList shown;  // every render the canvas was given, by its stream name
+    connect(w.session(), &Session::loaded, &w, [&] { shown << w.session()->liveName(); });
+    create("background", false);
+    QVERIFY(QTest::qWaitFor([&] { return w.session()->renderCount() == 2; }, 10000));
+    QCOMPARE(w.session()->currentRender(), 0);
+    QCOMPARE(w.session()->title(), QString("noisy.exr"));
+    QCOMPARE(w.session()->renderTitle(1), QString("background (live)"));
+    create("foreground", true);
+    QVERIFY(QTest::qWaitFor([&] { return w.session()->liveName() == "foreground"; }, 10000));
+    QCOMPARE(w.session()->renderCount(), 3);
+    // The packets are handled in order: every update of "background" came before "foreground" was shown.
+    QVERIFY2(!shown.contains("background"), qPrintable(shown.join(", ")));
+    QVERIFY(send(client, TevPacket(2).str("background").done()));
+    QVERIFY(QTest::qWaitFor([&] { return w.session()->renderCount() == 2; }, 10000));
+    QCOMPARE(w.session()->liveName(), QString("foreground"));
   }
 
   // An "open image" packet naming a device (/dev/zero reads for ever) or a FIFO: refused at once, named, and the

@@ -10,6 +10,7 @@
 #include <QFileInfo>
 #include <QLabel>
 #include <QLineEdit>
+#include <QListWidget>
 #include <QMenu>
 #include <QPalette>
 #include <QPushButton>
@@ -38,6 +39,7 @@
 #include "core/nn/model_registry.h"
 #include "support/exr_fixture.h"
 #include "ui/canvas.h"
+#include "ui/render_list.h"
 #include "ui/denoise_panel.h"
 #include "ui/heatmap_panel.h"
 #include "ui/main_window.h"
@@ -660,6 +662,109 @@ class TestViewer : public QObject {
     QCOMPARE(w.statusBar()->toolTip(), w.statusText());
   }
 
+  // Every render opened joins the image list with its own results, A and B, region and view; PgUp / PgDn step
+  // through the list; opening a render already open shows it; a dropped image of another size is a new entry;
+  // nothing that arrives replaces another render (issue 53, item 6).
+  void rendersOpenedJoinTheImageList() {
+    QTemporaryDir dir;
+    const QString second = dir.filePath("second.exr");
+    QVERIFY(QFile::copy(QString::fromStdString((kExample / "noisy.exr").string()), second));
+    testing::FixturePart part;
+    part.width = part.height = 40;
+    for (const char* c : {"R", "G", "B"}) part.channels.push_back({c, false, [](int x, int) { return 0.01f * static_cast<float>(x); }});
+    const QString small = dir.filePath("small.exr");
+    testing::write_fixture_exr(small.toStdString(), {part});
+
+    MainWindow w;
+    w.setInteractive(false);
+    w.resize(1280, 720);
+    w.show();
+    openExample(w);
+    runModel(w, "tiny");
+    const int tiny = w.session()->a();
+    const Rect roi{10, 12, 50, 40};
+    w.setRoi(roi);
+    w.canvas()->setView(3.0, QPointF(60, 70));
+    w.openFiles({second});
+    QVERIFY(settle(w, [&] { return w.session()->renderCount() == 2 && w.session()->currentRender() == 1; }));
+    QVERIFY(w.session()->results().empty());  // its own list
+    QCOMPARE(w.session()->title(), QString("second.exr"));
+    QVERIFY(w.windowTitle().contains("(2 of 2)"));
+    w.setRoi(std::nullopt);
+    runModel(w, "tiny");
+    // Back to the first, as it was left.
+    QTest::keyClick(&w, Qt::Key_PageUp);
+    QVERIFY(settle(w, [&] { return w.session()->currentRender() == 0 && !w.canvas()->panes().empty(); }));
+    QCOMPARE(w.session()->results().size(), size_t(1));
+    QCOMPARE(w.session()->a(), tiny);
+    QCOMPARE(w.canvas()->roi(), std::optional<Rect>(roi));
+    QCOMPARE(w.canvas()->zoom(), 3.0);
+    QCOMPARE(w.canvas()->center(), QPointF(60, 70));
+    // The list says each render's result count.
+    auto* items = w.renderList()->list();
+    QCOMPARE(items->count(), 2);
+    QVERIFY2(items->item(0)->text().contains("1 result"), qPrintable(items->item(0)->text()));
+    if (qEnvironmentVariableIsSet("RESIDUE_TEST_SHOTS")) {
+      w.showSideTab(MainWindow::SideTab::Renders);
+      QVERIFY(settle(w, [] { return true; }));
+      w.grab().save(qEnvironmentVariable("RESIDUE_TEST_SHOTS") + "/renders.png");
+    }
+    // Opening a render already open shows it, results and all.
+    w.openFiles({second});
+    QVERIFY(settle(w, [&] { return w.session()->currentRender() == 1; }));
+    QCOMPARE(w.session()->renderCount(), 2);
+    QCOMPARE(w.session()->results().size(), size_t(1));
+    QVERIFY(!w.canvas()->roi());
+    // A dropped image of another size is a render of its own, after the one shown.
+    emit w.canvas()->filesDropped({small});
+    QVERIFY(settle(w, [&] { return w.session()->renderCount() == 3 && w.session()->currentRender() == 2; }));
+    QCOMPARE(w.session()->stack()->width(), int64_t{40});
+    // Clicking an entry shows it; Ctrl+W closes the one shown and its neighbour is shown.
+    items->setCurrentRow(0);
+    QVERIFY(settle(w, [&] { return w.session()->currentRender() == 0; }));
+    QTest::keyClick(&w, Qt::Key_W, Qt::ControlModifier);
+    QVERIFY(settle(w, [&] { return w.session()->renderCount() == 2 && w.session()->hasStack(); }));
+    QCOMPARE(w.session()->title(), QString("second.exr"));
+    QCOMPARE(w.session()->results().size(), size_t(1));
+    QTest::keyClick(&w, Qt::Key_W, Qt::ControlModifier);
+    QTest::keyClick(&w, Qt::Key_W, Qt::ControlModifier);
+    QVERIFY(settle(w, [&] { return w.session()->renderCount() == 0 && !w.session()->hasStack(); }));
+    QVERIFY(w.canvas()->panes().empty());
+    QCOMPARE(w.windowTitle(), QString("Residue"));
+  }
+
+  // A run goes on into its own render while another is shown, and is found there finished.
+  void aRunGoesOnWhileAnotherRenderIsShown() {
+    QTemporaryDir dir;
+    const QString second = dir.filePath("second.exr");
+    QVERIFY(QFile::copy(QString::fromStdString((kExample / "noisy.exr").string()), second));
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    w.openFiles({second});
+    QVERIFY(settle(w, [&] { return w.session()->hasStack(); }));
+    openExample(w);
+    QVERIFY(w.denoisePanel()->selectModel("tiny"));
+    QSignalSpy finished(w.denoisePanel(), &DenoisePanel::finished);
+    {
+      HeldAtFirstTile held(w.denoisePanel()->controller());
+      w.denoisePanel()->start();
+      QVERIFY(held.reached());
+      w.session()->showRender(0);  // second.exr, while the run is held
+      QCOMPARE(w.session()->title(), QString("second.exr"));
+    }
+    QVERIFY(settle(w, [&] { return finished.count() == 1; }));
+    QVERIFY2(finished.at(0).at(0).toBool(), qPrintable(finished.at(0).at(1).toString()));
+    QVERIFY(w.session()->results().empty());  // second.exr has none
+    w.session()->showRender(1);
+    QVERIFY(settle(w, [&] { return w.session()->currentRender() == 1; }));
+    QCOMPARE(w.session()->results().size(), size_t(1));
+    const Result& run = w.session()->results().front();
+    QVERIFY(run.done() && run.complete);
+    const auto stack = w.session()->stack();
+    QVERIFY(maxAbsDiff(*run.image, denoise(*stack, nn::load_model(nn::find_model("tiny")), DenoiseOptions{}), 3) < 1e-4);
+  }
+
   // A pixel's values, written in its cell at high zoom, fit the cell: fewer digits rather than a number running into
   // the next cell (issue 53, item 12).
   void valuesWrittenInACellFitIt() {
@@ -692,8 +797,14 @@ class TestViewer : public QObject {
     };
     QVERIFY(settle(w, [&] { return heat() && !heat()->display.isNull(); }));
     QVERIFY2(heat()->label.contains(name), qPrintable(heat()->label));
-    openExample(w);
-    QVERIFY(settle(w, [&] { return w.session()->results().empty() && heat() && heat()->display.isNull(); }));
+    QTemporaryDir dir;  // another render: a copy of the example (the same file again would show the same render)
+    const QString copy = dir.filePath("noisy.exr");
+    QVERIFY(QFile::copy(QString::fromStdString((kExample / "noisy.exr").string()), copy));
+    LoadOptions o;
+    o.reference = kExample / "reference.exr";
+    w.openFiles({copy}, o);
+    QVERIFY(settle(w, [&] { return w.session()->currentRender() == 1 && w.session()->results().empty() && heat() &&
+                                   heat()->display.isNull(); }));
     for (const QString& text : {heat()->label, heat()->placeholder})
       QVERIFY2(!text.contains(name), qPrintable(text + " names " + name));
     QVERIFY2(heat()->placeholder.contains("no result A yet"), qPrintable(heat()->placeholder));
@@ -711,11 +822,12 @@ class TestViewer : public QObject {
       testing::write_fixture_exr(dir.filePath(name).toStdString(), {part});
       return dir.filePath(name);
     };
-    const QString small = write("small.exr", 0.3f), small_ref = write("small_ref.exr", 0.25f);
+    const QString small_ref = write("small_ref.exr", 0.25f);
     LoadOptions with_ref;
     with_ref.reference = small_ref.toStdString();
-    const auto open_small = [&](MainWindow& w) {
-      w.openFiles({small}, with_ref);
+    // A new render each time (one already open would be shown as it was left, with its own region).
+    const auto open_small = [&](MainWindow& w, const QString& name) {
+      w.openFiles({write(name, 0.3f)}, with_ref);
       QVERIFY2(settle(w, [&] { return w.session()->hasStack() && w.session()->stack()->data_window.width == 96 &&
                                       !w.metricsPanel()->report().rows.empty(); }),
                qPrintable(w.lastError()));
@@ -730,7 +842,7 @@ class TestViewer : public QObject {
     w.show();
     openExample(w);
     w.setRoi(Rect{40, 50, 100, 100});  // reaches x 140, y 150: past the 96 x 96 render
-    open_small(w);
+    open_small(w, "small.exr");
     QCOMPARE(w.canvas()->roi(), std::optional<Rect>(Rect{40, 50, 56, 46}));
     QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.roi == std::optional<Rect>(Rect{40, 50, 56, 46}); }));
     QCOMPARE(w.metricsPanel()->report().rows[0].scores.pixels, int64_t(56 * 46));
@@ -738,7 +850,7 @@ class TestViewer : public QObject {
 
     openExample(w);
     w.setRoi(Rect{120, 130, 50, 40});  // wholly outside the 96 x 96 render
-    open_small(w);
+    open_small(w, "small2.exr");
     QVERIFY(!w.canvas()->roi());
     QVERIFY(settle(w, [&] { return !w.metricsPanel()->report().options.roi; }));
     QCOMPARE(w.metricsPanel()->report().rows[0].scores.relmse, whole(w));
