@@ -1,6 +1,8 @@
 // residue-cli end to end: real renders in, tables/JSON/maps out, exit codes for bad input.
+#include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -162,9 +164,33 @@ TEST(Cli, MapsAndMetricsFilesAreWrittenAndNeverOverwritten) {
                                          "--map-format", "both", "--metrics-out", (tmp / "m.json").string()};
   std::string out;
   ASSERT_EQ(run_cli(args, &out), 0) << out;
-  for (const char* kind : {"abs", "se", "rse", "ssim"}) {
+  for (const char* kind : {"abs", "se", "rse", "ssim", "diff"}) {
     EXPECT_TRUE(std::filesystem::exists(tmp / (std::string("noisy_") + kind + ".png"))) << kind;
     EXPECT_TRUE(std::filesystem::exists(tmp / (std::string("noisy_") + kind + ".exr"))) << kind;
+  }
+  // The signed difference, against a float64 mean of x - r over RGB read here with OpenImageIO; its PNG is drawn
+  // symmetric about 0 in the diverging map: a pixel equal to the reference would be white, the most negative one
+  // the map's dark blue end.
+  {
+    OIIO::ImageBuf diff((tmp / "noisy_diff.exr").string()), noisy((ex / "noisy.exr").string()),
+        ref((ex / "reference.exr").string());
+    ASSERT_TRUE(diff.read(0, 0, true, OIIO::TypeDesc::FLOAT) && noisy.read(0, 0, true, OIIO::TypeDesc::FLOAT) &&
+                ref.read(0, 0, true, OIIO::TypeDesc::FLOAT));
+    const int nc = noisy.spec().nchannels, rc = ref.spec().nchannels;
+    double worst = 0, lowest = 0;
+    for (int y = 0; y < diff.spec().height; ++y)
+      for (int x = 0; x < diff.spec().width; ++x) {
+        std::vector<float> a(static_cast<size_t>(nc)), b(static_cast<size_t>(rc));
+        float d = 0;
+        noisy.getpixel(x, y, a.data(), nc);
+        ref.getpixel(x, y, b.data(), rc);
+        diff.getpixel(x, y, &d, 1);
+        const double want = ((double(a[0]) - b[0]) + (double(a[1]) - b[1]) + (double(a[2]) - b[2])) / 3.0;
+        worst = std::max(worst, std::abs(double(d) - want));
+        lowest = std::min(lowest, want);
+      }
+    EXPECT_LT(worst, 1e-6);
+    EXPECT_LT(lowest, 0.0) << "an 8-spp render has pixels darker than its reference";
   }
   // The mean of the relative squared error map is the relMSE in the metrics file.
   const auto metrics = nlohmann::json::parse(read_file(tmp / "m.json"));

@@ -541,6 +541,10 @@ TEST(Colormap, EndpointsAreMatplotlibs) {
   EXPECT_EQ(colormap_lookup(Colormap::Magma, 1.0), (Rgb{252, 253, 191}));
   EXPECT_EQ(colormap_lookup(Colormap::Turbo, 0.0), (Rgb{48, 18, 59}));
   EXPECT_EQ(colormap_lookup(Colormap::Turbo, 1.0), (Rgb{122, 4, 3}));
+  // matplotlib's RdBu_r: ColorBrewer's #053061 below, #67001f above, near white in the middle.
+  EXPECT_EQ(colormap_lookup(Colormap::BlueRed, 0.0), (Rgb{5, 48, 97}));
+  EXPECT_EQ(colormap_lookup(Colormap::BlueRed, 1.0), (Rgb{103, 0, 31}));
+  for (uint8_t v : colormap_lookup(Colormap::BlueRed, 0.5)) EXPECT_GE(v, 245);
   // Clamped outside [0, 1].
   EXPECT_EQ(colormap_lookup(Colormap::Viridis, -3.0), colormap_lookup(Colormap::Viridis, 0.0));
   EXPECT_EQ(colormap_lookup(Colormap::Viridis, 7.0), colormap_lookup(Colormap::Viridis, 1.0));
@@ -572,7 +576,7 @@ TEST(Colormap, InterpolatesBetweenEntries) {
 }
 
 TEST(Colormap, Names) {
-  for (Colormap m : {Colormap::Viridis, Colormap::Inferno, Colormap::Magma, Colormap::Turbo})
+  for (Colormap m : {Colormap::Viridis, Colormap::Inferno, Colormap::Magma, Colormap::Turbo, Colormap::BlueRed})
     EXPECT_EQ(colormap_from_string(to_string(m)), m);
   EXPECT_EQ(colormap_from_string("Turbo"), Colormap::Turbo);
   EXPECT_EQ(colormap_from_string("jet"), std::nullopt);
@@ -605,6 +609,22 @@ TEST(Colormap, AutomaticRangeIgnoresNonFinite) {
   EXPECT_DOUBLE_EQ(lo, 1e-5);
   // Nothing finite at all.
   EXPECT_EQ(resolve_range(one_row({kNaN, kInf}), {}), (std::pair<double, double>{0.0, 1.0}));
+}
+
+// A signed map's automatic range is symmetric about 0, so that 0 is the diverging map's middle; an explicit bound
+// gives the other its negative; a symmetric log scale is refused.
+TEST(Colormap, SymmetricRangeCentresZero) {
+  ColorScale s;
+  s.symmetric = true;
+  EXPECT_EQ(resolve_range(one_row({-0.2f, 0.05f, kNaN, kInf}), s), (std::pair<double, double>{-0.2f, 0.2f}));
+  EXPECT_EQ(resolve_range(one_row({0.0f, 0.5f}), s), (std::pair<double, double>{-0.5, 0.5}));
+  s.hi = 0.1;
+  EXPECT_EQ(resolve_range(one_row({-0.2f, 0.05f}), s), (std::pair<double, double>{-0.1, 0.1}));
+  const Image rgb = apply_colormap(one_row({-0.1f, 0.0f, 0.1f}), Colormap::BlueRed, s);
+  EXPECT_EQ(pixel(rgb, 1), colormap_lookup(Colormap::BlueRed, 0.5));
+  EXPECT_EQ(pixel(rgb, 0), colormap_lookup(Colormap::BlueRed, 0.0));
+  s.log = true;
+  EXPECT_EQ(error_kind_of([&] { resolve_range(one_row({1.0f}), s); }), ErrorKind::Usage);
 }
 
 TEST(Colormap, NanIsInvalidAndInfClamps) {

@@ -368,7 +368,8 @@ TEST(MetricsMaps, MatchNaivePerPixelValues) {
   const Image se_map = residue::metrics::error_map(test, ref, MapKind::SquaredError, o);
   const Image rse_map = residue::metrics::error_map(test, ref, MapKind::RelativeSquaredError, o);
   const Image ssim_map = residue::metrics::error_map(test, ref, MapKind::Ssim, o);
-  for (const Image* m : {&abs_map, &se_map, &rse_map, &ssim_map}) {
+  const Image diff_map = residue::metrics::error_map(test, ref, MapKind::SignedDifference, o);
+  for (const Image* m : {&abs_map, &se_map, &rse_map, &ssim_map, &diff_map}) {
     EXPECT_EQ(m->width(), 31);
     EXPECT_EQ(m->height(), 26);
     EXPECT_EQ(m->channels(), 1);
@@ -376,9 +377,10 @@ TEST(MetricsMaps, MatchNaivePerPixelValues) {
   const std::vector<double> naive_ssim = naive_ssim_map(test, ref, SsimSpace::Tonemapped);
   for (int64_t y = 0; y < 26; ++y)
     for (int64_t x = 0; x < 31; ++x) {
-      double a = 0, se = 0, rse = 0;
+      double a = 0, se = 0, rse = 0, diff = 0;
       for (int c = 0; c < 3; ++c) {
         const double d = double(test.at(x, y, c)) - double(ref.at(x, y, c));
+        diff += d / 3;
         a += std::abs(d) / 3;
         se += d * d / 3;
         rse += d * d / (double(ref.at(x, y, c)) * double(ref.at(x, y, c)) + 0.01) / 3;
@@ -386,6 +388,7 @@ TEST(MetricsMaps, MatchNaivePerPixelValues) {
       ASSERT_NEAR(abs_map.at(x, y), a, 1e-6 * std::max(1.0, a));
       ASSERT_NEAR(se_map.at(x, y), se, 1e-6 * std::max(1.0, se));
       ASSERT_NEAR(rse_map.at(x, y), rse, 1e-6 * std::max(1.0, rse));
+      ASSERT_NEAR(diff_map.at(x, y), diff, 1e-6 * std::max(1.0, std::abs(diff)));
       // Includes border pixels, where the window is cut and renormalised.
       ASSERT_NEAR(ssim_map.at(x, y), naive_ssim[static_cast<size_t>(y * 31 + x)], 1e-6) << x << "," << y;
     }
@@ -554,7 +557,8 @@ TEST(MetricsNonFinite, ExcludedPixelsAreDroppedCountedAndNaNInMaps) {
     const std::vector<double> naive = naive_ssim_map(test, ref, space);
     EXPECT_NEAR(s.ssim, naive_ssim_score(naive, 40, 33, test.bounds()), 1e-9);
   }
-  for (MapKind kind : {MapKind::AbsoluteError, MapKind::SquaredError, MapKind::RelativeSquaredError, MapKind::Ssim}) {
+  for (MapKind kind : {MapKind::AbsoluteError, MapKind::SquaredError, MapKind::RelativeSquaredError, MapKind::Ssim,
+                       MapKind::SignedDifference}) {
     SCOPED_TRACE(residue::metrics::to_string(kind));
     const Image map = residue::metrics::error_map(test, ref, kind);
     for (int64_t y = 0; y < 33; ++y)

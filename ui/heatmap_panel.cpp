@@ -93,6 +93,7 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   kind_->addItem(tr("absolute error"), static_cast<int>(metrics::MapKind::AbsoluteError));
   kind_->addItem(tr("squared error"), static_cast<int>(metrics::MapKind::SquaredError));
   kind_->addItem(tr("SSIM"), static_cast<int>(metrics::MapKind::Ssim));
+  kind_->addItem(tr("signed difference (blue darker, red brighter)"), static_cast<int>(metrics::MapKind::SignedDifference));
   kind_->addItem(tr("HDR-FLIP"), kFlipKind);
   kind_->setItemData(kind_->count() - 1,
                      tr("NVIDIA's FLIP error: what a viewer notices when flipping between the images, over the "
@@ -117,7 +118,7 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   form->addRow(tr("Show as"), display_);
   colormap_ = new QComboBox(this);
   colormap_->setObjectName("heatmapColormap");
-  for (auto m : {Colormap::Viridis, Colormap::Inferno, Colormap::Magma, Colormap::Turbo})
+  for (auto m : {Colormap::Viridis, Colormap::Inferno, Colormap::Magma, Colormap::Turbo, Colormap::BlueRed})
     colormap_->addItem(QString::fromLatin1(to_string(m)), static_cast<int>(m));
   form->addRow(tr("Colormap"), colormap_);
   range_mode_ = new QComboBox(this);
@@ -151,8 +152,13 @@ HeatmapPanel::HeatmapPanel(QWidget* parent) : QWidget(parent) {
   connect(kind_, &QComboBox::currentIndexChanged, this, [this] {
     // SSIM lives in [-1, 1] and FLIP in [0, 1]: they read best on a linear scale; errors span decades. FLIP is
     // shown in magma, as NVIDIA's tool shows it.
-    log_->setChecked(kind() != metrics::MapKind::Ssim);
+    // A signed difference: linear, symmetric about 0, in the diverging map; leaving it leaves the diverging map too.
+    const bool signed_map = kind() == metrics::MapKind::SignedDifference;
+    log_->setChecked(kind() != metrics::MapKind::Ssim && !signed_map);
+    log_->setEnabled(!signed_map);
     if (flip()) colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(Colormap::Magma)));
+    else if (signed_map) colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(Colormap::BlueRed)));
+    else if (colormap() == Colormap::BlueRed) colormap_->setCurrentIndex(colormap_->findData(static_cast<int>(Colormap::Viridis)));
     emit settingsChanged();
   });
   connect(of_, &QComboBox::currentIndexChanged, this, &HeatmapPanel::settingsChanged);
@@ -212,6 +218,7 @@ std::pair<double, double> HeatmapPanel::sharedRange(metrics::MapKind kind) {
     case metrics::MapKind::AbsoluteError: return {1e-3, 1.0};
     case metrics::MapKind::SquaredError: return {1e-7, 1.0};
     case metrics::MapKind::Ssim: return {0.0, 1.0};
+    case metrics::MapKind::SignedDifference: return {-0.1, 0.1};
   }
   return {0.0, 1.0};
 }
@@ -221,7 +228,8 @@ void HeatmapPanel::setSharedScale(bool shared) { range_mode_->setCurrentIndex(sh
 
 ColorScale HeatmapPanel::scale() const {
   ColorScale s;
-  s.log = log_->isChecked();
+  s.symmetric = kind() == metrics::MapKind::SignedDifference && !temporal() && !flip();
+  s.log = log_->isChecked() && !s.symmetric;
   if (sharedScale()) {
     auto [lo, hi] = sharedRange(kind());
     if (s.log && lo <= 0) lo = 1e-4;  // SSIM shown on a log scale
@@ -255,6 +263,7 @@ QString HeatmapPanel::title() const {
     case metrics::MapKind::SquaredError: what = tr("Squared error"); break;
     case metrics::MapKind::RelativeSquaredError: what = tr("Relative squared error"); break;
     case metrics::MapKind::Ssim: what = tr("SSIM"); break;
+    case metrics::MapKind::SignedDifference: what = tr("Signed difference"); break;
   }
   return tr("%1 of %2%3").arg(what, subject_.isEmpty() ? tr("nothing yet") : subject_,
                               scale().log ? tr(" (log)") : QString());

@@ -78,7 +78,21 @@ bool MainWindow::eventFilter(QObject* watched, QEvent* event) {
 struct MainWindow::Rendered {
   std::vector<Pane> panes;
   QSize size;
+  std::vector<Source> sources;  // what each pane is
 };
+
+void MainWindow::setCanvasPanes(std::vector<Pane> panes, QSize size, std::vector<Source> sources) {
+  // One pane shown: the same image once B or the heatmap comes or goes, though its index moves.
+  std::optional<Source> shown;
+  if (const int i = canvas_->current(); canvas_->layout() == ImageCanvas::Layout::Single && i >= 0 &&
+                                        i < static_cast<int>(canvas_sources_.size()))
+    shown = canvas_sources_[static_cast<size_t>(i)];
+  canvas_->setPanes(std::move(panes), size);
+  canvas_sources_ = std::move(sources);
+  if (!shown) return;
+  for (size_t i = 0; i < canvas_sources_.size(); ++i)
+    if (canvas_sources_[i] == *shown) canvas_->setCurrent(static_cast<int>(i));
+}
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setObjectName("mainWindow");
@@ -225,7 +239,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 MainWindow::~MainWindow() { render_.reset(); }  // first: its jobs post to this window
 
 void MainWindow::showRendered(Rendered&& r) {
-  canvas_->setPanes(std::move(r.panes), r.size);
+  setCanvasPanes(std::move(r.panes), r.size, std::move(r.sources));
   if (pending_view_) {  // a render switched to: the view it was left with
     if (pending_view_->fitted) canvas_->fit();
     else canvas_->setView(pending_view_->zoom, pending_view_->center);
@@ -560,7 +574,7 @@ void MainWindow::refreshPanes() {
   if (!session_->hasStack()) {
     render_->supersede();
     pane_sources_.clear();
-    canvas_->setPanes({}, {});
+    setCanvasPanes({}, {}, {});
     return;
   }
   const auto stack = session_->stack();
@@ -600,14 +614,15 @@ void MainWindow::refreshPanes() {
   render_->start([this, in, size](const LatestTask<Rendered>::Token& token) {
     // A large render is first shown from every step-th pixel (what a fitted view needs), then in full.
     if (const int step = preview_step(size.width(), size.height()); step > 1) {
-      auto preview = std::make_shared<Rendered>(Rendered{render_panes(in, step), size});
+      auto preview = std::make_shared<Rendered>(Rendered{render_panes(in, step), size, in.sources});
       QMetaObject::invokeMethod(this, [this, preview, generation = token.generation()] {
-        if (render_->pending(generation)) canvas_->setPanes(std::move(preview->panes), preview->size);
+        if (render_->pending(generation))
+          setCanvasPanes(std::move(preview->panes), preview->size, std::move(preview->sources));
         applyHeatmap();
         emit panesRendered();
       }, Qt::QueuedConnection);
     }
-    return Rendered{render_panes(in, 1), size};
+    return Rendered{render_panes(in, 1), size, in.sources};
   });
 }
 

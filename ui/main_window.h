@@ -159,6 +159,7 @@ class MainWindow : public QMainWindow {
   void drawDenoisedTile(const Rect& rect);
   struct Rendered;  // panes drawn on a worker
   void showRendered(Rendered&& r);  // the newest panes, on the canvas
+  void setCanvasPanes(std::vector<Pane> panes, QSize size, std::vector<Source> sources);
   void updateStatus();
   void say(const QString& text, int timeout_ms = 0);  // a status bar message (see statusText)
   void updateTitle();
@@ -226,6 +227,7 @@ class MainWindow : public QMainWindow {
   std::vector<Source> pane_sources_;
   Source wipe_a_ = Source::Denoised, wipe_b_ = Source::Compare;
   std::optional<Source> pending_pane_;  // to show in single layout once the panes include it
+  std::vector<Source> canvas_sources_;  // what the canvas's panes are (pane_sources_ may be newer)
   std::optional<QPoint> hover_;
   bool interactive_ = true;
   bool load_from_renderer_ = false;  // the load in flight was asked for over tev's protocol: no dialogs

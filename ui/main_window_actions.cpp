@@ -282,11 +282,12 @@ void MainWindow::buildActions() {
   listed(action(view, tr("Difference: A against B"), QKeySequence(Qt::Key_D), [this] {
     if (session_->b() < 0) return say(tr("Pick a result B first (Ctrl+1-9)"), 5000);
     heatmap_->setOf(HeatmapPanel::Of::AgainstB);
+    heatmap_->setKind(metrics::MapKind::SignedDifference);  // A - B, blue where A is darker, red where brighter
     heatmap_->setDisplay(HeatmapPanel::Display::Pane);
     tabs_->setCurrentWidget(heatmap_);
     if (paneIndex(Source::Heatmap) >= 0) showPane(Source::Heatmap);
     else pending_pane_ = Source::Heatmap;  // once the panes are drawn with it
-  }), tr("difference: the map of A against B"));
+  }), tr("difference: A - B, signed (blue: A darker, red: A brighter)"));
   auto* next = listed(action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
   next->setShortcutContext(Qt::ApplicationShortcut);
   auto* prev = listed(action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Tab), [this] { cyclePane(-1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));

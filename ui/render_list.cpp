@@ -1,5 +1,6 @@
 #include "ui/render_list.h"
 
+#include <QFileInfo>
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QListWidget>
@@ -41,10 +42,17 @@ RenderList::RenderList(Session* session, QWidget* parent) : QWidget(parent), ses
 void RenderList::rebuild() {
   const QSignalBlocker block(list_);
   list_->clear();
+  QStringList titles;
+  for (int i = 0; i < session_->renderCount(); ++i) titles << session_->renderTitle(i);
   for (int i = 0; i < session_->renderCount(); ++i) {
     const int n = session_->renderResultCount(i);
     const QString results = n == 0 ? QString() : n == 1 ? tr("    1 result") : tr("    %1 results").arg(n);
-    auto* item = new QListWidgetItem(session_->renderTitle(i) + results, list_);
+    // Alike names (every scene's noisy_a.exr) say their folder.
+    QString title = titles[i];
+    const QStringList inputs = session_->renderInputs(i);
+    if (titles.count(title) > 1 && !inputs.isEmpty())
+      title += "  (" + QFileInfo(QFileInfo(inputs.front()).absolutePath()).fileName() + ")";
+    auto* item = new QListWidgetItem(title + results, list_);
     item->setToolTip(session_->renderInputs(i).join('\n'));  // alike names from different folders
     if (i == session_->currentRender()) {
       QFont f = item->font();

@@ -1,5 +1,7 @@
 #include "ui/session.h"
 
+#include <QScopeGuard>
+#include <QTimer>
 #include <QtConcurrent/QtConcurrentRun>
 #include <algorithm>
 
@@ -67,7 +69,15 @@ void Session::open(const std::vector<std::filesystem::path>& inputs, const LoadO
     if (focus) showRender(open);
     return;
   }
+  if (loading_ && load_is_new_) return queued_.push_back({inputs, options, focus});
   startLoad(inputs, options, false, std::nullopt, false, focus);
+}
+
+void Session::startQueued() {
+  if (loading_ || queued_.empty()) return;
+  QueuedOpen next = std::move(queued_.front());
+  queued_.pop_front();
+  open(next.inputs, next.options, next.focus);
 }
 
 void Session::closeLive(const QString& name) {
@@ -118,6 +128,7 @@ void Session::startLoad(std::vector<std::filesystem::path> inputs, LoadOptions o
                         std::optional<int64_t> frame, bool reload, bool focus) {
   const int generation = ++generation_;
   loading_ = true;
+  load_is_new_ = !reference_only && !frame && !reload;
   QStringList names;
   for (const auto& p : inputs) names << QString::fromStdString(p.filename().string());
   emit loadStarted(reference_only && options.reference
@@ -183,6 +194,9 @@ void Session::finishLoad() {
   const auto r = watcher_->result();
   if (!r || r->generation != generation_) return;
   loading_ = false;
+  load_is_new_ = false;
+  // A render asked for meanwhile is opened next, whatever this load's end.
+  const auto next = qScopeGuard([this] { startQueued(); });
   if (!r->stack) {
     QStringList names;
     for (const auto& p : r->inputs) names << QString::fromStdString(p.string());
@@ -190,8 +204,8 @@ void Session::finishLoad() {
     return;
   }
   const bool same_grid = stack_ && stack_->width() == r->stack->width() && stack_->height() == r->stack->height();
-  // A new render joins the list after the one shown, which keeps everything; a reload, another frame or another
-  // reference stays in the shown render's entry.
+  // A new render joins the end of the list (as in tev), and the one shown keeps everything; a reload, another
+  // frame or another reference stays in the shown render's entry.
   if (!r->reload && !r->step && !r->reference_only) {
     if (!r->focus && current_ >= 0) {
       Render unshown;
@@ -202,7 +216,7 @@ void Session::finishLoad() {
       unshown.sequence = r->sequence;
       unshown.frame = r->frame;
       unshown.nearby = r->nearby;
-      renders_.insert(renders_.begin() + current_ + 1, std::move(unshown));
+      renders_.push_back(std::move(unshown));
       emit renderListChanged();
       return;
     }
@@ -212,8 +226,8 @@ void Session::finishLoad() {
     }
     Render fresh;
     fresh.id = next_render_id_++;
-    current_ = current_ < 0 ? 0 : current_ + 1;
-    renders_.insert(renders_.begin() + current_, std::move(fresh));
+    renders_.push_back(std::move(fresh));
+    current_ = renderCount() - 1;
   }
   inputs_ = r->inputs;
   live_name_.clear();
@@ -301,7 +315,8 @@ void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& na
         Render fresh;
         fresh.id = next_render_id_++;
         fresh.live_name = name;
-        r = &*renders_.insert(renders_.begin() + current_ + 1, std::move(fresh));
+        renders_.push_back(std::move(fresh));
+        r = &renders_.back();
       }
       r->stack = std::move(stack);
       r->results.clear();  // they were of the pixels before
@@ -318,12 +333,11 @@ void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& na
       if (current_ >= 0) renders_[static_cast<size_t>(current_)] = stash();
       Render fresh;
       fresh.id = next_render_id_++;
-      current_ = current_ < 0 ? 0 : current_ + 1;
-      renders_.insert(renders_.begin() + current_, std::move(fresh));
+      renders_.push_back(std::move(fresh));
+      current_ = renderCount() - 1;
     }
   }
-  ++generation_;  // a file load still in flight is dropped when it ends
-  loading_ = false;
+  dropLoadOfShown();
   inputs_.clear();
   live_name_ = name;
   stack_ = std::move(stack);
@@ -396,6 +410,15 @@ void Session::switchTo(int index) {
   renders_[static_cast<size_t>(index)].id = id;
 }
 
+void Session::dropLoadOfShown() {
+  // A reload, frame step or reference in flight was for the render shown before: dropped when it ends. A render
+  // being opened is not: it joins the list.
+  if (!loading_ || load_is_new_) return;
+  ++generation_;
+  loading_ = false;
+  QTimer::singleShot(0, this, &Session::startQueued);
+}
+
 int Session::findRender(const std::vector<std::filesystem::path>& inputs, const QString& live_name) const {
   const auto same = [](const std::vector<std::filesystem::path>& a, const std::vector<std::filesystem::path>& b) {
     if (a.size() != b.size()) return false;
@@ -446,8 +469,7 @@ int Session::renderId(int index) const {
 
 void Session::showRender(int index) {
   if (index < 0 || index >= renderCount()) return;
-  ++generation_;  // a load in flight (a frame step, a reference) was for the render shown: dropped
-  loading_ = false;
+  dropLoadOfShown();
   emit aboutToSwitch();
   switchTo(index);
   switching_ = true;
@@ -464,8 +486,7 @@ void Session::closeRender(int index) {
     emit renderListChanged();
     return;
   }
-  ++generation_;
-  loading_ = false;
+  dropLoadOfShown();
   emit aboutToSwitch();
   stash();  // the shown one's members go with it
   renders_.erase(renders_.begin() + index);

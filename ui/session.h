@@ -7,6 +7,7 @@
 #include <QFutureWatcher>
 #include <QObject>
 #include <QStringList>
+#include <deque>
 #include <functional>
 #include <map>
 #include <filesystem>
@@ -38,9 +39,10 @@ class Session : public QObject {
   ~Session() override;
 
   // Starts loading `inputs` (one file, a folder, or a set of single-AOV files) with `options` on a worker
-  // thread; loaded() or loadFailed() follows. A load in flight is superseded. The render joins the list after
-  // the one shown and is shown (without `focus`: it joins the list unshown, unless nothing is shown); the others
-  // keep everything. Inputs already open show that render instead.
+  // thread; loaded() or loadFailed() follows. A reload or frame step in flight is superseded; another render
+  // being opened is not: this one waits for it. The render joins the end of the list and is shown (without
+  // `focus`: it joins unshown, unless nothing is shown); the others keep everything. Inputs already open show
+  // that render instead.
   void open(const std::vector<std::filesystem::path>& inputs, const LoadOptions& options = {}, bool focus = true);
 
   // The image list. Every render opened (a file, a drop, a stream) is an entry until it is closed.
@@ -193,6 +195,15 @@ class Session : public QObject {
   void unstash(Render&& r);     // ... and another's in
   void switchTo(int index);     // stash the shown one into its entry, unstash `index`
   int findRender(const std::vector<std::filesystem::path>& inputs, const QString& live_name) const;
+  struct QueuedOpen {
+    std::vector<std::filesystem::path> inputs;
+    LoadOptions options;
+    bool focus = true;
+  };
+  std::deque<QueuedOpen> queued_;  // renders asked for while another was being opened
+  bool load_is_new_ = false;       // the load in flight opens a new render (it is never superseded)
+  void startQueued();
+  void dropLoadOfShown();
   std::vector<Render> renders_;  // the list; the entry at current_ is a husk whose members are in use below
   int current_ = -1;
   int next_render_id_ = 1;

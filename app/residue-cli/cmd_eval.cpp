@@ -52,16 +52,24 @@ void write_maps(const EvalOptions& o, const std::string& name, const Image& test
     if (o.map_format != EvalOptions::MapFormat::Png) io::write_map_exr(base.string() + ".exr", map, o.force);
   }
   for (metrics::MapKind kind : {metrics::MapKind::AbsoluteError, metrics::MapKind::SquaredError,
-                                metrics::MapKind::RelativeSquaredError, metrics::MapKind::Ssim}) {
+                                metrics::MapKind::RelativeSquaredError, metrics::MapKind::Ssim,
+                                metrics::MapKind::SignedDifference}) {
     const Image map = metrics::error_map(test, reference, kind, mopts);
     const std::filesystem::path base = std::filesystem::path(o.maps_dir) / (name + "_" + metrics::to_string(kind));
     if (o.map_format != EvalOptions::MapFormat::Exr) {
       io::MapPngOptions p;
       p.colormap = *colormap;
       p.overwrite = o.force;
-      // Errors span decades: log scale; SSIM lives in [0, 1]: linear.
-      if (kind == metrics::MapKind::Ssim) p.scale = {false, 0.0, 1.0};
-      else p.scale.log = true;
+      // Errors span decades: log scale; SSIM lives in [0, 1]: linear; a signed difference: linear, symmetric about
+      // 0, in the diverging colormap whatever --colormap says (blue: darker than the reference, red: brighter).
+      if (kind == metrics::MapKind::Ssim) {
+        p.scale = {false, 0.0, 1.0};
+      } else if (kind == metrics::MapKind::SignedDifference) {
+        p.colormap = Colormap::BlueRed;
+        p.scale.symmetric = true;
+      } else {
+        p.scale.log = true;
+      }
       io::write_map_png(base.string() + ".png", map, p);
     }
     if (o.map_format != EvalOptions::MapFormat::Png) io::write_map_exr(base.string() + ".exr", map, o.force);
@@ -156,12 +164,13 @@ Command add_eval_command(CLI::App& app) {
   cmd->add_flag("--json", o->json, "Print JSON instead of a table");
   cmd->add_option("--metrics-out", o->metrics_out, "Also write the metrics to FILE (.json or .csv)");
   cmd->add_option("--maps-dir", o->maps_dir,
-                  "Write per-pixel maps (abs, se, rse, ssim, and flip in magma) of each scored image into this folder");
+                  "Write per-pixel maps (abs, se, rse, ssim; diff, signed, in bluered; flip in magma) of each scored "
+                  "image into this folder");
   add_on_off(cmd, "--flip", o->flip, "Score HDR-FLIP too (NVIDIA's FLIP over the reference's exposures; about 2 s per "
                                      "megapixel on 2 cores)");
   cmd->add_option("--colormap", o->colormap, "Colormap of PNG maps")
       ->capture_default_str()
-      ->check(CLI::IsMember({"viridis", "inferno", "magma", "turbo"}));
+      ->check(CLI::IsMember({"viridis", "inferno", "magma", "turbo", "bluered"}));
   using MapFormat = EvalOptions::MapFormat;
   add_enum_option<MapFormat>(cmd, "--map-format", o->map_format,
                              {{"png", MapFormat::Png}, {"exr", MapFormat::Exr}, {"both", MapFormat::Both}},

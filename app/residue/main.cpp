@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
   const QCommandLineOption aov("aov", "The AOV the noisy pane shows: color, albedo, normal, depth, variance or motion.",
                                "aov");
   const QCommandLineOption heatmap_of("heatmap-of", "What the heatmap maps: a, b, noisy or a-vs-b.", "what");
-  const QCommandLineOption heatmap_kind("heatmap-kind", "The heatmap's map: rse, abs, se, ssim, flip (HDR-FLIP), or temporal (the error's "
+  const QCommandLineOption heatmap_kind("heatmap-kind", "The heatmap's map: rse, abs, se, ssim, diff (signed), flip (HDR-FLIP), or temporal (the error's "
                                         "change since frame t-1 along the motion, on a sequence).", "kind");
   const QCommandLineOption every_frame("every-frame", "With --denoise, on a frame of a sequence: denoise every frame in "
                                        "turn (Denoise > Every Frame), then show the frame opened.");
@@ -102,6 +102,8 @@ int main(int argc, char** argv) {
   const QCommandLineOption zoom("zoom", "Zoom (screen pixels per image pixel) instead of fit.", "factor");
   const QCommandLineOption size("size", "Window size WxH.", "size");
   const QCommandLineOption channel("channel", "Show one channel alone, as grey: r, g, b or luminance (rgb: all).", "channel");
+  const QCommandLineOption open_also("open", "Open another render too, as its own entry of the image list (the Renders "
+                                     "tab); repeatable. The render named first is shown.", "render");
   const QCommandLineOption theme("theme", "system, light or dark (View > Theme; remembered).", "theme");
   const QCommandLineOption timing("timing", "Print when the render is loaded, first shown and fully analysed.");
   const QCommandLineOption cancel_after("cancel-after", "Cancel each denoise S seconds after it starts and print how "
@@ -116,7 +118,7 @@ int main(int argc, char** argv) {
                                       "MiB (default: a quarter of this machine's RAM).", "MiB");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
                         &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
-                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame, &theme, &channel})
+                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame, &theme, &channel, &open_also})
     cli.addOption(*o);
   cli.process(app);
 
@@ -140,7 +142,7 @@ int main(int argc, char** argv) {
   checked.one_of(cli, pane, {"noisy", "denoised", "compare", "reference", "heatmap"});
   checked.one_of(cli, heatmap, {"pane", "overlay", "off"});
   checked.one_of(cli, heatmap_of, {"a", "b", "noisy", "a-vs-b"});
-  checked.one_of(cli, heatmap_kind, {"rse", "abs", "se", "ssim", "flip", "temporal"});
+  checked.one_of(cli, heatmap_kind, {"rse", "abs", "se", "ssim", "diff", "flip", "temporal"});
   if (cli.isSet(every_frame) && !cli.isSet(denoise))
     checked.errors << QStringLiteral("--every-frame needs --denoise: it says how --denoise runs");
   checked.one_of(cli, precision, {"fp32", "bf16"});
@@ -436,5 +438,8 @@ int main(int argc, char** argv) {
 
   QStringList files = cli.positionalArguments();
   if (!files.isEmpty()) window.openFiles(files, options);
+  // The other renders join the image list unshown, one after the other (the first is shown if no render was named).
+  const QStringList others = cli.values(open_also);
+  for (qsizetype i = 0; i < others.size(); ++i) window.openFiles({others[i]}, {}, files.isEmpty() && i == 0);
   return QApplication::exec();
 }

@@ -18,7 +18,7 @@ namespace {
 
 #include "core/image/colormap_tables.inc"
 
-constexpr std::array<const char*, 4> kNames = {"viridis", "inferno", "magma", "turbo"};
+constexpr std::array<const char*, 5> kNames = {"viridis", "inferno", "magma", "turbo", "bluered"};
 static_assert(sizeof(kColormapTables) / sizeof(kColormapTables[0]) == kNames.size(),
               "one table per Colormap, in enum order");
 
@@ -106,9 +106,17 @@ std::pair<double, double> resolve_range(const Image& map, const ColorScale& scal
   if ((scale.lo && !std::isfinite(*scale.lo)) || (scale.hi && !std::isfinite(*scale.hi)))
     throw Error(ErrorKind::Usage, "colour scale bounds must be finite numbers");
 
+  if (scale.log && scale.symmetric) throw Error(ErrorKind::Usage, "a symmetric colour scale cannot be a log one");
   const Extremes e = (scale.lo && scale.hi) ? Extremes{} : find_extremes(map);
   double hi = 0, lo = 0;
-  if (scale.log) {
+  if (scale.symmetric) {
+    const bool any = e.min <= e.max;
+    const double m = scale.hi ? std::abs(*scale.hi) : scale.lo ? std::abs(*scale.lo)
+                     : any   ? std::max(std::abs(e.min), std::abs(e.max))
+                             : 1.0;
+    lo = scale.lo ? *scale.lo : -m;
+    hi = scale.hi ? *scale.hi : m;
+  } else if (scale.log) {
     // No positive value at all: an arbitrary decade range that puts everything at the bottom.
     hi = scale.hi ? *scale.hi : (e.max > 0 ? e.max : 1.0);
     lo = scale.lo ? *scale.lo : (std::isfinite(e.min_positive) ? e.min_positive : hi * 1e-6);

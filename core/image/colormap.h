@@ -1,5 +1,7 @@
 // Colormaps for one-channel maps: the perceptually uniform viridis, inferno, magma (matplotlib) and turbo
-// (Google). One place for this display maths, so the viewer's heatmaps and exported PNGs agree.
+// (Google), and a diverging one for signed values, bluered (ColorBrewer's RdBu reversed, as matplotlib's RdBu_r:
+// blue below the middle, white at it, red above). One place for this display maths, so the viewer's heatmaps and
+// exported PNGs agree.
 #pragma once
 
 #include <array>
@@ -11,7 +13,7 @@
 
 namespace residue {
 
-enum class Colormap { Viridis, Inferno, Magma, Turbo };
+enum class Colormap { Viridis, Inferno, Magma, Turbo, BlueRed };
 const char* to_string(Colormap map);
 std::optional<Colormap> colormap_from_string(const std::string& name);
 
@@ -23,6 +25,9 @@ struct ColorScale {
   bool log = false;
   std::optional<double> lo;  // automatic (finite min; for log, smallest positive) when unset
   std::optional<double> hi;  // automatic (finite max) when unset
+  // Signed values: automatic bounds are -m and m, m the largest finite |value|, so that 0 sits in the middle of a
+  // diverging colormap (an explicit bound gives the other its negative). Not with log.
+  bool symmetric = false;
 };
 
 // Resolved bounds for `scale` over `map` (fills in automatic bounds; an automatic bound beyond an explicit one

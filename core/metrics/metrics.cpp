@@ -73,6 +73,7 @@ Image point_map(const Image& test, const Image& reference, MapKind kind, const O
             case MapKind::AbsoluteError: sum += std::abs(d); break;
             case MapKind::SquaredError: sum += d * d; break;
             case MapKind::RelativeSquaredError: sum += d * d / (xr * xr + eps); break;
+            case MapKind::SignedDifference: sum += d; break;
             case MapKind::Ssim: break;  // not a point map
           }
         }
@@ -143,12 +144,14 @@ const char* to_string(MapKind kind) {
     case MapKind::SquaredError: return "se";
     case MapKind::RelativeSquaredError: return "rse";
     case MapKind::Ssim: return "ssim";
+    case MapKind::SignedDifference: return "diff";
   }
   return "unknown";
 }
 
 std::optional<MapKind> map_kind_from_string(const std::string& name) {
-  for (MapKind kind : {MapKind::AbsoluteError, MapKind::SquaredError, MapKind::RelativeSquaredError, MapKind::Ssim})
+  for (MapKind kind : {MapKind::AbsoluteError, MapKind::SquaredError, MapKind::RelativeSquaredError, MapKind::Ssim,
+                       MapKind::SignedDifference})
     if (name == to_string(kind)) return kind;
   return std::nullopt;
 }

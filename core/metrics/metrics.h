@@ -82,8 +82,9 @@ enum class MapKind {
   SquaredError,          // mean over RGB of (x - r)^2
   RelativeSquaredError,  // mean over RGB of (x - r)^2 / (r^2 + eps): its mean is relMSE
   Ssim,                  // mean over RGB of the SSIM map: its mean (interior) is SSIM
+  SignedDifference,      // mean over RGB of x - r: where the test is brighter (> 0) or darker (< 0), its bias
 };
-const char* to_string(MapKind kind);             // "abs", "se", "rse", "ssim"
+const char* to_string(MapKind kind);             // "abs", "se", "rse", "ssim", "diff"
 std::optional<MapKind> map_kind_from_string(const std::string& name);
 
 // A one-channel per-pixel map of the ROI (whole image by default); NaN where a pixel is excluded. Map values

@@ -147,11 +147,18 @@ class TestResults : public QObject {
     QVERIFY(!w.denoisePanel()->running());
     QCOMPARE(w.session()->results().size(), size_t(2));
 
-    // Difference (D): the map of A against B.
+    // Difference (D): A - B, signed, in the diverging map on a range symmetric about 0 (issue 53, item 17).
     QTest::keyClick(&w, Qt::Key_D);
     QVERIFY(settle(w, [&] { return w.heatmapPanel()->map() && w.heatmapPanel()->title().contains("against"); }));
-    const Image diff = metrics::error_map(*results[0].image, *results[1].image, w.heatmapPanel()->kind());
+    QCOMPARE(w.heatmapPanel()->kind(), metrics::MapKind::SignedDifference);
+    const Image diff = metrics::error_map(*results[0].image, *results[1].image, metrics::MapKind::SignedDifference);
     QCOMPARE(maxAbsDiff(*w.heatmapPanel()->map(), diff, 1), 0.0);
+    QCOMPARE(w.heatmapPanel()->colormap(), Colormap::BlueRed);
+    QCOMPARE(w.heatmapPanel()->range(), (std::pair<double, double>{-0.1, 0.1}));
+    w.heatmapPanel()->setSharedScale(false);
+    QVERIFY(settle(w, [&] { return w.heatmapPanel()->range().first != -0.1; }));
+    QCOMPARE(w.heatmapPanel()->range().first, -w.heatmapPanel()->range().second);
+    w.heatmapPanel()->setSharedScale(true);
     QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Single);
     QCOMPARE(w.canvas()->current(), w.paneIndex(Source::Heatmap));
     // HDR-FLIP's map of A against B: core's, in magma over [0, 1].

@@ -733,6 +733,30 @@ class TestViewer : public QObject {
     QCOMPARE(w.windowTitle(), QString("Residue"));
   }
 
+  // Renders asked for while another is being opened wait for it instead of superseding it (the command line's
+  // --open, a client's open requests): all of them join the list, in order, alike names told apart by folder.
+  void rendersOpenedAtOnceAllJoin() {
+    QTemporaryDir dir;
+    QStringList files;
+    for (const char* folder : {"a", "b", "c"}) {
+      QVERIFY(QDir(dir.path()).mkpath(folder));
+      files << dir.filePath(QString(folder) + "/noisy.exr");
+      QVERIFY(QFile::copy(QString::fromStdString((kExample / "noisy.exr").string()), files.back()));
+    }
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    w.openFiles({files[0]});
+    w.openFiles({files[1]}, {}, false);
+    w.openFiles({files[2]}, {}, false);
+    QVERIFY(settle(w, [&] { return w.session()->renderCount() == 3; }));
+    QCOMPARE(w.session()->currentRender(), 0);
+    for (int i = 0; i < 3; ++i)
+      QCOMPARE(QFileInfo(w.session()->renderInputs(i).front()).canonicalFilePath(), QFileInfo(files[i]).canonicalFilePath());
+    auto* items = w.renderList()->list();
+    QVERIFY2(items->item(1)->text().contains("(b)"), qPrintable(items->item(1)->text()));
+  }
+
   // A run goes on into its own render while another is shown, and is found there finished.
   void aRunGoesOnWhileAnotherRenderIsShown() {
     QTemporaryDir dir;
@@ -763,6 +787,25 @@ class TestViewer : public QObject {
     QVERIFY(run.done() && run.complete);
     const auto stack = w.session()->stack();
     QVERIFY(maxAbsDiff(*run.image, denoise(*stack, nn::load_model(nn::find_model("tiny")), DenoiseOptions{}), 3) < 1e-4);
+  }
+
+  // One pane shown stays the same image when B comes and its index moves (it used to jump to the reference).
+  void theSinglePaneShownStaysWhenBArrives() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    runModel(w, "tiny");
+    const int tiny = w.session()->a();
+    runModel(w, "small");
+    QVERIFY(settle(w, [&] { return w.paneIndex(Source::Heatmap) >= 0 && w.canvas()->panes().size() == 4; }));
+    w.showPane(Source::Heatmap);
+    QCOMPARE(w.canvas()->current(), 3);
+    w.session()->setB(tiny);
+    QVERIFY(settle(w, [&] { return w.canvas()->panes().size() == 5; }));
+    QCOMPARE(w.paneIndex(Source::Heatmap), 4);
+    QCOMPARE(w.canvas()->current(), 4);
+    QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Single);
   }
 
   // A pixel's values, written in its cell at high zoom, fit the cell: fewer digits rather than a number running into
