@@ -40,12 +40,31 @@ struct Planned {
 std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path& folder) {
   std::vector<Planned> out;
   const auto at = [&](const QString& name) { return folder / name.toStdString(); };
+  // The pixels written: the whole image, or the region's.
+  const auto part = [&in](const Image& image) { return in.crop ? crop(image, *in.crop) : image; };
   if (in.results_exr && in.stack) {
     for (const auto& r : in.results) {
       if (!r.image) continue;
-      out.push_back({at(file_stem(r.name) + ".exr"), [&in, r](const std::filesystem::path& p, bool overwrite) {
-                       write_result_exr(p, *r.image, *in.stack, r, overwrite);
+      out.push_back({at(file_stem(r.name) + ".exr"), [&in, r, part](const std::filesystem::path& p, bool overwrite) {
+                       write_result_exr(p, part(*r.image), *in.stack, r, overwrite, true, "zip", in.crop);
                      }});
+    }
+    // A region's bundle holds what it is compared with too.
+    if (in.crop) {
+      Result noisy;
+      noisy.name = "noisy";
+      noisy.description = QString::fromStdString(in.stack->color.source.file);
+      out.push_back({at("noisy.exr"), [&in, noisy, part](const std::filesystem::path& p, bool overwrite) {
+                       write_result_exr(p, part(in.stack->color.image), *in.stack, noisy, overwrite, true, "zip", in.crop);
+                     }});
+      if (in.reference) {
+        Result ref;
+        ref.name = "reference";
+        ref.description = in.stack->reference ? QString::fromStdString(in.stack->reference->source.file) : QString();
+        out.push_back({at("reference.exr"), [&in, ref, part](const std::filesystem::path& p, bool overwrite) {
+                         write_result_exr(p, part(*in.reference), *in.stack, ref, overwrite, true, "zip", in.crop);
+                       }});
+      }
     }
   }
   if (in.heatmaps && in.reference) {
@@ -53,10 +72,12 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
       if (!r.image) continue;
       // One map per result, made once for both files.
       auto map = std::make_shared<std::optional<Image>>();
-      const auto make = [&in, r, map]() -> const Image& {
+      const auto make = [&in, r, map, part]() -> const Image& {
+        // Made on the whole image, then cut: SSIM's windows near the region's edge see the pixels beyond it.
         if (!*map)
-          *map = in.make_map ? in.make_map(*r.image, *in.reference)
-                             : metrics::error_map(*r.image, *in.reference, metrics::MapKind::RelativeSquaredError, in.options);
+          *map = part(in.make_map ? in.make_map(*r.image, *in.reference)
+                                  : metrics::error_map(*r.image, *in.reference, metrics::MapKind::RelativeSquaredError,
+                                                       in.options));
         return **map;
       };
       const QString stem = "heatmap-" + file_stem(r.name);
@@ -86,19 +107,20 @@ std::vector<Planned> plan(const ExportAllInputs& in, const std::filesystem::path
       }
       return report;
     };
-    const auto whole = std::make_shared<io::MetricsReport>(with_files(in.whole));
+    // A region's export: its scores are the metrics.
+    const auto whole = std::make_shared<io::MetricsReport>(with_files(in.crop ? in.roi : in.whole));
     const auto roi = std::make_shared<io::MetricsReport>(with_files(in.roi));
     for (const char* ext : {".json", ".csv"}) {
       out.push_back({at(QString("metrics") + ext), [whole](const std::filesystem::path& p, bool overwrite) {
                        io::write_metrics(p, *whole, overwrite);
                      }});
-      if (!in.roi.rows.empty())
+      if (!in.roi.rows.empty() && !in.crop)
         out.push_back({at(QString("metrics-roi") + ext), [roi](const std::filesystem::path& p, bool overwrite) {
                          io::write_metrics(p, *roi, overwrite);
                        }});
     }
   }
-  if (in.comparison && in.sheet) {
+  if (in.comparison && in.sheet && !in.crop) {
     out.push_back({at("comparison.png"), [&in](const std::filesystem::path& p, bool overwrite) {
                      write_png(p, in.sheet(), overwrite, "comparison sheet");
                    }});
@@ -140,11 +162,19 @@ void write_png(const std::filesystem::path& path, const QImage& image, bool over
 }
 
 void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,
-                      const Result& result, bool overwrite, bool half, const std::string& compression) {
+                      const Result& result, bool overwrite, bool half, const std::string& compression,
+                      const std::optional<Rect>& crop) {
   io::ExrWriteOptions o;
   o.pixel_type = half ? io::PixelType::Half : io::PixelType::Float;
   o.compression = compression;
   keep_render_header(o, stack);
+  if (crop) {
+    o.data_window = {stack.data_window.x + crop->x, stack.data_window.y + crop->y, crop->width, crop->height};
+    if (o.display_width == 0) {  // the frame was the data window: it still is, around the region
+      o.display_width = stack.data_window.x + stack.data_window.width;
+      o.display_height = stack.data_window.y + stack.data_window.height;
+    }
+  }
   io::Provenance p = result.provenance;
   if (!p.model) p.model = result.description.toStdString();  // an added file: its path
   p.source = stack.color.source.file;

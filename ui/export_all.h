@@ -4,6 +4,9 @@
 //                                range drawn in, and as float values
 //   metrics.json / metrics.csv   the scores of every result (and metrics-roi.* for a dragged region)
 //   comparison.png               the comparison sheet (ui/comparison_sheet.h)
+// A region's export (crop set) writes the same for the region alone: each result's pixels there (an EXR whose data
+// window keeps its place in the frame, so it composites back), the noisy input's and the reference's, the maps
+// cropped, and the region's scores as metrics.json / .csv; no sheet.
 // Nothing is replaced unless asked: the files that would be are listed first (planned_files), and the writes
 // themselves are atomic.
 #pragma once
@@ -38,6 +41,7 @@ struct ExportAllInputs {
   io::MetricsReport whole, roi;  // roi.rows empty: no region
   std::function<QImage()> sheet;  // makes the comparison sheet (on the worker); empty: none
   bool results_exr = true, heatmaps = true, metrics = true, comparison = true;
+  std::optional<Rect> crop;  // a region of the render (its data window's pixels): export that region alone
 };
 
 // "small fp32 (2)" -> "small_fp32_2": letters, digits, '.', '-' and '_' only.
@@ -53,8 +57,10 @@ QString export_all(const ExportAllInputs& in, const std::filesystem::path& folde
 // Writes one result as an EXR with what made it: a run's provenance as the CLI writes it (residue:model, its
 // architecture, backend, post-steps, time), and residue:source, residue:result; an added file names itself; a
 // result at a strength says it (residue:strength).
+// With `crop`, `image` is that region of the render, written where it lies in the frame.
 void write_result_exr(const std::filesystem::path& path, const Image& image, const AovStack& stack,
-                      const Result& result, bool overwrite, bool half = true, const std::string& compression = "zip");
+                      const Result& result, bool overwrite, bool half = true, const std::string& compression = "zip",
+                      const std::optional<Rect>& crop = std::nullopt);
 
 // Writes `image` as a PNG atomically (atomic_file.h); `what` names it in the error ("heatmap PNG").
 void write_png(const std::filesystem::path& path, const QImage& image, bool overwrite, const std::string& what);

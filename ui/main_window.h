@@ -127,7 +127,11 @@ class MainWindow : public QMainWindow {
   QFuture<QString> exportMetrics(const QString& path, bool overwrite);     // .json or .csv, every result
   // Everything at once into `folder` (ui/export_all.h): returns the error message, or an empty string. Files
   // that exist are replaced only when `overwrite`; else nothing is written and the message names them.
-  QFuture<QString> exportAll(const QString& folder, bool overwrite);
+  // `region`: the region alone (ExportAllInputs::crop): each result's, the noisy input's and the reference's
+  // pixels there, the maps cut to it, and its scores.
+  QFuture<QString> exportAll(const QString& folder, bool overwrite, bool region = false);
+  // What the canvas shows (the layout, wipe, zoom, labels) as a PNG of its size.
+  QFuture<QString> exportView(const QString& path, bool overwrite);
 
  signals:
   void panesRendered();  // the canvas shows the current images
@@ -169,7 +173,7 @@ class MainWindow : public QMainWindow {
   void cyclePane(int step);
   void pickResult(int index, bool as_b);  // keys 1-9 / Ctrl+1-9
   void stepRender(int step);              // PgUp / PgDn through the open renders
-  void exportAllDialog();
+  void exportAllDialog(bool region = false);
   static const QString kImageFilter;  // the Open dialogs' file types
   QString startFolder() const;        // where they start: the render's folder, else the last render's
   struct SheetInputs;

@@ -4,6 +4,8 @@
 
 #include <QAction>
 #include <QApplication>
+#include <QClipboard>
+#include <QGuiApplication>
 #include <QComboBox>
 #include <QDialog>
 #include <QDialogButtonBox>
@@ -228,6 +230,15 @@ void MainWindow::buildActions() {
   file->addSeparator();
   auto* exp = file->addMenu(tr("&Export"));
   listed(action(exp, tr("Export &All..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_E), [this] { exportAllDialog(); }), tr("export all"));
+  action(exp, tr("The &Region: Each Result's Crop and Scores..."), QKeySequence(), [this] { exportAllDialog(true); });
+  listed(action(exp, tr("The &View (PNG)..."), QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P), [this] {
+    const QString path = askSavePath(tr("Save the view"), tr("PNG (*.png)"), "png");
+    if (!path.isEmpty()) runExport(tr("view PNG"), exportView(path, true));
+  }), tr("save the view as PNG / copy it"));
+  listed(action(exp, tr("&Copy the View"), QKeySequence(Qt::CTRL | Qt::Key_C), [this] {
+    QGuiApplication::clipboard()->setImage(canvas_->grab().toImage());
+    say(tr("The view is on the clipboard (%1 x %2)").arg(canvas_->width()).arg(canvas_->height()), 4000);
+  }), tr("save the view as PNG / copy it"));
   exp->addSeparator();
   listed(action(exp, tr("Denoised image (EXR)..."), QKeySequence(Qt::CTRL | Qt::Key_E), [this] {
     if (!session_->denoised()) return void(QMessageBox::information(this, tr("Export"), tr("Denoise first.")));

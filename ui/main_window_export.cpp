@@ -171,8 +171,11 @@ QFuture<QString> MainWindow::exportMetrics(const QString& path, bool overwrite) 
   });
 }
 
-QFuture<QString> MainWindow::exportAll(const QString& folder, bool overwrite) {
+QFuture<QString> MainWindow::exportAll(const QString& folder, bool overwrite, bool region) {
+  if (region && !canvas_->roi())
+    return QtFuture::makeReadyFuture(tr("No region to export: drag one first (Shift+drag or right-drag)."));
   ExportAllInputs in;
+  if (region) in.crop = canvas_->roi();
   in.stack = session_->stack();
   const int running = denoise_->controller()->runningResult();
   for (const auto& r : session_->results())
@@ -191,11 +194,28 @@ QFuture<QString> MainWindow::exportAll(const QString& folder, bool overwrite) {
   return QtConcurrent::run([in, dir, overwrite]() { return export_all(in, dir, overwrite); });
 }
 
-void MainWindow::exportAllDialog() {
-  if (!session_->hasStack()) return void(QMessageBox::information(this, tr("Export All"), tr("Open a render first.")));
+QFuture<QString> MainWindow::exportView(const QString& path, bool overwrite) {
+  const QImage view = canvas_->grab().toImage();  // what the canvas shows, at its size
+  const std::filesystem::path p = path.toStdString();
+  return QtConcurrent::run([view, p, overwrite]() -> QString {
+    try {
+      write_png(p, view, overwrite, "view PNG");
+      return {};
+    } catch (const std::exception& e) {
+      return QString::fromStdString(e.what());
+    }
+  });
+}
+
+void MainWindow::exportAllDialog(bool region) {
+  const QString title = region ? tr("Export the Region") : tr("Export All");
+  if (!session_->hasStack()) return void(QMessageBox::information(this, title, tr("Open a render first.")));
+  if (region && !canvas_->roi())
+    return void(QMessageBox::information(this, title, tr("Drag a region first (Shift+drag or right-drag).")));
   QSettings settings;
   const QString start = settings.value("exportFolder", QDir::homePath() + "/residue-export").toString();
-  const QString folder = QFileDialog::getExistingDirectory(this, tr("Export all into a folder"),
+  const QString folder = QFileDialog::getExistingDirectory(this, region ? tr("Export the region into a folder")
+                                                                        : tr("Export all into a folder"),
                                                            QFileInfo(start).exists() ? start : QDir::homePath());
   if (folder.isEmpty()) return;
   settings.setValue("exportFolder", folder);
@@ -206,13 +226,14 @@ void MainWindow::exportAllDialog() {
   probe.reference = shared(Source::Reference);
   probe.whole = metrics_->wholeReport();
   if (canvas_->roi()) probe.roi = metrics_->report();
+  if (region) probe.crop = canvas_->roi();
   probe.sheet = [] { return QImage(); };
   QStringList existing;
   for (const auto& f : planned_files(probe, folder.toStdString()))
     if (std::filesystem::exists(f)) existing << QString::fromStdString(f.filename().string());
   bool overwrite = false;
   if (!existing.isEmpty()) {
-    if (QMessageBox::question(this, tr("Export All"),
+    if (QMessageBox::question(this, title,
                               tr("%1 already holds %n of these file(s):\n%2\n\nReplace them?", nullptr,
                                  static_cast<int>(existing.size()))
                                   .arg(folder, existing.mid(0, 12).join("\n") + (existing.size() > 12 ? "\n..." : "")),
@@ -220,7 +241,7 @@ void MainWindow::exportAllDialog() {
       return;
     overwrite = true;
   }
-  runExport(tr("export into %1").arg(folder), exportAll(folder, overwrite));
+  runExport(tr("export into %1").arg(folder), exportAll(folder, overwrite, region));
 }
 
 }  // namespace residue::ui

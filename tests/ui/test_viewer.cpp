@@ -808,6 +808,71 @@ class TestViewer : public QObject {
     QCOMPARE(w.canvas()->layout(), ImageCanvas::Layout::Single);
   }
 
+  // The region's export: each result's, the noisy input's and the reference's pixels there, written where they lie
+  // in the frame, the maps cut to it, and the region's scores; the view as a PNG of the canvas (issue 53, item 18).
+  void aRegionAndTheViewAreExported() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    runModel(w, "tiny");
+    const Rect roi{40, 30, 64, 50};
+    w.setRoi(roi);
+    QVERIFY(settle(w, [&] { return w.metricsPanel()->report().options.roi == std::optional<Rect>(roi); }));
+    QTemporaryDir dir;
+    auto f = w.exportAll(dir.path(), false, true);
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    QVERIFY(!QFile::exists(dir.filePath("comparison.png")));
+    const auto stack = w.session()->stack();
+    const Image* result = w.session()->denoised();
+    for (const auto& [file, full] : std::vector<std::pair<QString, const Image*>>{
+             {"tiny_fp32.exr", result}, {"noisy.exr", &stack->color.image}, {"reference.exr", &stack->reference->image}}) {
+      auto in = OIIO::ImageInput::open(dir.filePath(file).toStdString());
+      QVERIFY2(in, qPrintable(file));
+      const auto& spec = in->spec();
+      QCOMPARE(std::vector<int>({spec.x, spec.y, spec.width, spec.height}), std::vector<int>({40, 30, 64, 50}));
+      QCOMPARE(std::vector<int>({spec.full_width, spec.full_height}), std::vector<int>({192, 192}));
+      in.reset();
+      const Image back = readExr(dir.filePath(file));
+      double worst = 0;  // half precision: 2^-11 relative
+      for (int64_t y = 0; y < roi.height; ++y)
+        for (int64_t x = 0; x < roi.width; ++x)
+          for (int c = 0; c < 3; ++c) {
+            const double want = full->at(roi.x + x, roi.y + y, c);
+            worst = std::max(worst, std::abs(back.at(x, y, c) - want) / std::max(1e-3, std::abs(want)));
+          }
+      QVERIFY2(worst < 1e-3, qPrintable(file + ": " + QString::number(worst)));
+    }
+    QCOMPARE(readExr(dir.filePath("heatmap-tiny_fp32.exr")).width(), int64_t{64});
+    std::ifstream json(dir.filePath("metrics.json").toStdString());
+    const auto report = nlohmann::json::parse(json);
+    metrics::Options o;
+    o.roi = roi;
+    const auto expected = metrics::compare(*result, stack->reference->image, o);
+    bool found = false;
+    for (const auto& row : report["rows"])
+      if (row["name"] == "tiny fp32") {
+        found = true;
+        QCOMPARE(row["pixels"].get<int64_t>(), int64_t{64 * 50});
+        QCOMPARE(row["relmse"].get<double>(), expected.relmse);
+      }
+    QVERIFY(found);
+    // Again: nothing is replaced without asking.
+    f = w.exportAll(dir.path(), false, true);
+    f.waitForFinished();
+    QVERIFY2(f.result().contains("tiny_fp32.exr"), qPrintable(f.result()));
+    // The view: what the canvas shows, at its size; never over a file without asking.
+    const QString view = dir.filePath("view.png");
+    f = w.exportView(view, false);
+    f.waitForFinished();
+    QCOMPARE(f.result(), QString());
+    QCOMPARE(QImage(view).size(), w.canvas()->size());
+    f = w.exportView(view, false);
+    f.waitForFinished();
+    QVERIFY(!f.result().isEmpty());
+  }
+
   // A pixel's values, written in its cell at high zoom, fit the cell: fewer digits rather than a number running into
   // the next cell (issue 53, item 12).
   void valuesWrittenInACellFitIt() {

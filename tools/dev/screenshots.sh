@@ -24,18 +24,36 @@ tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
 export OMP_WAIT_POLICY=passive
 
 screen=${RESIDUE_SCREEN:-1280x720}
+suffix=""; [ "$screen" = 1280x720 ] || suffix="_$screen"  # the other size beside, not over, the 1280x720 shots
+only=${RESIDUE_SHOTS:-}  # e.g. "viewer_renders viewer_channel": only these
 shot() {  # shot NAME ARGS...: one window filling the screen, one PNG
   local name=$1; shift
-  xvfb-run -a -s "-screen 0 ${screen}x24" "$viewer" --no-ipc --size "$screen" --screenshot "$out/$name.png" "$@"
+  if [ -n "$only" ] && [[ " $only " != *" $name "* ]]; then return 0; fi
+  RESIDUE_SETTINGS_ISOLATED=1 xvfb-run -a -s "-screen 0 ${screen}x24" "$viewer" --no-ipc --size "$screen" \
+    --screenshot "$out/$name$suffix.png" "$@"
 }
 ref=(--reference "$scene/reference.exr")
 
 shot viewer_results "$noisy" "${ref[@]}" --model tiny,base,oidn --denoise --screenshot-when denoised --tab results
+# A region: each result's name beside its region's scores.
+shot viewer_region "$noisy" "${ref[@]}" --model tiny,oidn --denoise --screenshot-when denoised --roi 60,70,90,60 \
+  --tab results
+# The image list: four renders open, the first shown with its result and region.
+starter=$repo/../shared/datasets/cycles-starter
+others=(); for s in s158 s101; do [ -f "$starter/$s/noisy_a.exr" ] && others+=(--open "$starter/$s/noisy_a.exr"); done
+shot viewer_renders "$noisy" "${ref[@]}" "${others[@]}" --open "$example/noisy.exr" --model tiny --denoise \
+  --screenshot-when denoised --roi 60,70,90,60 --tab renders
+# One channel alone (luminance, as grey through the view), in the dark theme.
+shot viewer_channel "$noisy" "${ref[@]}" --model tiny --denoise --screenshot-when denoised --channel luminance \
+  --theme dark --tab results
+# The signed difference of A against B (D): blue where A is darker, red where it is brighter.
+shot viewer_difference "$noisy" "${ref[@]}" --model tiny,oidn --denoise --ab 1,2 --screenshot-when denoised \
+  --heatmap-of a-vs-b --heatmap-kind diff --layout single --pane heatmap --tab heatmap
 shot viewer_wipe "$noisy" "${ref[@]}" --model small,oidn --denoise --ab 1,2 --screenshot-when denoised \
   --layout wipe --zoom 2.5 --tab results
 shot viewer_heatmap "$noisy" "${ref[@]}" --model small,oidn --denoise --ab 1,2 --screenshot-when denoised \
   --tab heatmap --export-all "$tmp/export"
-cp "$tmp/export/comparison.png" "$out/viewer_comparison_sheet.png"
+if [ -f "$tmp/export/comparison.png" ]; then cp "$tmp/export/comparison.png" "$out/viewer_comparison_sheet$suffix.png"; fi
 # Another renderer's render with NFOR's result added beside ours and OIDN's (Tungsten's Cornell box).
 cornell=$repo/../shared/datasets/tungsten-example/cornell-box
 if [ -f "$cornell/nfor.exr" ]; then
@@ -64,8 +82,10 @@ for a in spec.extra_attribs:
 out = oiio.ImageOutput.create(sys.argv[2]); out.open(sys.argv[2], out_spec); out.write_image(pixels); out.close()
 PY
 }
-tile_8x8 "$example/noisy.exr" "$tmp/room8x8.exr"
-tile_8x8 "$example/reference.exr" "$tmp/room8x8_ref.exr"
+if [ -z "$only" ] || [[ " $only " == *" viewer_denoising "* ]]; then
+  tile_8x8 "$example/noisy.exr" "$tmp/room8x8.exr"
+  tile_8x8 "$example/reference.exr" "$tmp/room8x8_ref.exr"
+fi
 shot viewer_denoising "$tmp/room8x8.exr" --reference "$tmp/room8x8_ref.exr" --model small --tile 256 --denoise \
   --screenshot-when progress:0.45 --layout single --pane denoised
 ls -l "$out"/viewer_*.png
