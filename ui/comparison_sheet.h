@@ -13,6 +13,11 @@ struct SheetPanel {
   QString label;      // "A: small fp32", "Reference"
   QImage image;       // display-encoded, full size
   QStringList lines;  // drawn under the image, e.g. "relMSE 0.00213  SSIM 0.9412  PSNR 31.2 dB"
+  // A region of interest: where it lies in `image` (outlined there), its pixels, shown enlarged under the image
+  // (nearest neighbour, so pixels stay pixels), and its scores under them. Empty: none.
+  QRect region;
+  QImage detail;
+  QStringList detail_lines;
 };
 
 struct SheetOptions {

@@ -80,6 +80,19 @@ void expose_row(const float* src, int channels, int64_t width, float scale, floa
   }
 }
 
+// A pixel's flag in render(): fine, not finite (magenta), or clipped by the view (clipping warnings).
+constexpr uint8_t kBad = 1, kHigh = 2, kLow = 3;
+
+// Flags the pixels the view clips (display values, before quantisation): a channel at or above 1, or all at or
+// below 0. A pixel already flagged as not finite stays so.
+void clip_row(const float* rgb, int64_t n, uint8_t* flags) {
+  for (int64_t x = 0; x < n; ++x, rgb += 3) {
+    if (flags[x]) continue;
+    if (rgb[0] >= 1.0f || rgb[1] >= 1.0f || rgb[2] >= 1.0f) flags[x] = kHigh;
+    else if (rgb[0] <= 0.0f && rgb[1] <= 0.0f && rgb[2] <= 0.0f) flags[x] = kLow;
+  }
+}
+
 // The channel shown alone, as grey: in place on `n` RGB triplets.
 void isolate_row(float* rgb, int64_t n, DisplayChannel c) {
   if (c == DisplayChannel::RGB) return;
@@ -310,6 +323,10 @@ std::array<float, 3> DisplayTransform::apply(std::array<float, 3> linear, const 
   isolate_row(linear.data(), 1, settings.channel);
   if (enc == Encoding::SceneLinear) impl_->pipeline(settings).apply_row(linear.data(), 1);
   for (float& v : linear) v = clamp01(v);
+  if (settings.gamma != 1.0) {
+    const auto inverse = static_cast<float>(1.0 / settings.gamma);
+    for (float& v : linear) v = std::pow(v, inverse);
+  }
   return linear;
 }
 
@@ -323,6 +340,8 @@ QImage DisplayTransform::render(const Image& image, int first_channel, int count
                                       std::to_string(first_channel + count) + ") are not within the image's " +
                                       std::to_string(image.channels()) + " channels");
   if (rect.empty()) return {};
+  if (!(s.gamma > 0) || !std::isfinite(s.gamma))
+    throw Error(ErrorKind::Usage, "display gamma " + std::to_string(s.gamma) + ": expected a positive number");
   if (rect.width > std::numeric_limits<int>::max() || rect.height > std::numeric_limits<int>::max())
     throw Error(ErrorKind::Usage, "display rect " + rect.to_string() + " is too large for a QImage");
 
@@ -353,13 +372,19 @@ QImage DisplayTransform::render(const Image& image, int first_channel, int count
       }
       isolate_row(rgb.data(), width, s.channel);
       if (enc == Encoding::SceneLinear) pipeline.apply_row(rgb.data(), width);
+      if (s.clipping) clip_row(rgb.data(), width, bad.data());
+      if (s.gamma != 1.0) {
+        const auto inverse = static_cast<float>(1.0 / s.gamma);
+        for (float& v : rgb) v = std::pow(clamp01(v), inverse);
+      }
       // Quantise the flat row (vectorised), then pack.
       for (size_t i = 0; i < codes.size(); ++i) codes[i] = to_code(rgb[i]);
       auto* line = reinterpret_cast<uint32_t*>(bits + y * bytes_per_line);
       for (int64_t x = 0; x < width; ++x) {
         const uint8_t* c = codes.data() + x * 3;
         const uint32_t packed = 0xff000000u | (uint32_t{c[0]} << 16) | (uint32_t{c[1]} << 8) | uint32_t{c[2]};
-        line[x] = bad[static_cast<size_t>(x)] ? kMagenta : packed;
+        const uint8_t flag = bad[static_cast<size_t>(x)];
+        line[x] = flag == kBad ? kMagenta : flag == kHigh ? kClipHigh : flag == kLow ? kClipLow : packed;
       }
     }
   });

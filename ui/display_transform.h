@@ -28,7 +28,14 @@ struct DisplaySettings {
   std::string display;    // OCIO display; empty = the config's default
   std::string view;       // OCIO view; empty = the display's default
   DisplayChannel channel = DisplayChannel::RGB;  // taken after the exposure, before the view
+  double gamma = 1.0;     // after the view, display values v become v^(1/gamma): > 1 opens the shadows (tev's)
+  // render() only: pixels the view clips drawn in warning colours instead, kClipHigh where a channel reaches 1,
+  // kClipLow where all are at or below 0 (before the gamma).
+  bool clipping = false;
 };
+
+inline constexpr uint32_t kClipHigh = 0xffff3030u;  // ARGB
+inline constexpr uint32_t kClipLow = 0xff3050ffu;
 
 // How a buffer's values are meant: radiance/albedo go through OCIO; Data (normals remapped to [0,1], depth
 // normalised, heatmaps already in display colour) is only exposure/offset + clamp, no transform.

@@ -30,6 +30,7 @@
 #include "core/util/error.h"
 #include "ui/denoise_panel.h"
 #include "ui/help_overlay.h"
+#include "ui/histogram.h"
 #include "ui/mapping_dialog.h"
 #include "ui/metrics_panel.h"
 #include "ui/pane_renderer.h"
@@ -195,6 +196,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     const auto map = heatmap_->map();
     inspector_->inspect(*session_, p, map.get(), heatmap_->title());
     updateStatus();
+    updateImageHistogram();
   });
   connect(canvas_, &ImageCanvas::viewChanged, this, &MainWindow::updateStatus);
   connect(canvas_, &ImageCanvas::roiChanged, this, [this](std::optional<Rect> roi) { setRoi(roi); });
@@ -258,6 +260,7 @@ void MainWindow::showRendered(Rendered&& r) {
   }
   applyHeatmap();
   updateStatus();
+  updateImageHistogram();
   emit panesRendered();
 }
 
@@ -454,6 +457,8 @@ DisplaySettings MainWindow::displaySettings() const {
   s.exposure = exposure_box_->value();
   s.offset = offset_box_->value();
   s.channel = channel();
+  s.gamma = gamma_box_->value();
+  s.clipping = clipping_ && clipping_->isChecked();
   s.display = display_box_->currentText().toStdString();
   s.view = view_box_->currentText().toStdString();
   return s;
@@ -755,6 +760,37 @@ void MainWindow::say(const QString& text, int timeout_ms) {
   bar->showMessage(shown, timeout_ms);
 }
 
+void MainWindow::updateImageHistogram() {
+  // The pane under the cursor, else A, else the noisy input: its luminance (Rec. 709 Y; a one-channel pane's
+  // values), counted once per image.
+  const auto& panes = canvas_->panes();
+  const Pane* pane = nullptr;
+  if (const auto i = canvas_->hoveredPane(); i && *i < static_cast<int>(panes.size())) pane = &panes[static_cast<size_t>(*i)];
+  if (!pane || !pane->values)
+    for (const Pane& p : panes)
+      if (p.values && (!pane || !pane->values || p.label.startsWith("A:"))) pane = &p;
+  if (!pane || !pane->values) {
+    histogram_of_.reset();
+    image_histogram_->setValues(nullptr, true, {1e-4, 1}, Colormap::Viridis, tr("no image"));
+    return;
+  }
+  if (pane->values == histogram_of_.lock()) return;
+  histogram_of_ = pane->values;
+  const Image& v = *pane->values;
+  const int first = pane->first_channel, count = std::min(pane->channel_count, v.channels() - first);
+  auto y = std::make_shared<Image>(v.width(), v.height(), 1);
+  for (int64_t row = 0; row < v.height(); ++row)
+    for (int64_t x = 0; x < v.width(); ++x)
+      y->at(x, row, 0) = count >= 3 ? 0.2126f * v.at(x, row, first) + 0.7152f * v.at(x, row, first + 1) +
+                                          0.0722f * v.at(x, row, first + 2)
+                                    : v.at(x, row, first);
+  ColorScale log;
+  log.log = true;
+  const auto range = resolve_range(*y, log);
+  image_histogram_->setValues(y, true, range, Colormap::Viridis,
+                              tr("Luminance of %1 (log)").arg(pane->label.isEmpty() ? tr("the image") : pane->label));
+}
+
 void MainWindow::updateStatus() {
   if (!session_->hasStack()) {
     size_label_->setText(tr("no image"));
@@ -866,7 +902,7 @@ std::optional<MainWindow::SideTab> MainWindow::sideTabFromName(const QString& na
 }
 
 void MainWindow::showSideTab(SideTab tab) {
-  QWidget* pages[] = {metrics_, denoise_, heatmap_, inspector_, render_list_};
+  QWidget* pages[] = {metrics_, denoise_, heatmap_, pixel_page_, render_list_};
   tabs_->setCurrentWidget(pages[static_cast<int>(tab)]);
 }
 

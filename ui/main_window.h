@@ -51,6 +51,7 @@ class MainWindow : public QMainWindow {
   DenoisePanel* denoisePanel() const { return denoise_; }
   PixelInspector* inspector() const { return inspector_; }
   class RenderList* renderList() const { return render_list_; }
+  class Histogram* imageHistogram() const { return image_histogram_; }  // the Pixel tab's: the image's luminance
   QTabWidget* sideTabs() const { return tabs_; }
   // The side bar's tabs by what they are, whatever language their titles are in. Names: "results", "denoise",
   // "heatmap", "pixel", "renders" (--tab).
@@ -202,6 +203,10 @@ class MainWindow : public QMainWindow {
   DenoisePanel* denoise_ = nullptr;
   PixelInspector* inspector_ = nullptr;
   class RenderList* render_list_ = nullptr;
+  QWidget* pixel_page_ = nullptr;
+  class Histogram* image_histogram_ = nullptr;
+  std::weak_ptr<const Image> histogram_of_;  // the values the image histogram counts (recounted when they change)
+  void updateImageHistogram();
   // Each open render's view, kept while another is shown (Session::renderId -> zoom, centre, region).
   struct SavedView {
     bool fitted = true;
@@ -220,6 +225,8 @@ class MainWindow : public QMainWindow {
   QComboBox* channel_box_ = nullptr;
   QDoubleSpinBox* exposure_box_ = nullptr;
   QDoubleSpinBox* offset_box_ = nullptr;
+  QDoubleSpinBox* gamma_box_ = nullptr;
+  QAction* clipping_ = nullptr;  // View > Clipping Warning (C)
   QComboBox* display_box_ = nullptr;
   QComboBox* view_box_ = nullptr;
   QLabel* size_label_ = nullptr;

@@ -20,11 +20,13 @@
 #include <QStatusBar>
 #include <QTabWidget>
 #include <QToolBar>
+#include <QVBoxLayout>
 
 #include "core/io/exr_writer.h"
 #include "core/util/error.h"
 #include "ui/denoise_panel.h"
 #include "ui/help_overlay.h"
+#include "ui/histogram.h"
 #include "ui/mapping_dialog.h"
 #include "ui/metrics_panel.h"
 #include "ui/pane_renderer.h"
@@ -83,7 +85,17 @@ void MainWindow::buildDocks() {
   tabs_->addTab(metrics_, tr("Results"));
   tabs_->addTab(denoise_, tr("Denoise"));
   tabs_->addTab(heatmap_, tr("Heatmap"));
-  tabs_->addTab(inspector_, tr("Pixel"));
+  // The Pixel tab: the values under the cursor, and how the image under it is spread (its luminance, on a log
+  // axis: tev's and HDRView's image histogram).
+  pixel_page_ = new QWidget(this);
+  auto* pixel_layout = new QVBoxLayout(pixel_page_);
+  pixel_layout->setContentsMargins(0, 0, 0, 0);
+  pixel_layout->addWidget(inspector_, 1);
+  image_histogram_ = new Histogram(pixel_page_);
+  image_histogram_->setObjectName("imageHistogram");
+  image_histogram_->setMinimumHeight(140);
+  pixel_layout->addWidget(image_histogram_);
+  tabs_->addTab(pixel_page_, tr("Pixel"));
   tabs_->setCurrentWidget(denoise_);
   auto* dock = new QDockWidget(tr("Residue"), this);
   dock->setObjectName("sideDock");
@@ -150,8 +162,18 @@ void MainWindow::buildToolBar() {
   offset_box_->setDecimals(3);
   offset_box_->setToolTip(tr("Offset added after the exposure"));
   labelled(tr("Off&set"), offset_box_);
+  gamma_box_ = new QDoubleSpinBox(this);
+  gamma_box_->setObjectName("gammaBox");
+  gamma_box_->setRange(0.1, 10);
+  gamma_box_->setSingleStep(0.1);
+  gamma_box_->setDecimals(2);
+  gamma_box_->setValue(1.0);
+  gamma_box_->setToolTip(tr("Gamma after the view: display values v are shown as v^(1/gamma); above 1 opens the "
+                            "shadows (R resets it)"));
+  labelled(tr("&Gamma"), gamma_box_);
   connect(exposure_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
   connect(offset_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
+  connect(gamma_box_, &QDoubleSpinBox::valueChanged, this, &MainWindow::refreshPanes);
 
   display_box_ = new QComboBox(this);
   display_box_->setObjectName("displayBox");
@@ -351,10 +373,14 @@ void MainWindow::buildActions() {
   view->addSeparator();
   listed(action(view, tr("Exposure +1/2 stop"), QKeySequence(Qt::Key_E), [this] { setExposure(exposure() + 0.5); }), tr("exposure up / down half a stop"));
   listed(action(view, tr("Exposure -1/2 stop"), QKeySequence(Qt::SHIFT | Qt::Key_E), [this] { setExposure(exposure() - 0.5); }), tr("exposure up / down half a stop"));
-  listed(action(view, tr("Reset exposure and offset"), QKeySequence(Qt::Key_R), [this] {
+  listed(action(view, tr("Reset exposure, offset and gamma"), QKeySequence(Qt::Key_R), [this] {
     setExposure(0);
     offset_box_->setValue(0);
-  }), tr("reset exposure and offset"));
+    gamma_box_->setValue(1.0);
+  }), tr("reset exposure, offset and gamma"));
+  clipping_ = listed(action(view, tr("Clipping Warning"), QKeySequence(Qt::Key_C), [this] { refreshPanes(); }),
+                     tr("clipping warning: red where the view clips white, blue where all is black"));
+  clipping_->setCheckable(true);
   listed(action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); }), tr("previous / next AOV"));
   listed(action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); }), tr("previous / next AOV"));
   listed(action(view, tr("Heatmap: pane / overlay / off"), QKeySequence(Qt::Key_H), [this] {

@@ -88,8 +88,10 @@ struct MainWindow::SheetInputs {
     QString label;
     std::shared_ptr<const Image> image;
     QStringList lines;
+    QStringList region_lines;
   };
   std::vector<Item> items;
+  std::optional<Rect> roi;
   std::shared_ptr<const DisplayTransform> display;
   DisplaySettings settings;
   SheetOptions options;
@@ -97,9 +99,14 @@ struct MainWindow::SheetInputs {
   QImage draw() const {
     std::vector<SheetPanel> panels;
     for (const auto& it : items) {
-      SheetPanel p{it.label, {}, it.lines};
+      SheetPanel p{it.label, {}, it.lines, {}, {}, it.region_lines};
       try {
         if (it.image) p.image = display->render(*it.image, 0, 3, it.image->bounds(), settings, Encoding::SceneLinear);
+        if (it.image && roi) {
+          p.region = QRect(static_cast<int>(roi->x), static_cast<int>(roi->y), static_cast<int>(roi->width),
+                           static_cast<int>(roi->height));
+          p.detail = display->render(*it.image, 0, 3, *roi, settings, Encoding::SceneLinear);
+        }
       } catch (const std::exception&) {
         // drawn as "(no image)"
       }
@@ -115,24 +122,30 @@ MainWindow::SheetInputs MainWindow::sheetInputs() const {
   in.settings = displaySettings();
   const auto stack = session_->stack();
   if (!stack) return in;
-  const auto& report = metrics_->wholeReport();
-  const auto scores = [&](const QString& name) {
+  const auto scores_in = [](const io::MetricsReport& report, const QString& name, const QString& prefix) {
     for (const auto& row : report.rows)
       if (QString::fromStdString(row.name) == name)
-        return QStringList{QString("relMSE %1   SSIM %2").arg(row.scores.relmse, 0, 'g', 4).arg(row.scores.ssim, 0, 'f', 4),
-                           QString("PSNR %1 dB").arg(row.scores.psnr, 0, 'f', 2)};
+        return QStringList{QString("%1relMSE %2   SSIM %3").arg(prefix).arg(row.scores.relmse, 0, 'g', 4).arg(row.scores.ssim, 0, 'f', 4),
+                           QString("%1PSNR %2 dB").arg(prefix).arg(row.scores.psnr, 0, 'f', 2)};
     return QStringList{};
   };
-  in.items.push_back({tr("Noisy input"), shared(Source::Noisy), scores("noisy")});
+  const auto& report = metrics_->wholeReport();
+  const auto scores = [&](const QString& name) { return scores_in(report, name, QString()); };
+  // With a region: each image's region enlarged under it, with the region's scores.
+  in.roi = canvas_->roi();
+  const auto region = [&](const QString& name) {
+    return in.roi ? scores_in(metrics_->report(), name, tr("region ")) : QStringList{};
+  };
+  in.items.push_back({tr("Noisy input"), shared(Source::Noisy), scores("noisy"), region("noisy")});
   for (const auto& r : session_->results()) {
     const QString name = session_->resultName(r.id);
     QStringList lines = scores(name);
     if (r.seconds > 0 && !lines.isEmpty()) lines.back() += tr("   %1 s here").arg(r.seconds, 0, 'f', 2);
     else if (r.seconds > 0) lines << tr("%1 s here").arg(r.seconds, 0, 'f', 2);
     if (!r.done()) lines << r.stateText;
-    in.items.push_back({name, r.id == session_->a() ? session_->denoisedShared() : r.image, lines});
+    in.items.push_back({name, r.image, lines, region(name)});
   }
-  if (const auto ref = shared(Source::Reference)) in.items.push_back({tr("Reference"), ref, {}});
+  if (const auto ref = shared(Source::Reference)) in.items.push_back({tr("Reference"), ref, {}, {}});
   in.options.title = tr("%1   %2 x %3   reference: %4   display: %5 / %6, %7 EV")
                          .arg(session_->title())
                          .arg(stack->width())

@@ -15,7 +15,7 @@ namespace residue::ui {
 RenderList::RenderList(Session* session, QWidget* parent) : QWidget(parent), session_(session) {
   setObjectName("renderList");
   auto* layout = new QVBoxLayout(this);
-  auto* caption = new QLabel(tr("Renders open (PgUp / PgDn step through them); each keeps its results, A and B, "
+  auto* caption = new QLabel(tr("Renders open (PgUp / PgDown step through them); each keeps its results, A and B, "
                                 "region and view"), this);
   caption->setWordWrap(true);
   layout->addWidget(caption);

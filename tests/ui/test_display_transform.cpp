@@ -267,6 +267,45 @@ class TestDisplayTransform : public QObject {
     QVERIFY(!residue::ui::display_channel_from_string("alpha"));
   }
 
+  // Gamma after the view: each display value v becomes v^(1/gamma), in render() as in apply(); a gamma that is no
+  // positive number is refused (issue 53, item 17).
+  void gammaComesAfterTheView() {
+    const Image img = test_image();
+    const DisplaySettings plain{0.7, 0.0, "sRGB", "Standard"};
+    DisplaySettings g = plain;
+    g.gamma = 2.2;
+    const QImage a = shipped_->render(img, 0, 3, img.bounds(), plain, Encoding::SceneLinear);
+    const QImage b = shipped_->render(img, 0, 3, img.bounds(), g, Encoding::SceneLinear);
+    for (int y = 0; y < img.height(); ++y)
+      for (int x = 0; x < img.width(); ++x) {
+        if (a.pixel(x, y) == 0xffff00ffu) continue;  // not finite
+        const auto v = shipped_->apply({img.at(x, y, 0), img.at(x, y, 1), img.at(x, y, 2)}, plain, Encoding::SceneLinear);
+        const auto w = shipped_->apply({img.at(x, y, 0), img.at(x, y, 1), img.at(x, y, 2)}, g, Encoding::SceneLinear);
+        QVERIFY(std::abs(w[0] - std::pow(v[0], 1.0f / 2.2f)) < 1e-6f);
+        QVERIFY2(std::abs(qRed(b.pixel(x, y)) - code(w[0])) <= 1, qPrintable(QString("%1,%2").arg(x).arg(y)));
+      }
+    g.gamma = 0;
+    QVERIFY(throws_error([&] { shipped_->render(img, 0, 3, img.bounds(), g, Encoding::SceneLinear); },
+                         residue::ErrorKind::Usage, "gamma"));
+  }
+
+  // The clipping warning: where the view reaches white in a channel, red; where all channels are black, blue;
+  // elsewhere the image; a non-finite pixel stays magenta.
+  void clippingWarningsMarkWhatTheViewClips() {
+    Image img(4, 1, 3);
+    const float values[4][3] = {{100.0f, 0.1f, 0.1f}, {0.0f, 0.0f, 0.0f}, {0.2f, 0.3f, 0.4f}, {NAN, 0.2f, 0.2f}};
+    for (int x = 0; x < 4; ++x)
+      for (int c = 0; c < 3; ++c) img.at(x, 0, c) = values[x][c];
+    DisplaySettings s{0.0, 0.0, "sRGB", "Standard"};
+    s.clipping = true;
+    const QImage out = shipped_->render(img, 0, 3, img.bounds(), s, Encoding::SceneLinear);
+    QCOMPARE(out.pixel(0, 0), residue::ui::kClipHigh);
+    QCOMPARE(out.pixel(1, 0), residue::ui::kClipLow);
+    s.clipping = false;
+    QCOMPARE(out.pixel(2, 0), shipped_->render(img, 0, 3, img.bounds(), s, Encoding::SceneLinear).pixel(2, 0));
+    QCOMPARE(out.pixel(3, 0), 0xffff00ffu);
+  }
+
   void renderFlagsNonFiniteAndDrawsGrey() {
     const Image img = test_image();
     const DisplaySettings s;

@@ -510,6 +510,25 @@ class TestResults : public QObject {
     const QImage sheet = comparison_sheet(panels, o);
     QVERIFY(sheet.width() >= 3 * 200 && sheet.width() < 4 * 200);
     QCOMPARE(sheet.pixel(16 + 50, 16 + QFontMetrics(QFont()).height()), QColor(Qt::white).rgb());
+    // With a region (issue 53, item 5): each panel's region outlined, its pixels under the image enlarged by a
+    // whole factor (20 x 10 -> 200 x 100 in a 200-px cell: every pixel a 10 x 10 block), and its scores.
+    for (auto& p : panels) {
+      p.region = QRect(10, 5, 20, 10);
+      p.detail = QImage(20, 10, QImage::Format_RGB32);
+      p.detail.fill(Qt::blue);
+      p.detail_lines = {"region relMSE 0.2"};
+    }
+    const QImage with_region = comparison_sheet(panels, o);
+    QVERIFY(with_region.height() >= sheet.height() + 2 * 100);
+    int blue = 0, yellow = 0;
+    for (int y = 0; y < with_region.height(); ++y)
+      for (int x = 0; x < with_region.width(); ++x) {
+        const QRgb c = with_region.pixel(x, y);
+        blue += c == QColor(Qt::blue).rgb();
+        yellow += qRed(c) > 200 && qGreen(c) > 180 && qBlue(c) < 80;
+      }
+    QCOMPARE(blue, 5 * 200 * 100);
+    QVERIFY(yellow > 5 * 2 * (20 + 10));  // the outlines
     // Depth is shown near-bright over its 1st-99th percentile; variance as its standard deviation.
     Image depth(100, 1, 1), var(100, 1, 3);
     for (int i = 0; i < 100; ++i) {

@@ -27,6 +27,7 @@
 #include <OpenImageIO/imageio.h>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <nlohmann/json.hpp>
 
 #include "core/aov/aov_loader.h"
@@ -39,6 +40,7 @@
 #include "core/nn/model_registry.h"
 #include "support/exr_fixture.h"
 #include "ui/canvas.h"
+#include "ui/histogram.h"
 #include "ui/render_list.h"
 #include "ui/denoise_panel.h"
 #include "ui/heatmap_panel.h"
@@ -83,6 +85,26 @@ class TestViewer : public QObject {
         QVERIFY2(fresh, qPrintable(k.toString() + " runs both " + it->second + " and " + a->text()));
       }
     QVERIFY(bound.count("Left") && bound.count("P") && bound.count("Ctrl+Shift+D"));
+  }
+
+  // The README's key table lists every key the viewer binds, as its menus write it (issue 53: "the README's viewer
+  // section matches what the viewer does, key by key").
+  void theReadmeListsEveryKey() {
+    std::ifstream file(std::filesystem::path(RESIDUE_SOURCE_RESOURCES).parent_path() / "README.md");
+    QVERIFY(file);
+    std::string text((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    const QString readme = QString::fromStdString(text);
+    const qsizetype start = readme.indexOf("| keys | |");
+    QVERIFY(start >= 0);
+    const QString table = readme.mid(start, readme.indexOf("\n\n", start) - start);
+    MainWindow w;
+    for (const QAction* a : w.actions()) {
+      if (a->property("help").toString().isEmpty()) continue;
+      QString keys = a->property("helpKeys").toString();
+      if (keys.isEmpty()) keys = a->shortcut().toString(QKeySequence::NativeText);
+      for (const QString& key : keys.split("  ", Qt::SkipEmptyParts))
+        QVERIFY2(table.contains(key), qPrintable(key + " (" + a->text() + ") is not in the README's key table"));
+    }
   }
 
   void opensMultilayerExrAndMapsAovs() {
@@ -871,6 +893,51 @@ class TestViewer : public QObject {
     f = w.exportView(view, false);
     f.waitForFinished();
     QVERIFY(!f.result().isEmpty());
+  }
+
+  // The Pixel tab's image histogram counts every pixel of the image under the cursor (else A, else the noisy
+  // input) by its luminance, on a log axis (issue 53, item 17).
+  void theImageHistogramCountsTheImageShown() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    openExample(w);
+    QVERIFY(settle(w, [&] { return !w.canvas()->panes().empty(); }));
+    const auto total = [&] {
+      const auto& c = w.imageHistogram()->counts();
+      int64_t n = c.below + c.above + c.invalid;
+      for (int64_t b : c.bins) n += b;
+      return n;
+    };
+    QCOMPARE(total(), int64_t{192 * 192});
+    // Against a count made here: Rec. 709 luminance of the noisy colour, in the histogram's own bins.
+    const auto stack = w.session()->stack();
+    Image y(192, 192, 1);
+    for (int64_t r = 0; r < 192; ++r)
+      for (int64_t x = 0; x < 192; ++x)
+        y.at(x, r, 0) = 0.2126f * stack->color.image.at(x, r, 0) + 0.7152f * stack->color.image.at(x, r, 1) +
+                        0.0722f * stack->color.image.at(x, r, 2);
+    ColorScale log;
+    log.log = true;
+    const auto range = resolve_range(y, log);
+    const auto& shown = w.imageHistogram()->counts();
+    const HistogramCounts expected = histogram_counts(y, range.first, range.second, true, static_cast<int>(shown.bins.size()));
+    QCOMPARE(shown.bins, expected.bins);
+    // A denoised result becomes A: its histogram is shown once the cursor is not over another pane.
+    runModel(w, "tiny");
+    QVERIFY(settle(w, [&] { return w.canvas()->panes().size() == 4; }));
+    ColorScale log2;
+    log2.log = true;
+    Image ya(192, 192, 1);
+    const Image& a = *w.session()->denoised();
+    for (int64_t r = 0; r < 192; ++r)
+      for (int64_t x = 0; x < 192; ++x)
+        ya.at(x, r, 0) = 0.2126f * a.at(x, r, 0) + 0.7152f * a.at(x, r, 1) + 0.0722f * a.at(x, r, 2);
+    const auto ra = resolve_range(ya, log2);
+    QVERIFY(settle(w, [&] {
+      return w.imageHistogram()->counts().bins ==
+             histogram_counts(ya, ra.first, ra.second, true, static_cast<int>(shown.bins.size())).bins;
+    }));
   }
 
   // A pixel's values, written in its cell at high zoom, fit the cell: fewer digits rather than a number running into
