@@ -17,6 +17,7 @@
 
 #include <OpenColorIO/OpenColorIO.h>
 
+#include "core/image/colormap.h"
 #include "core/metrics/tonemap.h"
 #include "core/util/error.h"
 #include "core/util/resources.h"
@@ -90,6 +91,17 @@ void clip_row(const float* rgb, int64_t n, uint8_t* flags) {
     if (flags[x]) continue;
     if (rgb[0] >= 1.0f || rgb[1] >= 1.0f || rgb[2] >= 1.0f) flags[x] = kHigh;
     else if (rgb[0] <= 0.0f && rgb[1] <= 0.0f && rgb[2] <= 0.0f) flags[x] = kLow;
+  }
+}
+
+// False colour: each exposed triplet replaced by turbo's colour for its luminance's stops about mid grey, as
+// display values (sRGB-encoded, so the view is skipped).
+void false_colour_row(float* rgb, int64_t n) {
+  for (int64_t x = 0; x < n; ++x, rgb += 3) {
+    const double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+    const double stops = y > 0 ? std::log2(y / 0.18) : -kFalseColourStops;
+    const auto c = colormap_lookup(Colormap::Turbo, (stops + kFalseColourStops) / (2 * kFalseColourStops));
+    for (int k = 0; k < 3; ++k) rgb[k] = static_cast<float>(c[static_cast<size_t>(k)]) / 255.0f;
   }
 }
 
@@ -321,7 +333,8 @@ std::array<float, 3> DisplayTransform::apply(std::array<float, 3> linear, const 
   const auto offset = static_cast<float>(settings.offset);
   for (float& v : linear) v = expose(v, scale, offset);
   isolate_row(linear.data(), 1, settings.channel);
-  if (enc == Encoding::SceneLinear) impl_->pipeline(settings).apply_row(linear.data(), 1);
+  if (enc == Encoding::SceneLinear && settings.false_colour) false_colour_row(linear.data(), 1);
+  else if (enc == Encoding::SceneLinear) impl_->pipeline(settings).apply_row(linear.data(), 1);
   for (float& v : linear) v = clamp01(v);
   if (settings.gamma != 1.0) {
     const auto inverse = static_cast<float>(1.0 / settings.gamma);
@@ -371,7 +384,8 @@ QImage DisplayTransform::render(const Image& image, int first_channel, int count
         default: expose_row<3>(src, channels, width, scale, offset, rgb.data(), bad.data()); break;
       }
       isolate_row(rgb.data(), width, s.channel);
-      if (enc == Encoding::SceneLinear) pipeline.apply_row(rgb.data(), width);
+      if (enc == Encoding::SceneLinear && s.false_colour) false_colour_row(rgb.data(), width);
+      else if (enc == Encoding::SceneLinear) pipeline.apply_row(rgb.data(), width);
       if (s.clipping) clip_row(rgb.data(), width, bad.data());
       if (s.gamma != 1.0) {
         const auto inverse = static_cast<float>(1.0 / s.gamma);

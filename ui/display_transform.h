@@ -32,7 +32,13 @@ struct DisplaySettings {
   // render() only: pixels the view clips drawn in warning colours instead, kClipHigh where a channel reaches 1,
   // kClipLow where all are at or below 0 (before the gamma).
   bool clipping = false;
+  // Instead of the view, false colour: exposed scene-linear luminance in stops about mid grey (0.18), log2(Y/0.18)
+  // over [-kFalseColourStops, +kFalseColourStops], through the turbo colormap (mid grey in its middle). Scene-linear
+  // images only; apply() gives the same colour.
+  bool false_colour = false;
 };
+
+inline constexpr double kFalseColourStops = 6.5;
 
 inline constexpr uint32_t kClipHigh = 0xffff3030u;  // ARGB
 inline constexpr uint32_t kClipLow = 0xff3050ffu;

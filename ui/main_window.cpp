@@ -459,6 +459,7 @@ DisplaySettings MainWindow::displaySettings() const {
   s.channel = channel();
   s.gamma = gamma_box_->value();
   s.clipping = clipping_ && clipping_->isChecked();
+  s.false_colour = false_colour_ && false_colour_->isChecked();
   s.display = display_box_->currentText().toStdString();
   s.view = view_box_->currentText().toStdString();
   return s;
@@ -466,6 +467,16 @@ DisplaySettings MainWindow::displaySettings() const {
 
 void MainWindow::setExposure(double stops) { exposure_box_->setValue(stops); }
 void MainWindow::setChannel(DisplayChannel c) { channel_box_->setCurrentIndex(channel_box_->findData(static_cast<int>(c))); }
+void MainWindow::setClippingWarning(bool on) {
+  clipping_->setChecked(on);
+  refreshPanes();
+}
+
+void MainWindow::setFalseColour(bool on) {
+  false_colour_->setChecked(on);
+  refreshPanes();
+}
+
 DisplayChannel MainWindow::channel() const { return static_cast<DisplayChannel>(channel_box_->currentData().toInt()); }
 double MainWindow::exposure() const { return exposure_box_->value(); }
 

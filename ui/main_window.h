@@ -97,6 +97,8 @@ class MainWindow : public QMainWindow {
   void setAov(AovRole aov);
   AovRole aov() const { return aov_; }
   void setChannel(DisplayChannel channel);  // every pane's colour, or one channel alone
+  void setClippingWarning(bool on);         // View > Clipping Warning
+  void setFalseColour(bool on);             // View > False Colour
   DisplayChannel channel() const;
   void setRoi(std::optional<Rect> roi);  // as if dragged
   void showPane(Source s);               // single-pane layout on that image
@@ -226,7 +228,8 @@ class MainWindow : public QMainWindow {
   QDoubleSpinBox* exposure_box_ = nullptr;
   QDoubleSpinBox* offset_box_ = nullptr;
   QDoubleSpinBox* gamma_box_ = nullptr;
-  QAction* clipping_ = nullptr;  // View > Clipping Warning (C)
+  QAction* clipping_ = nullptr;      // View > Clipping Warning (C)
+  QAction* false_colour_ = nullptr;  // View > False Colour (Shift+C)
   QComboBox* display_box_ = nullptr;
   QComboBox* view_box_ = nullptr;
   QLabel* size_label_ = nullptr;

@@ -381,6 +381,14 @@ void MainWindow::buildActions() {
   clipping_ = listed(action(view, tr("Clipping Warning"), QKeySequence(Qt::Key_C), [this] { refreshPanes(); }),
                      tr("clipping warning: red where the view clips white, blue where all is black"));
   clipping_->setCheckable(true);
+  false_colour_ = listed(action(view, tr("False Colour"), QKeySequence(Qt::SHIFT | Qt::Key_C), [this] {
+    if (false_colour_->isChecked())
+      say(tr("False colour: luminance in stops about mid grey (0.18), from dark blue at -6.5 through green at 0 to "
+             "dark red at +6.5 (turbo); Shift+C again for the view"), 10000);
+    refreshPanes();
+  }),
+                         tr("false colour: luminance in stops about mid grey, +-6.5 (turbo)"));
+  false_colour_->setCheckable(true);
   listed(action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); }), tr("previous / next AOV"));
   listed(action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); }), tr("previous / next AOV"));
   listed(action(view, tr("Heatmap: pane / overlay / off"), QKeySequence(Qt::Key_H), [this] {

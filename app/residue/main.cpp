@@ -104,6 +104,8 @@ int main(int argc, char** argv) {
   const QCommandLineOption channel("channel", "Show one channel alone, as grey: r, g, b or luminance (rgb: all).", "channel");
   const QCommandLineOption open_also("open", "Open another render too, as its own entry of the image list (the Renders "
                                      "tab); repeatable. The render named first is shown.", "render");
+  const QCommandLineOption clipping("clipping", "Show the clipping warning (View > Clipping Warning).");
+  const QCommandLineOption false_colour("false-colour", "Show false colour: luminance in stops about mid grey (View > False Colour).");
   const QCommandLineOption theme("theme", "system, light or dark (View > Theme; remembered).", "theme");
   const QCommandLineOption timing("timing", "Print when the render is loaded, first shown and fully analysed.");
   const QCommandLineOption cancel_after("cancel-after", "Cancel each denoise S seconds after it starts and print how "
@@ -118,7 +120,7 @@ int main(int argc, char** argv) {
                                       "MiB (default: a quarter of this machine's RAM).", "MiB");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
                         &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
-                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame, &theme, &channel, &open_also})
+                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame, &theme, &channel, &open_also, &clipping, &false_colour})
     cli.addOption(*o);
   cli.process(app);
 
@@ -166,6 +168,8 @@ int main(int argc, char** argv) {
   // A screenshot shows the defaults, whatever the last session left.
   if (!cli.isSet(screenshot)) window.restoreSettings();
   if (cli.isSet(theme)) window.setTheme(*MainWindow::themeFromName(cli.value(theme)));  // checked above
+  if (cli.isSet(clipping)) window.setClippingWarning(true);
+  if (cli.isSet(false_colour)) window.setFalseColour(true);
   if (cli.isSet(channel)) window.setChannel(*residue::ui::display_channel_from_string(cli.value(channel).toStdString()));
   if (const auto icon = residue::find_resource("icons/hicolor/256x256/apps/residue.png"))
     QApplication::setWindowIcon(QIcon::fromTheme("residue", QIcon(QString::fromStdString(icon->string()))));

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "core/image/colormap.h"
 #include "core/metrics/tonemap.h"
 #include "core/util/error.h"
 #include "core/util/resources.h"
@@ -304,6 +305,28 @@ class TestDisplayTransform : public QObject {
     s.clipping = false;
     QCOMPARE(out.pixel(2, 0), shipped_->render(img, 0, 3, img.bounds(), s, Encoding::SceneLinear).pixel(2, 0));
     QCOMPARE(out.pixel(3, 0), 0xffff00ffu);
+  }
+
+  // False colour: luminance in stops about mid grey through turbo, in place of the view; mid grey is turbo's middle,
+  // +-6.5 stops its ends (and beyond them clamped); exposure counts.
+  void falseColourIsStopsAboutMidGrey() {
+    Image img(4, 1, 3);
+    const float ys[4] = {0.18f, 0.18f * std::exp2(6.5f), 0.18f * std::exp2(-8.0f), 0.09f};
+    for (int x = 0; x < 4; ++x)
+      for (int c = 0; c < 3; ++c) img.at(x, 0, c) = ys[x];
+    DisplaySettings s{0.0, 0.0, "sRGB", "Standard"};
+    s.false_colour = true;
+    const QImage out = shipped_->render(img, 0, 3, img.bounds(), s, Encoding::SceneLinear);
+    const auto turbo = [](double t) {
+      const auto c = residue::colormap_lookup(residue::Colormap::Turbo, t);
+      return qRgb(c[0], c[1], c[2]);
+    };
+    QCOMPARE(out.pixel(0, 0), turbo(0.5));
+    QCOMPARE(out.pixel(1, 0), turbo(1.0));
+    QCOMPARE(out.pixel(2, 0), turbo(0.0));
+    QCOMPARE(out.pixel(3, 0), turbo((6.5 - 1.0) / 13.0));  // a stop under mid grey
+    s.exposure = 1.0;  // ... which one stop of exposure brings to mid grey
+    QCOMPARE(shipped_->render(img, 0, 3, img.bounds(), s, Encoding::SceneLinear).pixel(3, 0), turbo(0.5));
   }
 
   void renderFlagsNonFiniteAndDrawsGrey() {
