@@ -320,7 +320,7 @@ void MainWindow::buildActions() {
     tabs_->setCurrentWidget(heatmap_);
     if (paneIndex(Source::Heatmap) >= 0) showPane(Source::Heatmap);
     else pending_pane_ = Source::Heatmap;  // once the panes are drawn with it
-  }), tr("difference: A - B, signed (blue: A darker, red: A brighter)"));
+  }), tr("difference: A - B, signed"));
   auto* next = listed(action(view, tr("Next pane"), QKeySequence(Qt::Key_Tab), [this] { cyclePane(+1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
   next->setShortcutContext(Qt::ApplicationShortcut);
   auto* prev = listed(action(view, tr("Previous pane"), QKeySequence(Qt::SHIFT | Qt::Key_Tab), [this] { cyclePane(-1); }), tr("single layout: next / previous pane"), tr("Tab  Shift+Tab"));
@@ -379,7 +379,7 @@ void MainWindow::buildActions() {
     gamma_box_->setValue(1.0);
   }), tr("reset exposure, offset and gamma"));
   clipping_ = listed(action(view, tr("Clipping Warning"), QKeySequence(Qt::Key_C), [this] { refreshPanes(); }),
-                     tr("clipping warning: red where the view clips white, blue where all is black"));
+                     tr("clipping warning / false colour"));
   clipping_->setCheckable(true);
   false_colour_ = listed(action(view, tr("False Colour"), QKeySequence(Qt::SHIFT | Qt::Key_C), [this] {
     if (false_colour_->isChecked())
@@ -387,7 +387,7 @@ void MainWindow::buildActions() {
              "dark red at +6.5 (turbo); Shift+C again for the view"), 10000);
     refreshPanes();
   }),
-                         tr("false colour: luminance in stops about mid grey, +-6.5 (turbo)"));
+                         tr("clipping warning / false colour"));
   false_colour_->setCheckable(true);
   listed(action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); }), tr("previous / next AOV"));
   listed(action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); }), tr("previous / next AOV"));
