@@ -301,7 +301,7 @@ void MainWindow::buildActions() {
     if (!path.isEmpty()) runExport(tr("metrics"), exportMetrics(path, true));
   });
   file->addSeparator();
-  listed(action(file, tr("&Quit"), QKeySequence::Quit, [this] { close(); }), tr("quit"));
+  listed(action(file, tr("&Quit"), QKeySequence(Qt::CTRL | Qt::Key_Q), [this] { close(); }), tr("quit"));
 
   auto* view = menuBar()->addMenu(tr("&View"));
   listed(action(view, tr("All panes"), QKeySequence(Qt::Key_A), [this] { layout_box_->setCurrentIndex(0); }), tr("all panes, in a grid"));
