@@ -98,7 +98,7 @@ void clip_row(const float* rgb, int64_t n, uint8_t* flags) {
 // display values (sRGB-encoded, so the view is skipped).
 void false_colour_row(float* rgb, int64_t n) {
   for (int64_t x = 0; x < n; ++x, rgb += 3) {
-    const double y = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+    const double y = rec709_luminance(rgb[0], rgb[1], rgb[2]);
     const double stops = y > 0 ? std::log2(y / 0.18) : -kFalseColourStops;
     const auto c = colormap_lookup(Colormap::Turbo, (stops + kFalseColourStops) / (2 * kFalseColourStops));
     for (int k = 0; k < 3; ++k) rgb[k] = static_cast<float>(c[static_cast<size_t>(k)]) / 255.0f;
@@ -112,7 +112,7 @@ void isolate_row(float* rgb, int64_t n, DisplayChannel c) {
     const float v = c == DisplayChannel::R   ? rgb[0]
                     : c == DisplayChannel::G ? rgb[1]
                     : c == DisplayChannel::B ? rgb[2]
-                                             : 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
+                                             : rec709_luminance(rgb[0], rgb[1], rgb[2]);
     rgb[0] = rgb[1] = rgb[2] = v;
   }
 }

@@ -16,6 +16,10 @@
 
 namespace residue::ui {
 
+// Rec. 709's luminance Y of scene-linear RGB: the one weighting the display maths uses (channel isolation, false
+// colour, the image histogram).
+inline float rec709_luminance(float r, float g, float b) { return 0.2126f * r + 0.7152f * g + 0.0722f * b; }
+
 // One channel shown alone, as grey through the same view (tev's channel isolation), or all three. Luminance is
 // Rec. 709's Y of the scene-linear values.
 enum class DisplayChannel { RGB, R, G, B, Luminance };

@@ -777,9 +777,9 @@ void MainWindow::updateImageHistogram() {
   const auto& panes = canvas_->panes();
   const Pane* pane = nullptr;
   if (const auto i = canvas_->hoveredPane(); i && *i < static_cast<int>(panes.size())) pane = &panes[static_cast<size_t>(*i)];
-  if (!pane || !pane->values)
-    for (const Pane& p : panes)
-      if (p.values && (!pane || !pane->values || p.label.startsWith("A:"))) pane = &p;
+  for (Source fallback : {Source::Denoised, Source::Noisy})
+    for (size_t i = 0; i < canvas_sources_.size() && i < panes.size() && (!pane || !pane->values); ++i)
+      if (canvas_sources_[i] == fallback) pane = &panes[i];
   if (!pane || !pane->values) {
     histogram_of_.reset();
     image_histogram_->setValues(nullptr, true, {1e-4, 1}, Colormap::Viridis, tr("no image"));
@@ -792,8 +792,7 @@ void MainWindow::updateImageHistogram() {
   auto y = std::make_shared<Image>(v.width(), v.height(), 1);
   for (int64_t row = 0; row < v.height(); ++row)
     for (int64_t x = 0; x < v.width(); ++x)
-      y->at(x, row, 0) = count >= 3 ? 0.2126f * v.at(x, row, first) + 0.7152f * v.at(x, row, first + 1) +
-                                          0.0722f * v.at(x, row, first + 2)
+      y->at(x, row, 0) = count >= 3 ? rec709_luminance(v.at(x, row, first), v.at(x, row, first + 1), v.at(x, row, first + 2))
                                     : v.at(x, row, first);
   ColorScale log;
   log.log = true;

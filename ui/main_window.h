@@ -61,7 +61,7 @@ class MainWindow : public QMainWindow {
   void showSideTab(SideTab tab);
 
   // Settings kept across restarts (ui/main_window_settings.cpp): the window, layout, colour view, theme, model and
-  // heatmap drawing. restoreSettings() sets them from the last session and has them saved when the window closes;
+  // heatmap drawing. restoreSettings() sets them as the viewer last saved them and has them saved when the window closes;
   // a window that never calls it (tests, --screenshot) starts from the defaults and saves nothing.
   void restoreSettings();
   // The theme: the platform's palette, or Fusion in light or dark neutral greys (View > Theme, --theme).

@@ -54,6 +54,28 @@ QString series(const Result& r) {
   return "file:" + r.file;
 }
 
+// A render's name in the list and the window title: the stream's, or its files' (a folder given as "dir/" has an
+// empty file name: the folder itself is named).
+QString render_title(const std::vector<std::filesystem::path>& inputs, const QString& live_name) {
+  if (!live_name.isEmpty()) return Session::tr("%1 (live)").arg(live_name);
+  QStringList names;
+  for (const auto& p : inputs)
+    names << QString::fromStdString((p.has_filename() ? p.filename() : p.parent_path().filename()).string());
+  return names.join(", ");
+}
+
+// What a result at a strength is called and keyed by, from its full result: a key of its own (never a run's, so
+// asking for the run's settings shows the full result) that is also, across a shot's frames, the series of "this
+// run (or file) at this strength".
+void describe_at_strength(Result& r, const Result& base, float strength) {
+  const auto s = static_cast<double>(strength);
+  r.base = base.id;
+  r.strength = strength;
+  r.name = base.name + QString(" @ %1 %").arg(s * 100.0, 0, 'f', 0);
+  r.key = (base.fromFile() ? "file:" + base.file : base.key) + QString("@strength %1").arg(s, 0, 'f', 2);
+  r.description = base.description + QString(", strength %1").arg(s, 0, 'f', 2);
+}
+
 }  // namespace
 
 Session::Session(QObject* parent) : QObject(parent) {
@@ -208,26 +230,18 @@ void Session::finishLoad() {
   // frame or another reference stays in the shown render's entry.
   if (!r->reload && !r->step && !r->reference_only) {
     if (!r->focus && current_ >= 0) {
-      Render unshown;
-      unshown.id = next_render_id_++;
+      Render& unshown = newEntry();
       unshown.stack = r->stack;
       unshown.inputs = r->inputs;
       unshown.options = r->options;
       unshown.sequence = r->sequence;
       unshown.frame = r->frame;
       unshown.nearby = r->nearby;
-      renders_.push_back(std::move(unshown));
       emit renderListChanged();
       return;
     }
-    if (current_ >= 0) {
-      emit aboutToSwitch();
-      renders_[static_cast<size_t>(current_)] = stash();
-    }
-    Render fresh;
-    fresh.id = next_render_id_++;
-    renders_.push_back(std::move(fresh));
-    current_ = renderCount() - 1;
+    if (current_ >= 0) emit aboutToSwitch();
+    showNewEntry();
   }
   inputs_ = r->inputs;
   live_name_.clear();
@@ -307,16 +321,13 @@ void Session::enterFrame(const LoadResult& r) {
 void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& name, bool focus) {
   const int i = findRender({}, name);
   if (i != current_ || current_ < 0) {
-    if (!focus && current_ >= 0) {  // into its entry (a new one after the one shown), unshown
+    if (!focus && current_ >= 0) {  // into its entry (a new one at the end of the list), unshown
       Render* r = nullptr;
       if (i >= 0) {
         r = &renders_[static_cast<size_t>(i)];
       } else {
-        Render fresh;
-        fresh.id = next_render_id_++;
-        fresh.live_name = name;
-        renders_.push_back(std::move(fresh));
-        r = &renders_.back();
+        r = &newEntry();
+        r->live_name = name;
       }
       r->stack = std::move(stack);
       r->results.clear();  // they were of the pixels before
@@ -327,15 +338,8 @@ void Session::adoptLive(std::shared_ptr<const AovStack> stack, const QString& na
       return;
     }
     if (current_ >= 0) emit aboutToSwitch();
-    if (i >= 0) {
-      switchTo(i);
-    } else {
-      if (current_ >= 0) renders_[static_cast<size_t>(current_)] = stash();
-      Render fresh;
-      fresh.id = next_render_id_++;
-      renders_.push_back(std::move(fresh));
-      current_ = renderCount() - 1;
-    }
+    if (i >= 0) switchTo(i);
+    else showNewEntry();
   }
   dropLoadOfShown();
   inputs_.clear();
@@ -400,6 +404,19 @@ void Session::unstash(Render&& r) {
   results_epoch_ = r.epoch;
 }
 
+Session::Render& Session::newEntry() {
+  Render fresh;
+  fresh.id = next_render_id_++;
+  renders_.push_back(std::move(fresh));
+  return renders_.back();
+}
+
+void Session::showNewEntry() {
+  if (current_ >= 0) renders_[static_cast<size_t>(current_)] = stash();
+  newEntry();
+  current_ = renderCount() - 1;
+}
+
 void Session::switchTo(int index) {
   if (index == current_) return;
   if (current_ >= 0) renders_[static_cast<size_t>(current_)] = stash();
@@ -441,12 +458,7 @@ QString Session::renderTitle(int index) const {
   if (index == current_) return title();
   if (index < 0 || index >= renderCount()) return {};
   const Render& r = renders_[static_cast<size_t>(index)];
-  if (!r.live_name.isEmpty()) return tr("%1 (live)").arg(r.live_name);
-  QStringList names;
-  for (const auto& p : r.inputs)
-    names << QString::fromStdString((p.has_filename() ? p.filename() : p.parent_path().filename()).string());
-  if (r.sequence) names.back() += tr(" (frame %1)").arg(r.frame);
-  return names.join(", ");
+  return render_title(r.inputs, r.live_name);
 }
 
 QStringList Session::renderInputs(int index) const {
@@ -496,16 +508,7 @@ void Session::closeRender(int index) {
   emit renderListChanged();
 }
 
-QString Session::title() const {
-  if (!live_name_.isEmpty()) return tr("%1 (live)").arg(live_name_);
-  QStringList names;
-  for (const auto& p : inputs_) {
-    // A folder given as "dir/" has an empty file name: name the folder itself.
-    const auto name = p.has_filename() ? p.filename() : p.parent_path().filename();
-    names << QString::fromStdString(name.string());
-  }
-  return names.join(", ");
-}
+QString Session::title() const { return render_title(inputs_, live_name_); }
 
 const Image* Session::reference() const {
   return stack_ && stack_->reference ? &stack_->reference->image : nullptr;
@@ -744,13 +747,10 @@ void Session::setStrength(float strength) {
     return;
   }
   if (a->atStrength()) {  // moving the slider re-blends the result at a strength shown, in place
-    const Result* b = result(base);
-    const QString name = uniqueName(b->name + QString(" @ %1 %").arg(static_cast<double>(strength) * 100.0, 0, 'f', 0), a_);
+    const Result& b = *result(base);
     updateResult(a_, [&](Result& r) {
-      r.strength = strength;
-      r.name = name;
-      r.key = b->key + QString("@strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
-      r.description = b->description + QString(", strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
+      describe_at_strength(r, b, strength);
+      r.name = uniqueName(r.name, r.id);
     });
     reblendFrom(base);
     return;
@@ -764,13 +764,7 @@ void Session::setStrength(float strength) {
 int Session::deriveAtStrength(int base, float strength) {
   const Result* b = result(base);
   Result r;
-  r.base = base;
-  r.strength = strength;
-  r.name = b->name + QString(" @ %1 %").arg(static_cast<double>(strength) * 100.0, 0, 'f', 0);
-  // A key of its own (never a run's: asking for the run's settings shows the full result), and for sequences the
-  // series of "this run at this strength".
-  r.key = (b->fromFile() ? "file:" + b->file : b->key) + QString("@strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
-  r.description = b->description + QString(", strength %1").arg(static_cast<double>(strength), 0, 'f', 2);
+  describe_at_strength(r, *b, strength);
   r.file = b->file;
   r.provenance = b->provenance;
   r.flop = b->flop;

@@ -194,6 +194,8 @@ class Session : public QObject {
   Render stash();               // moves the shown render's members out
   void unstash(Render&& r);     // ... and another's in
   void switchTo(int index);     // stash the shown one into its entry, unstash `index`
+  Render& newEntry();           // an empty entry at the end of the list, with its id
+  void showNewEntry();          // stash the shown one; an empty new entry is the one shown (its members to fill)
   int findRender(const std::vector<std::filesystem::path>& inputs, const QString& live_name) const;
   struct QueuedOpen {
     std::vector<std::filesystem::path> inputs;

@@ -165,7 +165,7 @@ int main(int argc, char** argv) {
   if (qEnvironmentVariableIsSet("RESIDUE_SETTINGS_ISOLATED"))
     QSettings::setPath(QSettings::NativeFormat, QSettings::UserScope, isolated_settings.path());
   MainWindow window;
-  // A screenshot shows the defaults, whatever the last session left.
+  // A screenshot shows the defaults, whatever the viewer last saved.
   if (!cli.isSet(screenshot)) window.restoreSettings();
   if (cli.isSet(theme)) window.setTheme(*MainWindow::themeFromName(cli.value(theme)));  // checked above
   if (cli.isSet(clipping)) window.setClippingWarning(true);
