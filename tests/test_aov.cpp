@@ -11,6 +11,7 @@
 #include "core/aov/aov_loader.h"
 #include "core/aov/channel_naming.h"
 #include "core/aov/conventions.h"
+#include "core/aov/other_layers.h"
 #include "core/util/error.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
@@ -265,6 +266,108 @@ TEST(AovConventions, PbrtGbufferFilm) {
   EXPECT_FALSE(w.depth.has_value());
   EXPECT_TRUE(std::any_of(w.notes.begin(), w.notes.end(),
                           [](const std::string& n) { return n.find("no depth") != std::string::npos; }));
+}
+
+// "N" is Arnold's name for its normal, but also the name anyone gives one: R,G,B with albedo and N is a plain file
+// (normals of unknown space, said), not Arnold's (whose normals are world space, turned by a camera in the header).
+// Arnold is known by its denoise_albedo or diffuse_albedo, or by N with Z.
+TEST(AovConventions, NWithAlbedoAloneIsPlainNotArnold) {
+  TempDir tmp;
+  const auto plain = tmp / "plain.exr";
+  write_fixture_exr(plain, {part(5, 3, {coded("R", 10), coded("G", 11), coded("B", 12), coded("albedo.R", 30),
+                                        coded("albedo.G", 31), coded("albedo.B", 32), coded("N.X", 20),
+                                        coded("N.Y", 21), coded("N.Z", 22)})});
+  const AovStack s = load_aov_stack({plain});
+  EXPECT_EQ(s.convention, "plain R,G,B with named layers");
+  expect_coded(s, AovRole::Normal, 20);
+  expect_coded(s, AovRole::Albedo, 30);
+  EXPECT_EQ(s.normal_space, NormalSpace::Unknown);
+  EXPECT_TRUE(std::any_of(s.notes.begin(), s.notes.end(),
+                          [](const std::string& n) { return n.find("--normal-space") != std::string::npos; }))
+      << "the unknown normal space is said, with the option that states it";
+
+  for (const char* mark : {"diffuse_albedo", "denoise_albedo"}) {
+    const auto arnold = tmp / (std::string(mark) + ".exr");
+    const std::string m = mark;
+    write_fixture_exr(arnold, {part(5, 3, {coded("R", 10), coded("G", 11), coded("B", 12), coded(m + ".R", 30),
+                                           coded(m + ".G", 31), coded(m + ".B", 32), coded("N.X", 20),
+                                           coded("N.Y", 21), coded("N.Z", 22)})});
+    const AovStack a = load_aov_stack({arnold});
+    EXPECT_EQ(a.convention, "Arnold") << mark;
+    EXPECT_EQ(a.normal_space, NormalSpace::World) << mark;
+  }
+  const auto nz = tmp / "nz.exr";
+  write_fixture_exr(nz, {part(5, 3, {coded("R", 10), coded("G", 11), coded("B", 12), coded("N.X", 20),
+                                     coded("N.Y", 21), coded("N.Z", 22), coded("Z", 40)})});
+  EXPECT_EQ(load_aov_stack({nz}).convention, "Arnold");
+}
+
+// The layers no AOV took are listed for browsing, each read with its own values: the colour's alpha alone, a light
+// pass, a group of four cut into three and its alpha, one of five into threes; the channels a role took are not.
+TEST(OtherLayers, EveryUnrecognisedChannelIsALayerWithItsValues) {
+  TempDir tmp;
+  const auto f = tmp / "layers.exr";
+  std::vector<FixtureChannel> ch;
+  const auto group = [&](const std::string& layer, const std::vector<std::string>& names, float tag) {
+    for (size_t i = 0; i < names.size(); ++i) ch.push_back(coded("ViewLayer." + layer + "." + names[i], tag + static_cast<float>(i)));
+  };
+  group("Combined", {"R", "G", "B", "A"}, 10);
+  group("Denoising Albedo", {"R", "G", "B"}, 20);
+  group("Diffuse Direct", {"R", "G", "B"}, 30);
+  group("CryptoObject00", {"R", "G", "B", "A"}, 40);
+  group("Extra", {"c1", "c2", "c3", "c4", "c5"}, 50);
+  write_fixture_exr(f, {part(6, 4, ch)});
+  const AovStack s = load_aov_stack({f});
+  ASSERT_EQ(s.convention, "Blender Cycles");
+  const auto layers = other_layers(s);
+  std::vector<std::string> names;
+  for (const auto& l : layers) names.push_back(l.name);
+  // In the file's order (OpenEXR keeps channels sorted by name).
+  const std::vector<std::string> expected = {"ViewLayer.Combined.A", "ViewLayer.CryptoObject00",
+                                             "ViewLayer.CryptoObject00.A", "ViewLayer.Diffuse Direct",
+                                             "ViewLayer.Extra (c1,c2,c3)", "ViewLayer.Extra (c4,c5)"};
+  ASSERT_EQ(names, expected);
+  const std::vector<std::pair<size_t, float>> first_tag = {{0, 13}, {1, 40}, {2, 43}, {3, 30}, {4, 50}, {5, 53}};
+  for (const auto& [i, tag] : first_tag) {
+    const Image img = read_other_layer(layers[i], s);
+    ASSERT_EQ(img.width(), 6);
+    ASSERT_EQ(img.height(), 4);
+    ASSERT_EQ(img.channels(), static_cast<int>(layers[i].channels.size()));
+    for (int c = 0; c < img.channels(); ++c)
+      for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 6; ++x)
+          ASSERT_FLOAT_EQ(img.at(x, y, c), code(tag + static_cast<float>(c), x, y)) << names[i] << " c" << c;
+  }
+}
+
+// A layer in another part of a multipart file, with a smaller data window, lands where it lies (0 elsewhere); a
+// layer of a file that is gone is an input error naming the file.
+TEST(OtherLayers, APartsLayerIsPlacedOnTheGridAndAMissingFileIsNamed) {
+  TempDir tmp;
+  const auto f = tmp / "parts.exr";
+  FixturePart beauty = part(6, 4, {coded("R", 10), coded("G", 11), coded("B", 12)});
+  beauty.name = "rgba";
+  FixturePart extra = part(3, 2, {coded("R", 60), coded("G", 61), coded("B", 62)});
+  extra.name = "specular";
+  extra.x = 2;
+  extra.y = 1;
+  extra.full_width = 6;
+  extra.full_height = 4;
+  write_fixture_exr(f, {beauty, extra});
+  const AovStack s = load_aov_stack({f});
+  const auto layers = other_layers(s);
+  ASSERT_EQ(layers.size(), 1u);
+  EXPECT_EQ(layers[0].name, "specular");
+  const Image img = read_other_layer(layers[0], s);
+  for (int y = 0; y < 4; ++y)
+    for (int x = 0; x < 6; ++x) {
+      const bool inside = x >= 2 && x < 5 && y >= 1 && y < 3;
+      EXPECT_FLOAT_EQ(img.at(x, y, 1), inside ? code(61, x, y) : 0.0f) << x << "," << y;
+    }
+  std::filesystem::remove(f);
+  const std::string message = error_of([&] { read_other_layer(layers[0], s); });
+  EXPECT_NE(message.find("parts.exr"), std::string::npos) << message;
+  EXPECT_TRUE(other_layers(s).empty()) << "a file that is gone lists no layers";
 }
 
 // Every layer of pbrt's signature is needed: an Arnold render with a position AOV stays Arnold's.

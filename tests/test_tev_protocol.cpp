@@ -209,6 +209,24 @@ TEST(LiveImages, TilesAssembleIntoAnAovStack) {
   EXPECT_EQ(images.find("live"), nullptr);
 }
 
+// A stream of R,G,B with albedo.* and N.* is named by what it is, a plain stream (issue 53, item 14): "N" is
+// Arnold's name for its normal but anyone's too; Arnold's streams are known by denoise_albedo or N with Z.
+TEST(LiveImages, AStreamWithAlbedoAndNIsPlainNotArnold) {
+  const auto convention = [](const std::vector<std::string>& channels) {
+    LiveImages images;
+    Packet create(4);
+    create.u8(1).str("live").i32(2).i32(2).i32(static_cast<int>(channels.size()));
+    for (const auto& c : channels) create.str(c);
+    images.apply(std::get<CreateImage>(parse_tev_packet(create.done())));
+    return live_aov_stack("live", *images.find("live")).convention;
+  };
+  EXPECT_EQ(convention({"R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z"}),
+            "tev IPC stream, plain R,G,B with named layers");
+  EXPECT_EQ(convention({"R", "G", "B", "denoise_albedo.R", "denoise_albedo.G", "denoise_albedo.B", "N.X", "N.Y", "N.Z"}),
+            "tev IPC stream, Arnold");
+  EXPECT_EQ(convention({"R", "G", "B", "N.X", "N.Y", "N.Z", "Z"}), "tev IPC stream, Arnold");
+}
+
 TEST(LiveImages, UpdatesOfUnknownImagesOrChannelsAndImagesWithoutColourAreRefused) {
   LiveImages images;
   UpdateImage u;

@@ -1,5 +1,6 @@
 #include "ui/main_window.h"
 
+#include <QAbstractItemView>
 #include <QAction>
 #include <QApplication>
 #include <QAbstractSpinBox>
@@ -18,6 +19,7 @@
 #include <QMessageBox>
 #include <cstdio>
 #include <QSettings>
+#include <QSignalBlocker>
 #include <QStandardItemModel>
 #include <QScreen>
 #include <QStatusBar>
@@ -42,6 +44,9 @@
 namespace residue::ui {
 
 namespace {
+
+// The AOV box's data for a layer no AOV took: kLayerItem + its index in Session::otherLayers().
+constexpr int kLayerItem = 1000;
 
 QString errorText(const std::exception& e) { return QString::fromStdString(e.what()); }
 
@@ -312,6 +317,8 @@ void MainWindow::onLoaded() {
   const auto stack = session_->stack();
   last_error_.clear();
   if (!stack) {  // the last render was closed
+    layer_ = -1;
+    rebuildLayerItems();
     setRoi(std::nullopt);
     metrics_->compute({});
     heatmap_->computeMap(nullptr, QString(), tr("no render"));
@@ -321,13 +328,18 @@ void MainWindow::onLoaded() {
     watchInputs();
     return;
   }
-  // Fall back to colour when the new render lacks the AOV being shown.
+  // Fall back to colour when the new render lacks the AOV being shown. A layer shown is looked for in it by name
+  // (rebuildLayerItems): indices of the last render's layers mean nothing here.
+  const QString layer_shown = wanted_layer_;
+  layer_ = -1;
   if (!session_->hasAov(aov_)) setAov(AovRole::Color);
-  for (int i = 0; i < aov_box_->count(); ++i) {
-    const bool has = session_->hasAov(static_cast<AovRole>(aov_box_->itemData(i).toInt()));
+  const int roles = static_cast<int>(std::size(kViewableAovs));
+  for (int i = 0; i < std::min(roles, aov_box_->count()); ++i) {
     auto* model = qobject_cast<QStandardItemModel*>(aov_box_->model());
-    if (model) model->item(i)->setEnabled(has);
+    if (model) model->item(i)->setEnabled(session_->hasAov(static_cast<AovRole>(aov_box_->itemData(i).toInt())));
   }
+  wanted_layer_ = layer_shown;
+  rebuildLayerItems();
   QStringList notes;
   for (const auto& n : stack->notes) notes << QString::fromStdString(n);
   // Another open render shown again: its own region and view, as it was left.
@@ -481,22 +493,113 @@ DisplayChannel MainWindow::channel() const { return static_cast<DisplayChannel>(
 double MainWindow::exposure() const { return exposure_box_->value(); }
 
 void MainWindow::setAov(AovRole aov) {
-  if (aov_ == aov && aov_box_->currentData().toInt() == static_cast<int>(aov)) return;
+  wanted_layer_.clear();
+  if (aov_ == aov && layer_ < 0 && aov_box_->currentData().toInt() == static_cast<int>(aov)) return;
   aov_ = aov;
+  layer_ = -1;
+  const QSignalBlocker block(aov_box_);
   aov_box_->setCurrentIndex(aov_box_->findData(static_cast<int>(aov)));
   refreshPanes();
 }
 
+bool MainWindow::setLayer(const QString& name) {
+  if (!session_->hasStack()) {
+    wanted_layer_ = name;
+    return true;
+  }
+  const auto& layers = session_->otherLayers();
+  for (size_t i = 0; i < layers.size(); ++i)
+    if (QString::fromStdString(layers[i].name) == name) {
+      showBoxItem(aov_box_->findData(kLayerItem + static_cast<int>(i)));
+      return layer_ == static_cast<int>(i);
+    }
+  say(tr("%1 has no layer \"%2\" other than its AOVs").arg(session_->title(), name), 5000);
+  return false;
+}
+
+QString MainWindow::layer() const {
+  const auto& layers = session_->otherLayers();
+  return layer_ >= 0 && layer_ < static_cast<int>(layers.size())
+             ? QString::fromStdString(layers[static_cast<size_t>(layer_)].name)
+             : QString();
+}
+
+void MainWindow::showBoxItem(int index) {
+  if (index < 0) return;
+  const int item = aov_box_->itemData(index).toInt();
+  if (item < kLayerItem) {
+    setAov(static_cast<AovRole>(item));
+    return;
+  }
+  const int picked = item - kLayerItem;
+  try {
+    session_->otherLayer(picked);  // read now, so that a file that cannot be read is said here
+  } catch (const Error& e) {
+    say(tr("Cannot show layer %1: %2").arg(aov_box_->itemText(index), QString::fromStdString(e.what())), 8000);
+    const QSignalBlocker block(aov_box_);
+    aov_box_->setCurrentIndex(aov_box_->findData(layer_ >= 0 ? kLayerItem + layer_ : static_cast<int>(aov_)));
+    return;
+  }
+  layer_ = picked;
+  wanted_layer_ = layer();
+  const QSignalBlocker block(aov_box_);
+  aov_box_->setCurrentIndex(index);
+  refreshPanes();
+}
+
+void MainWindow::rebuildLayerItems() {
+  const QSignalBlocker block(aov_box_);
+  const int roles = static_cast<int>(std::size(kViewableAovs));  // the box's first entries; the layers follow
+  while (aov_box_->count() > roles) aov_box_->removeItem(roles);
+  const auto& layers = session_->otherLayers();
+  if (!layers.empty()) aov_box_->insertSeparator(aov_box_->count());
+  // Listed without the view-layer prefix they all share ("ViewLayer."), which only widens the box; the pane's
+  // label and the tooltip give the whole name.
+  QString shared_prefix;
+  if (!layers.empty()) {
+    const QString first = QString::fromStdString(layers.front().name);
+    if (const auto dot = first.indexOf('.'); dot > 0) shared_prefix = first.left(dot + 1);
+    for (const auto& l : layers)
+      if (!QString::fromStdString(l.name).startsWith(shared_prefix)) shared_prefix.clear();
+  }
+  for (size_t i = 0; i < layers.size(); ++i) {
+    const QString name = QString::fromStdString(layers[i].name);
+    aov_box_->addItem(name.mid(shared_prefix.size()), kLayerItem + static_cast<int>(i));
+    aov_box_->setItemData(aov_box_->count() - 1, name, Qt::ToolTipRole);
+  }
+  aov_box_->view()->setMinimumWidth(aov_box_->view()->sizeHintForColumn(0) + 16);
+  // The layer shown on the last render (a shot's previous frame), or the one asked for, when this one has it.
+  const QString wanted = wanted_layer_;
+  layer_ = -1;
+  aov_box_->setCurrentIndex(aov_box_->findData(static_cast<int>(aov_)));
+  if (!wanted.isEmpty()) {
+    const int index = aov_box_->findData(wanted, Qt::ToolTipRole);
+    if (index >= 0 && aov_box_->itemData(index).toInt() >= kLayerItem) {
+      const int found = aov_box_->itemData(index).toInt() - kLayerItem;
+      try {
+        session_->otherLayer(found);
+        layer_ = found;
+        aov_box_->setCurrentIndex(index);
+      } catch (const Error& e) {
+        say(tr("Cannot show layer %1: %2").arg(wanted, QString::fromStdString(e.what())), 8000);
+      }
+    }
+  }
+  wanted_layer_ = wanted;
+}
+
 void MainWindow::cycleAov(int step) {
   if (!session_->hasStack()) return;
-  const int n = static_cast<int>(std::size(kViewableAovs));
-  int i = static_cast<int>(std::find(std::begin(kViewableAovs), std::end(kViewableAovs), aov_) - std::begin(kViewableAovs));
+  const int n = aov_box_->count();
+  auto* model = qobject_cast<QStandardItemModel*>(aov_box_->model());
+  int i = aov_box_->currentIndex();
   for (int k = 0; k < n; ++k) {
     i = (i + step + n) % n;
-    if (session_->hasAov(kViewableAovs[i])) break;
+    const QStandardItem* item = model ? model->item(i) : nullptr;
+    if (item && item->isEnabled() && item->isSelectable() && !aov_box_->itemText(i).isEmpty()) break;
   }
-  setAov(kViewableAovs[i]);
-  say(tr("AOV: %1").arg(display_name(aov_)), 3000);
+  showBoxItem(i);
+  say(tr("AOV: %1").arg(layer_ >= 0 ? layer() : display_name(aov_)), 3000);
 }
 
 void MainWindow::showPane(Source s) {
@@ -605,6 +708,13 @@ void MainWindow::refreshPanes() {
   in.stack = stack;
   in.aov = aov_;
   in.noisy = session_->image(Source::Noisy, aov_);
+  if (layer_ >= 0) {
+    try {
+      in.layer = session_->otherLayer(layer_);  // read already, when it was picked
+      in.layer_name = layer();
+    } catch (const Error&) {
+    }
+  }
   // During a run from the noisy colour the unfinished tiles *are* the noisy colour: draw from the stack (which
   // never changes) rather than holding the image the tiles are written into (that would copy it per tile).
   const bool a_running = denoise_->controller()->runningResult() == session_->a() && session_->a() >= 0;

@@ -96,6 +96,10 @@ class MainWindow : public QMainWindow {
   double exposure() const;
   void setAov(AovRole aov);
   AovRole aov() const { return aov_; }
+  // A layer no AOV took (Session::otherLayers), by name, shown for Noisy instead of the AOV; false (said) when the
+  // render has none of that name. Asked before a render is open, it is looked for in the first one.
+  bool setLayer(const QString& name);
+  QString layer() const;  // the layer shown for Noisy; empty when an AOV is
   void setChannel(DisplayChannel channel);  // every pane's colour, or one channel alone
   void setClippingWarning(bool on);         // View > Clipping Warning
   void setFalseColour(bool on);             // View > False Colour
@@ -238,6 +242,10 @@ class MainWindow : public QMainWindow {
   QMenu* recent_menu_ = nullptr;
 
   AovRole aov_ = AovRole::Color;
+  int layer_ = -1;          // index in session_->otherLayers(); -1: the AOV aov_ is shown
+  QString wanted_layer_;    // kept from render to render (a shot's frames, a layer asked for before the load)
+  void rebuildLayerItems();  // the AOV box's entries for the shown render's other layers
+  void showBoxItem(int index);
   std::vector<Source> pane_sources_;
   Source wipe_a_ = Source::Denoised, wipe_b_ = Source::Compare;
   std::optional<Source> pending_pane_;  // to show in single layout once the panes include it

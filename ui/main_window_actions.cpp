@@ -131,10 +131,9 @@ void MainWindow::buildToolBar() {
   aov_box_ = new QComboBox(this);
   aov_box_->setObjectName("aovBox");
   for (AovRole v : kViewableAovs) aov_box_->addItem(display_name(v), static_cast<int>(v));
-  aov_box_->setToolTip(tr("The AOV the noisy pane shows ([ and ])"));
+  aov_box_->setToolTip(tr("What the noisy pane shows: an AOV, or any other layer of the render's files ([ and ])"));
   labelled(tr("&AOV"), aov_box_);
-  connect(aov_box_, &QComboBox::currentIndexChanged, this,
-          [this] { setAov(static_cast<AovRole>(aov_box_->currentData().toInt())); });
+  connect(aov_box_, &QComboBox::currentIndexChanged, this, [this](int i) { showBoxItem(i); });
 
   channel_box_ = new QComboBox(this);
   channel_box_->setObjectName("channelBox");
@@ -389,8 +388,8 @@ void MainWindow::buildActions() {
   }),
                          tr("clipping warning / false colour"));
   false_colour_->setCheckable(true);
-  listed(action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); }), tr("previous / next AOV"));
-  listed(action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); }), tr("previous / next AOV"));
+  listed(action(view, tr("Previous AOV"), QKeySequence(Qt::Key_BracketLeft), [this] { cycleAov(-1); }), tr("previous / next AOV or layer"));
+  listed(action(view, tr("Next AOV"), QKeySequence(Qt::Key_BracketRight), [this] { cycleAov(+1); }), tr("previous / next AOV or layer"));
   listed(action(view, tr("Heatmap: pane / overlay / off"), QKeySequence(Qt::Key_H), [this] {
     const auto d = heatmap_->display();
     heatmap_->setDisplay(d == HeatmapPanel::Display::Pane      ? HeatmapPanel::Display::Overlay

@@ -87,6 +87,19 @@ Image data_aov_for_display(const Image& aov, AovRole role, int step) {
   return data;
 }
 
+Image scalar_layer_for_display(const Image& layer, int step) {
+  Image data = subsample(layer, step, 1);
+  float* d = data.data();
+  const size_t n = data.size();
+  bool unit = true;
+  for (size_t i = 0; i < n && unit; ++i) unit = !std::isfinite(d[i]) || (d[i] >= 0.0f && d[i] <= 1.0f);
+  if (unit) return data;
+  const float lo = percentile(layer, 1, 0.01), hi = percentile(layer, 1, 0.99);
+  const float scale = hi > lo ? 1.0f / (hi - lo) : 1.0f;
+  for (size_t i = 0; i < n; ++i) d[i] = std::isfinite(d[i]) ? std::clamp((d[i] - lo) * scale, 0.0f, 1.0f) : d[i];
+  return data;
+}
+
 int preview_step(int64_t width, int64_t height, int64_t target) {
   return static_cast<int>(std::max<int64_t>(1, std::max(width, height) / target));
 }
@@ -99,6 +112,18 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step) {
     try {
       switch (s) {
         case Source::Noisy: {
+          if (in.layer) {
+            pane.label = QStringLiteral("Noisy: %1").arg(in.layer_name);
+            pane.values = in.layer;
+            pane.channel_count = std::min(3, in.layer->channels());
+            if (pane.channel_count == 1) {
+              const Image data = scalar_layer_for_display(*in.layer, step);
+              pane.display = in.display->render(data, 0, 1, data.bounds(), in.settings, Encoding::Data);
+            } else {  // a light pass, a colour: through the exposure and the view, as the render is
+              pane.display = renderColor(in, *in.layer, pane.channel_count, step);
+            }
+            break;
+          }
           pane.label = in.aov == AovRole::Color ? QStringLiteral("Noisy")
                                                 : QStringLiteral("Noisy: %1").arg(display_name(in.aov));
           if (!in.noisy) break;

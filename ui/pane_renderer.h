@@ -19,6 +19,8 @@ struct PaneInputs {
   std::shared_ptr<const AovStack> stack;
   AovRole aov = AovRole::Color;
   const Image* noisy = nullptr;                 // the AOV shown for Noisy (owned by stack)
+  std::shared_ptr<const Image> layer;           // instead: a layer no AOV took (Session::otherLayer)
+  QString layer_name;
   std::shared_ptr<const Image> denoised;  // result A
   std::shared_ptr<const Image> compare;   // result B
   std::shared_ptr<const Image> reference;
@@ -39,6 +41,10 @@ std::vector<Pane> render_panes(const PaneInputs& in, int step);
 // 0.5 n + 0.5; depth near-bright over its 1st-99th percentile; variance as standard deviation over its 99th
 // percentile. Other roles are returned as they are.
 Image data_aov_for_display(const Image& aov, AovRole role, int step = 1);
+
+// A one-channel layer no AOV took (an alpha, a matte, a Z, an id), every step-th pixel, made visible without a
+// view transform: as it is when its values lie in [0, 1], else over its 1st-99th percentile.
+Image scalar_layer_for_display(const Image& layer, int step = 1);
 
 // The preview step for an image: every step-th pixel leaves about `target` pixels on the long side.
 int preview_step(int64_t width, int64_t height, int64_t target = 1024);

@@ -516,6 +516,23 @@ const Image* Session::reference() const {
 
 bool Session::hasAov(AovRole role) const { return image(Source::Noisy, role) != nullptr; }
 
+const std::vector<OtherLayer>& Session::otherLayers() const {
+  if (layers_of_.lock() != stack_) {
+    layers_of_ = stack_;
+    layer_images_.clear();
+    other_layers_ = stack_ ? other_layers(*stack_) : std::vector<OtherLayer>{};
+  }
+  return other_layers_;
+}
+
+std::shared_ptr<const Image> Session::otherLayer(int index) const {
+  const auto& layers = otherLayers();
+  if (index < 0 || index >= static_cast<int>(layers.size())) return nullptr;
+  auto& image = layer_images_[index];
+  if (!image) image = std::make_shared<const Image>(read_other_layer(layers[static_cast<size_t>(index)], *stack_));
+  return image;
+}
+
 const Image* Session::image(Source s, AovRole aov) const {
   if (!stack_) return nullptr;
   switch (s) {

@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/aov/aov_loader.h"
+#include "core/aov/other_layers.h"
 #include "ui/frame_sequence.h"
 #include "ui/result.h"
 
@@ -98,6 +99,12 @@ class Session : public QObject {
   const Image* reference() const;
   const Image* image(Source s, AovRole aov) const;  // Heatmap: nullptr (owned by the heatmap panel)
   bool hasAov(AovRole role) const;
+  // The layers of the shown render's files that no AOV took (core/aov/other_layers.h), listed from the files the
+  // first time they are asked for on each stack shown.
+  const std::vector<OtherLayer>& otherLayers() const;
+  // One of them on the render's grid: read here, on the calling thread (a few channels of one file), the first
+  // time, then kept while its stack is shown. Throws Error(Input) when the file cannot be read.
+  std::shared_ptr<const Image> otherLayer(int index) const;
 
   // Results (ui/result.h) of the render shown: every denoise run and every image added from a file, in the
   // order they came (each open render has its own list; a reload empties it). A and B are the two being compared (ids, -1 for none): A is "the denoised image"
@@ -223,6 +230,10 @@ class Session : public QObject {
   int results_epoch_ = 0;  // a file added for an earlier render is dropped when it arrives
   bool loading_ = false;
   int generation_ = 0;
+  // otherLayers() of the stack in layers_of_, and the ones read so far.
+  mutable std::weak_ptr<const AovStack> layers_of_;
+  mutable std::vector<OtherLayer> other_layers_;
+  mutable std::map<int, std::shared_ptr<const Image>> layer_images_;
   QFutureWatcher<std::shared_ptr<LoadResult>>* watcher_ = nullptr;
 };
 

@@ -84,6 +84,8 @@ int main(int argc, char** argv) {
   const QCommandLineOption tab("tab", "The side bar's tab: results, denoise, heatmap or pixel.", "tab");
   const QCommandLineOption aov("aov", "The AOV the noisy pane shows: color, albedo, normal, depth, variance or motion.",
                                "aov");
+  const QCommandLineOption layer("layer", "Another layer of the render's files (one no AOV took, named as the AOV box "
+                                 "lists it, e.g. ViewLayer.Combined.A) the noisy pane shows.", "name");
   const QCommandLineOption heatmap_of("heatmap-of", "What the heatmap maps: a, b, noisy or a-vs-b.", "what");
   const QCommandLineOption heatmap_kind("heatmap-kind", "The heatmap's map: rse, abs, se, ssim, diff (signed), flip (HDR-FLIP), or temporal (the error's "
                                         "change since frame t-1 along the motion, on a sequence).", "kind");
@@ -120,7 +122,7 @@ int main(int argc, char** argv) {
                                       "MiB (default: a quarter of this machine's RAM).", "MiB");
   for (const auto* o : {&reference, &map, &add, &layout, &pane, &ab, &tab, &heatmap, &heatmap_of, &model, &precision,
                         &denoise, &tile, &exposure, &roi, &zoom, &size, &timing, &cancel_after, &screenshot, &when, &export_all,
-                        &ipc_port, &no_ipc, &ipc_memory, &aov, &heatmap_kind, &every_frame, &theme, &channel, &open_also, &clipping, &false_colour})
+                        &ipc_port, &no_ipc, &ipc_memory, &aov, &layer, &heatmap_kind, &every_frame, &theme, &channel, &open_also, &clipping, &false_colour})
     cli.addOption(*o);
   cli.process(app);
 
@@ -313,6 +315,14 @@ int main(int argc, char** argv) {
     }
     if (cli.isSet(zoom)) window.canvas()->setView(cli.value(zoom).toDouble(), window.canvas()->center());
     if (cli.isSet(aov)) window.setAov(*residue::aov_role_from_string(cli.value(aov).toStdString()));
+    if (cli.isSet(layer) && !window.setLayer(cli.value(layer))) {
+      QStringList names;
+      for (const auto& other : window.session()->otherLayers()) names << QString::fromStdString(other.name);
+      std::fprintf(stderr, "residue: --layer %s: the render has no such layer; its other layers: %s\n",
+                   qPrintable(cli.value(layer)), names.isEmpty() ? "none" : qPrintable(names.join(", ")));
+      QApplication::exit(2);
+      return;
+    }
     if (!cli.values(add).isEmpty()) window.addResultFiles(cli.values(add));
     if (cli.isSet(denoise)) {
       window.denoisePanel()->selectModel(pending_models.takeFirst());

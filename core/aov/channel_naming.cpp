@@ -161,14 +161,15 @@ Recognition recognise_channels(const std::vector<ChannelRef>& channels, const st
     if (conv.needs_root_rgb && !has_root_rgb(idx)) continue;
     for (const std::string& prefix : prefixes) {
       if (!wanted_prefix.empty() && prefix != wanted_prefix) continue;
-      size_t signed_layers = 0;
-      for (const auto& sig : conv.signature)
-        if (idx.count({prefix, sig}) || (prefix.empty() && sig.size() == 1 && idx.count({"", ""}) &&
-                                         idx.at({"", ""}).count(sig)))
-          ++signed_layers;
-      const bool signed_here = conv.signature.empty() || (conv.whole_signature
-                                                               ? signed_layers == conv.signature.size()
-                                                               : signed_layers > 0);
+      // A one-letter layer may also be a root channel (Arnold's "Z").
+      const auto present = [&](const std::string& layer) {
+        return idx.count({prefix, layer}) || (prefix.empty() && layer.size() == 1 && idx.count({"", ""}) &&
+                                              idx.at({"", ""}).count(layer));
+      };
+      const bool signed_here =
+          conv.signatures.empty() ||
+          std::any_of(conv.signatures.begin(), conv.signatures.end(),
+                      [&](const auto& set) { return std::all_of(set.begin(), set.end(), present); });
       if (!signed_here) continue;
 
       Recognition rec;

@@ -89,9 +89,12 @@ std::optional<fs::path> reference_beside(const fs::path& render) {
 // --- layered files -----------------------------------------------------------------------------------------------
 
 const std::vector<LayeredConvention>& layered_conventions() {
+  // Spelled out: in nested braces, strings can be taken for the (first, last) iterators of a vector constructor.
+  using Layers = std::vector<std::string>;
   static const std::vector<LayeredConvention> list = {
       {"Blender Cycles",
-       {"combined", "noisy image", "denoising albedo", "denoising normal", "denoising depth"},
+       {Layers{"combined"}, Layers{"noisy image"}, Layers{"denoising albedo"}, Layers{"denoising normal"},
+        Layers{"denoising depth"}},
        false,
        {
            {AovRole::Color, {"noisy image", "combined"}},
@@ -106,7 +109,7 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Motion, {"vector"}, {.cycles_vector = true}},
        }},
       {"RenderMan",
-       {"ci"},
+       {Layers{"ci"}},
        false,
        {
            {AovRole::Color, {"ci"}},
@@ -118,7 +121,7 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Reference, {"reference"}},
        }},
       {"V-Ray",
-       {"bump_normals", "bumpnormals", "diffuse"},
+       {Layers{"bump_normals"}, Layers{"bumpnormals"}, Layers{"diffuse"}},
        true,
        {
            {AovRole::Color, {"", "rgb", "rgba"}},
@@ -129,10 +132,10 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Variance, {"variance"}},
            {AovRole::Reference, {"reference"}},
        }},
-      // pbrt-v4's gbuffer film. Before Arnold, whose signature ("N") it also carries. Its Variance is the samples'
+      // pbrt-v4's gbuffer film. Before Arnold, whose signature ("N" with "Z") it may also carry. Its Variance is the samples'
       // variance (the estimate's times the spp): divided by the samplesPerPixel pbrt writes in the header.
       {"pbrt-v4 (gbuffer film)",
-       {"albedo", "p", "ns"},
+       {Layers{"albedo", "p", "ns"}},
        true,
        {
            {AovRole::Color, {""}},
@@ -143,10 +146,9 @@ const std::vector<LayeredConvention>& layered_conventions() {
            {AovRole::Depth, {"p"}, {.depth_kind = DepthKind::Planar, .depth_from_position = true}},
            {AovRole::Variance, {"variance"}, {.samples_variance = true}},
            {AovRole::Reference, {"reference"}},
-       },
-       true},
+       }},
       {"Arnold",
-       {"n", "denoise_albedo", "diffuse_albedo"},
+       {Layers{"denoise_albedo"}, Layers{"diffuse_albedo"}, Layers{"n", "z"}},
        true,
        {
            {AovRole::Color, {"", "rgba", "rgb", "beauty"}},

@@ -9,7 +9,8 @@
 //   V-Ray           root `R,G,B` (channel names may start with "."), `diffuse.{red,green,blue}`, `bump_normals`
 //   pbrt-v4         its gbuffer film: root `R,G,B`, `Albedo`, `P`, `N`, `Ns` (camera space by default), `Variance`
 //                   (the samples' variance, not the estimate's: not used)
-//   Arnold          root `R,G,B(,A)`, `N`, `Z`, `denoise_albedo` / `albedo`
+//   Arnold          root `R,G,B(,A)`, `N`, `Z`, `denoise_albedo` / `albedo` (known by `denoise_albedo`,
+//                   `diffuse_albedo`, or `N` with `Z`: `N` alone is a common name, not Arnold's mark)
 //   plain           root `R,G,B` with layers `albedo`, `normal`, `depth` (`variance`, `reference`)
 // File sets (one file per AOV):
 //   OIDN data set   NAME_0016spp.hdr.exr, NAME_0016spp.alb.exr, .nrm.exr, .z.exr; reference NAME_ref.hdr.exr
@@ -40,10 +41,11 @@ struct PassRule {
 // A renderer that writes its AOVs as named layers of one file.
 struct LayeredConvention {
   std::string name;
-  std::vector<std::string> signature;  // layer names (lower case) whose presence identifies the renderer
+  // What identifies the renderer: sets of layer names (lower case); the file must hold every layer of at least
+  // one set. None = any file (with root R,G,B when needs_root_rgb).
+  std::vector<std::vector<std::string>> signatures;
   bool needs_root_rgb = false;         // the signature also needs root R,G,B
   std::vector<PassRule> rules;         // several rules for one role = fallbacks, in order
-  bool whole_signature = false;        // every signature layer must be present, not just one
 };
 
 // The layered conventions, in the order they are tried.

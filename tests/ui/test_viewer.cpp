@@ -1117,6 +1117,68 @@ class TestViewer : public QObject {
     QVERIFY(!help->isVisible());
   }
 
+  // Issue 53, item 16: every layer of the render's files can be looked at, not only the AOVs a denoise reads:
+  // [ and ] page on from the AOVs to the layers no AOV took (the room's alpha, its unused Depth and Normal passes),
+  // each shown with its own values; the layer stays shown when the render is read again; an AOV picked ends it.
+  void everyLayerOfTheFileCanBeShown() {
+    MainWindow w;
+    w.setInteractive(false);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    openExample(w);
+    QVERIFY(settle(w, [&] { return w.canvas()->panes().size() == 4; }));
+    auto* box = w.findChild<QComboBox*>("aovBox");
+    QVERIFY(box);
+    for (const char* name : {"ViewLayer.Combined.A", "ViewLayer.Depth.Z", "ViewLayer.Normal"})
+      QVERIFY2(box->findData(name, Qt::ToolTipRole) >= 0, name);
+    QVERIFY(box->findText("Combined.A") >= 0);  // listed without the prefix every layer has
+    QCOMPARE(w.session()->otherLayers().size(), size_t{3});
+    // Colour, albedo, normal, depth, then (variance and motion absent, the separator skipped) the alpha.
+    for (int k = 0; k < 4; ++k) QTest::keyClick(&w, Qt::Key_BracketRight);
+    QCOMPARE(w.layer(), QString("ViewLayer.Combined.A"));
+    QVERIFY(settle(w, [&] { return w.canvas()->panes()[0].label == "Noisy: ViewLayer.Combined.A"; }));
+
+    // Its values, read here with OpenImageIO on their own.
+    const auto channel_values = [](const std::string& channel) {
+      auto in = OIIO::ImageInput::open((kExample / "noisy.exr").string());
+      const auto& spec = in->spec();
+      const int c = spec.channelindex(channel);
+      std::vector<float> v(static_cast<size_t>(spec.width * spec.height));
+      in->read_image(0, 0, c, c + 1, OIIO::TypeFloat, v.data());
+      return std::make_pair(v, static_cast<int>(spec.width));
+    };
+    const auto expect_shown = [&](const std::string& channel) {
+      const auto [values, width] = channel_values(channel);
+      const auto shown = w.canvas()->panes()[0].values;
+      QVERIFY(shown);
+      QCOMPARE(shown->channels(), 1);
+      for (const auto& [x, y] : {std::pair{0, 0}, {37, 11}, {width - 1, 20}})
+        QCOMPARE(shown->at(x, y, 0), values[static_cast<size_t>(y * width + x)]);
+    };
+    expect_shown("ViewLayer.Combined.A");
+    {  // An alpha is shown as it is (1 white), not through the view's tone curve.
+      const auto [alpha, width] = channel_values("ViewLayer.Combined.A");
+      QCOMPARE(alpha[0], 1.0f);
+      QCOMPARE(qGray(w.canvas()->panes()[0].display.pixel(0, 0)), 255);
+    }
+    QVERIFY(w.setLayer("ViewLayer.Depth.Z"));
+    QVERIFY(settle(w, [&] { return w.canvas()->panes()[0].label == "Noisy: ViewLayer.Depth.Z"; }));
+    expect_shown("ViewLayer.Depth.Z");
+    QVERIFY(!w.setLayer("ViewLayer.Emission"));
+    QCOMPARE(w.layer(), QString("ViewLayer.Depth.Z"));
+
+    w.session()->reload();
+    QVERIFY(settle(w, [&] { return !w.session()->loading() && w.canvas()->panes().size() == 4; }));
+    QCOMPARE(w.layer(), QString("ViewLayer.Depth.Z"));
+    QVERIFY(settle(w, [&] { return w.canvas()->panes()[0].label == "Noisy: ViewLayer.Depth.Z"; }));
+    expect_shown("ViewLayer.Depth.Z");
+
+    w.setAov(AovRole::Albedo);
+    QVERIFY(w.layer().isEmpty());
+    QVERIFY(settle(w, [&] { return w.canvas()->panes()[0].label == "Noisy: Albedo"; }));
+    QCOMPARE(w.canvas()->panes()[0].values->channels(), 3);
+  }
+
   void keyboardDrivesTheView() {
     MainWindow w;
     w.setInteractive(false);
