@@ -199,8 +199,9 @@ int run(const BenchOptions& o) {
     }
     // Useful work (every member of a self-ensemble, any prefilter): the halo each tile recomputes is not counted.
     const double gflops = nn::model_card(model, model.name).gflop_per_mp * megapixels / best.seconds;
-    // Against the precision's own ceiling: AVX512-BF16's dot product does two multiply-adds per fp32 lane.
-    const double ceiling = peak.gflops * (d.precision == nn::Precision::BF16 ? 2.0 : 1.0);
+    // Against the precision's own ceiling: AVX512-BF16's dot product does two multiply-adds per fp32 lane,
+    // AVX512-VNNI's vpdpbusd four.
+    const double ceiling = peak.gflops * (d.precision == nn::Precision::BF16 ? 2.0 : d.precision == nn::Precision::INT8 ? 4.0 : 1.0);
     const double share = 100.0 * gflops / ceiling;
     rows.push_back({{"model", model_text}, {"backend", d.backend}, {"precision", precision}, {"tile", d.tile},
                     {"seconds_per_megapixel", best.seconds / megapixels}, {"gflops", gflops},
@@ -239,7 +240,7 @@ Command add_bench_command(CLI::App& app) {
   cmd->add_option("--backends", o->backends, "Backends (default: all available)")
       ->delimiter(',')
       ->check(CLI::IsMember(nn::available_backends()));
-  cmd->add_option("--precisions", o->precisions, "fp32, bf16")
+  cmd->add_option("--precisions", o->precisions, "fp32, bf16, int8 (a calibrated model)")
       ->capture_default_str()
       ->delimiter(',')
       ->check(CLI::IsMember(nn::precision_names()));

@@ -20,5 +20,6 @@ Command add_bench_command(CLI::App& app);
 Command add_evaluate_set_command(CLI::App& app);
 Command add_farm_command(CLI::App& app);
 Command add_models_command(CLI::App& app);
+Command add_calibrate_command(CLI::App& app);
 
 }  // namespace residue::cli

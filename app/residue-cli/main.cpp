@@ -16,7 +16,7 @@ int main(int argc, char** argv) {
                "residue-cli"};
   app.set_version_flag("--version", std::string("residue-cli ") + RESIDUE_VERSION);
   app.require_subcommand(1);
-  const std::vector<Command> commands = {add_info_command(app), add_eval_command(app), add_denoise_command(app), add_bench_command(app), add_evaluate_set_command(app), add_farm_command(app), add_models_command(app)};
+  const std::vector<Command> commands = {add_info_command(app), add_eval_command(app), add_denoise_command(app), add_bench_command(app), add_evaluate_set_command(app), add_farm_command(app), add_models_command(app), add_calibrate_command(app)};
 
   try {
     app.parse(argc, argv);

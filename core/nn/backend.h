@@ -1,7 +1,8 @@
 // Backends run a network graph (graph.h) on one tile. One interface, chosen at run time:
 //   "eigen"   portable fp32 (always built; the reference): an AVX-512 direct conv kernel where the CPU has it,
 //             else im2col + Eigen GEMM; rows in parallel on oneTBB
-//   "onednn"  oneDNN fp32 / bf16 (AVX-512, AMX where present), when built with oneDNN
+//   "onednn"  oneDNN fp32 / bf16 (AVX-512, AMX where present) / int8 (VNNI where present; a calibrated model:
+//             graph.h's ranges), when built with oneDNN
 // Both plan each tile size once: every op's output placed in one arena (arena.h), reused tile after tile.
 #pragma once
 
@@ -18,9 +19,11 @@
 
 namespace residue::nn {
 
-enum class Precision { FP32, BF16 };
+// INT8: 8-bit weights (a scale per output channel) and activations (a scale per value, from the model's
+// calibration), 32-bit accumulation; the input's transform and the network's output in float.
+enum class Precision { FP32, BF16, INT8 };
 const char* to_string(Precision p);
-// Every precision's name, in order ("fp32", "bf16"): what --precision and the viewer offer.
+// Every precision's name, in order ("fp32", "bf16", "int8"): what --precision and the viewer offer.
 std::vector<std::string> precision_names();
 // The precision a name stands for; Error(Usage) naming the valid ones otherwise.
 Precision parse_precision(std::string_view name);
@@ -48,6 +51,11 @@ class Backend {
   }
   // Scratch memory run() allocates for a tile of this size, in bytes (for memory-bounded tiling).
   virtual size_t scratch_bytes(int64_t width, int64_t height) const = 0;
+  // Calibration for int8 (graph.h, GraphOp::range): from now on every run raises (*ranges)[op] to the largest
+  // |value| op's output took, partial sums included (a concat conv's first inputs), or with `quantile` < 1 to
+  // that quantile of each run's non-zero |values|; null stops. Error(Usage) where the backend cannot (only
+  // onednn fp32 can).
+  virtual void record_ranges(std::vector<float>* ranges, double quantile = 1.0);
 
  private:
   virtual void execute(const Image& input, Image& output, const CancelToken* cancel,

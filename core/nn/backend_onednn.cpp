@@ -1,6 +1,6 @@
 // The oneDNN backend: runs a Graph (graph.h) with one oneDNN primitive per op: convolutions (brgemm/JIT
-// kernels for the CPU's ISA), max pooling, nearest resampling and binary add, fp32 or bf16 (bf16 weights and
-// activations, fp32 accumulation and bias, fp32 output).
+// kernels for the CPU's ISA), max pooling, nearest resampling and binary add, fp32, bf16 (bf16 weights and
+// activations, fp32 accumulation and bias, fp32 output) or int8 (graph_plan_onednn.h).
 //
 // Layout, fusion and the plan of each tile size: graph_plan_onednn.h.
 //
@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -92,13 +93,23 @@ class OneDnnBackend final : public Backend {
     set_openmp_threads(tbb::this_task_arena::max_concurrency());
     const int64_t a = g.alignment(), side = (256 + a - 1) / a * a;
     const std::string impl = plan_for(side, side, tbb::this_task_arena::max_concurrency()).impl;
-    if (precision_ == Precision::BF16 && impl.rfind("ref", 0) == 0)
-      throw Error(ErrorKind::Usage, "oneDNN offers no optimised bf16 convolution on this CPU (" +
-                                        std::string(isa_name(isa)) + "); use fp32");
+    if (precision_ != Precision::FP32 && impl.rfind("ref", 0) == 0)
+      throw Error(ErrorKind::Usage, std::string("oneDNN offers no optimised ") + to_string(precision_) +
+                                        " convolution on this CPU (" + isa_name(isa) + "); use fp32");
     description_ = std::string("onednn ") + to_string(precision_) + " (" + impl + ")";
   }
 
   std::string description() const override { return description_; }
+
+  void record_ranges(std::vector<float>* ranges, double quantile) override {
+    if (ranges && precision_ != Precision::FP32)
+      throw Error(ErrorKind::Usage, "value ranges are recorded in fp32, not " + std::string(to_string(precision_)));
+    if (!(quantile > 0 && quantile <= 1))
+      throw Error(ErrorKind::Usage, "a range's quantile must be in (0, 1], not " + std::to_string(quantile));
+    if (ranges) ranges->resize(static_cast<size_t>(graph_.size()), 0.0f);
+    ranges_ = ranges;
+    quantile_ = quantile;
+  }
 
   size_t scratch_bytes(int64_t width, int64_t height) const override {
     const int threads = tbb::this_task_arena::max_concurrency();
@@ -130,6 +141,9 @@ class OneDnnBackend final : public Backend {
     }
     const dnnl::memory user_in(plan.user_in, engine_, const_cast<float*>(input.data()));
     const dnnl::memory user_out(plan.user_out, engine_, output.data());
+    if (ranges_)
+      for (int i = 0; i < graph_.size(); ++i)
+        if (graph_.op(i).kind == OpKind::Input) raise_range(i, user_in);
     for (const Step& s : plan.steps) {
       throw_if_cancelled(cancel);  // between primitives: oneDNN cannot stop one part-way
       std::unordered_map<int, dnnl::memory> args = s.fixed;
@@ -138,6 +152,14 @@ class OneDnnBackend final : public Backend {
       if (s.scratchpad.get_size() > 0) args[DNNL_ARG_SCRATCHPAD] = dnnl::memory(s.scratchpad, engine_, scratchpad_.data());
       const auto t0 = std::chrono::steady_clock::now();
       s.primitive.execute(stream_, args);
+      if (ranges_) {  // what the step wrote: a value of the graph (a partial sum too), or the output
+        stream_.wait();
+        for (const Binding& b : s.bindings)
+          if (b.arg == DNNL_ARG_DST || b.arg == DNNL_ARG_TO) {
+            const int value = b.user_output ? graph_.output() : b.value;
+            if (value >= 0) raise_range(value, b.user_output ? user_out : mem[static_cast<size_t>(value)]);
+          }
+      }
       if (profile_) {  // RESIDUE_PROFILE=1: each primitive's time (waits for it, so only for measuring)
         stream_.wait();
         std::fprintf(stderr, "profile %lldx%lld %-12s %-34s %8.2f ms\n", static_cast<long long>(w),
@@ -158,6 +180,27 @@ class OneDnnBackend final : public Backend {
 
   static size_t aligned(size_t bytes) { return (bytes + 63) / 64 * 64; }
 
+  // Raises ranges_[value] to the quantile_ of |x| over an f32 memory's finite non-zero values (the padding
+  // oneDNN zeroes, and the zeros a ReLU makes, left out), the largest when quantile_ is 1.
+  void raise_range(int value, const dnnl::memory& m) {
+    const auto* x = static_cast<const float*>(m.get_data_handle());
+    const size_t n = m.get_desc().get_size() / sizeof(float);
+    float& top = (*ranges_)[static_cast<size_t>(value)];
+    if (quantile_ >= 1) {
+      for (size_t k = 0; k < n; ++k)
+        if (std::isfinite(x[k])) top = std::max(top, std::abs(x[k]));
+      return;
+    }
+    std::vector<float> a;
+    a.reserve(n);
+    for (size_t k = 0; k < n; ++k)
+      if (std::isfinite(x[k]) && x[k] != 0.0f) a.push_back(std::abs(x[k]));
+    if (a.empty()) return;
+    const auto at = std::min(a.size() - 1, static_cast<size_t>(quantile_ * static_cast<double>(a.size())));
+    std::nth_element(a.begin(), a.begin() + static_cast<std::ptrdiff_t>(at), a.end());
+    top = std::max(top, a[at]);
+  }
+
   Graph graph_;
   bool profile_ = std::getenv("RESIDUE_PROFILE") != nullptr;
   Precision precision_;
@@ -166,6 +209,8 @@ class OneDnnBackend final : public Backend {
   std::string description_;
   std::vector<ConvLayer> layers_;
   std::map<std::tuple<int64_t, int64_t, int>, Plan> plans_;
+  std::vector<float>* ranges_ = nullptr;  // record_ranges
+  double quantile_ = 1.0;
   ArenaBuffer arena_, scratchpad_;
 };
 

@@ -42,6 +42,9 @@ struct GraphOp {
   std::vector<float> bias;    // `channels` values
   Activation activation = Activation::None;
   std::vector<float> slopes;  // PReLU: one per channel
+  // Every op: the largest |value| its output took on the model's calibration set (model_file.h), which int8
+  // inference quantises it by; 0: not calibrated.
+  float range = 0.0f;
 
   float w(int o, int i, int ky, int kx) const {
     return weight[static_cast<size_t>(((o * in_channels + i) * kernel + ky) * kernel + kx)];
@@ -59,6 +62,7 @@ class Graph {
   int upsample(int x);
   int add(int a, int b);
   void set_output(int x);  // default: the last op added
+  void set_range(int x, float range) { ops_[static_cast<size_t>(x)].range = range; }  // calibration.h
 
   const std::vector<GraphOp>& ops() const { return ops_; }
   const GraphOp& op(int i) const { return ops_[static_cast<size_t>(i)]; }

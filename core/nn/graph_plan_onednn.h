@@ -8,6 +8,14 @@
 // output first). A concat conv runs one primitive per input, the later ones accumulating into the first one's
 // output, the activation on the last. PReLU with per-channel slopes runs as a separate in-place prelu
 // primitive after its conv (oneDNN 2.6's prelu post-op has no optimised convolution).
+//
+// int8: every value is s8 with a scale of its own (its calibrated range / 127: int8_scales), shared by the values
+// oneDNN moves unscaled (a pool's or an upsample's source, an add's inputs); weights s8 with a scale per output
+// channel; each conv's output scales, s_src * s_weight[o] / s_dst, its bias in accumulator units, its residual
+// rescaled by its sum post-op (s_residual / s_dst, so a conv may still overwrite its residual in place). The
+// input is quantised by its reorder. Kept in f32: the output and the convs it reads (the last layer's features)
+// and the input skip (a conv reading only the input whose value is the output's residual: the render's colour
+// carried to the output); a conv whose inputs are all f32 runs in f32, from the caller's input where it reads it.
 #pragma once
 
 #include <cstdint>
@@ -29,6 +37,7 @@ struct ConvPart {
   int value = 0;
   int in = 0;
   std::vector<float> weight;
+  std::vector<float> weight_scale;  // int8: per output channel, max |w| / 127
   std::vector<std::pair<dnnl::memory::desc, dnnl::memory>> packed;
 };
 
@@ -36,6 +45,7 @@ struct ConvLayer {
   std::vector<ConvPart> parts;
   dnnl::memory bias;    // f32 {out}
   dnnl::memory zeros;   // f32 {out}: the later parts' bias
+  dnnl::memory bias_int8;  // int8: the bias in the first part's accumulator units (made on first use)
   dnnl::memory slopes;  // f32 {1, out, 1, 1}: per-channel PReLU (a separate primitive); empty otherwise
   bool fused_act = false;       // ReLU or uniform PReLU as an eltwise post-op
   bool separate_prelu = false;  // per-channel PReLU: `slopes` set
@@ -71,6 +81,10 @@ struct Plan {
 
 // A conv's layer: its weights per input (OIHW), bias and activation, as oneDNN will take them.
 ConvLayer make_layer(const Graph& graph, const GraphOp& op, const dnnl::engine& engine);
+
+// int8: each value's scale (real value = quantum x scale), 0 for the values kept in f32 (the output, the input
+// skip). Error(Usage) when a value that is quantised has no calibrated range (GraphOp::range).
+std::vector<float> int8_scales(const Graph& graph);
 
 // The plan of an h x w tile: primitives in order and the arena. Primitives are made for the OpenMP thread
 // count in force. Weights are reordered into the layouts the plan asks for on first use (kept in `layers`).

@@ -1,5 +1,7 @@
 #include "core/nn/model_file.h"
 
+#include "core/nn/calibration.h"
+
 #include <cmath>
 #include <cstdlib>
 
@@ -132,6 +134,8 @@ Model load_oidn_model(const std::filesystem::path& path) {
   return m;
 }
 
+Model load_residue_model(const std::filesystem::path& path);
+
 }  // namespace
 
 FeatureSet Model::features() const {
@@ -153,7 +157,17 @@ Model model_from_network(Network network, std::string name) {
 }
 
 Model load_model(const std::filesystem::path& path) {
-  if (path.extension() == ".tza") return load_oidn_model(path);
+  Model m = path.extension() == ".tza" ? load_oidn_model(path) : load_residue_model(path);
+  if (const auto c = read_calibration(path, m.graph)) {
+    apply_calibration(m.graph, *c);
+    m.int8_calibration = c->statistic + " over " + c->set;
+  }
+  return m;
+}
+
+namespace {
+
+Model load_residue_model(const std::filesystem::path& path) {
   const std::string where = "model file '" + path.string() + "'";
   SafetensorsFile file = read_safetensors(path);
   const auto& md = file.metadata;
@@ -276,6 +290,8 @@ Model load_model(const std::filesystem::path& path) {
   }
   return m;
 }
+
+}  // namespace
 
 void write_architecture_metadata(const Architecture& arch, std::map<std::string, std::string>& metadata) {
   metadata["residue.format"] = "1";

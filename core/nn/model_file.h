@@ -52,6 +52,9 @@ struct Model {
   // The self-ensemble it runs with unless told otherwise (metadata residue.ensemble: 1, 2, 4 or 8 flips and
   // transposes averaged; DenoiseOptions::ensemble).
   int ensemble = 1;
+  // Its int8 calibration (calibration.h), read from beside the file into graph's ranges: what it was measured on.
+  // Empty: none, and the model runs fp32 and bf16 only.
+  std::string int8_calibration;
 
   FeatureSet features() const;  // the AOVs a Residue model reads (OIDN: the nearest set)
   std::string architecture() const;  // "8/32 full", "OIDN UNet (rt_hdr_alb_nrm)"
