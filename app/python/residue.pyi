@@ -66,15 +66,20 @@ Roi = tuple[int, int, int, int]  # x, y, width, height
 def denoise(stack: AovStack, model: str = "multiscale", precision: str = "fp32", strength: float = 1.0,
             ensemble: int = 0, tile: int = 0, energy_correction: bool = True, roi: Optional[Roi] = None,
             progress: Optional[Callable[[int, int], bool]] = None,
-            cancel: Optional[CancelToken] = None) -> Image:
-    """Denoises a loaded render with a model (as residue-cli's -m takes it); returns its colour, H x W x 3."""
+            cancel: Optional[CancelToken] = None,
+            on_tile: Optional[Callable[[Roi, Image], Optional[bool]]] = None) -> Image:
+    """Denoises a loaded render with a model (as residue-cli's -m takes it); returns its colour, H x W x 3.
+
+    on_tile((x, y, w, h), pixels): each tile of the result as the network left it (for a preview; the energy
+    correction and the strength come later); returning False stops the run (residue.Cancelled)."""
 
 
 def denoise_to_exr(stack: AovStack, path: str, model: str = "multiscale", precision: str = "fp32",
                    strength: float = 1.0, ensemble: int = 0, tile: int = 0, energy_correction: bool = True,
                    roi: Optional[Roi] = None, half: bool = True, overwrite: bool = False,
                    progress: Optional[Callable[[int, int], bool]] = None,
-                   cancel: Optional[CancelToken] = None) -> dict:
+                   cancel: Optional[CancelToken] = None,
+                   on_tile: Optional[Callable[[Roi, Image], Optional[bool]]] = None) -> dict:
     """denoise() written as residue-cli writes it, with residue:* provenance; returns what ran."""
 
 

@@ -93,14 +93,20 @@ DenoiseOptions denoise_options(const std::string& precision, float strength, int
   return o;
 }
 
-// Runs `method` on `stack` with the GIL released; progress(done, total) takes it again for each tile.
+// Runs `method` on `stack` with the GIL released; progress(done, total) and on_tile((x, y, w, h), pixels) take it
+// again for each tile (on_tile for the result's tiles only, not a prefilter's); either returning False stops.
 Image run_denoise(const AovStack& stack, const Method& method, const DenoiseOptions& o,
-                  const std::function<bool(int64_t, int64_t)>& progress, DenoiseStats& stats) {
+                  const std::function<bool(int64_t, int64_t)>& progress, const py::object& on_tile_fn,
+                  DenoiseStats& stats) {
   TileCallback on_tile;
-  if (progress)
-    on_tile = [&progress](const TileEvent& e, const Image&) {
+  if (progress || !on_tile_fn.is_none())
+    on_tile = [&progress, &on_tile_fn](const TileEvent& e, const Image& pixels) {
       py::gil_scoped_acquire gil;
-      return progress(e.work_done, e.work_total);
+      if (!on_tile_fn.is_none() && e.result) {
+        const py::object go = on_tile_fn(py::make_tuple(e.rect.x, e.rect.y, e.rect.width, e.rect.height), to_array(pixels));
+        if (go.is(py::bool_(false))) return false;  // None (a function that returns nothing) goes on
+      }
+      return progress ? progress(e.work_done, e.work_total) : true;
     };
   py::gil_scoped_release released;
   return denoise(stack, method, o, on_tile, &stats);
@@ -213,25 +219,27 @@ PYBIND11_MODULE(residue, m) {
       "denoise",
       [](const AovStack& stack, const std::string& model, const std::string& precision, float strength, int ensemble,
          int64_t tile, bool energy_correction, const Roi& roi, std::function<bool(int64_t, int64_t)> progress,
-         std::shared_ptr<CancelToken> cancel) {
+         std::shared_ptr<CancelToken> cancel, py::object on_tile) {
         const DenoiseOptions o = denoise_options(precision, strength, ensemble, tile, energy_correction, roi, cancel.get());
         const std::unique_ptr<Method> method = resolve_method(model, feature_set_for(stack), models());
         DenoiseStats stats;
-        return to_array(run_denoise(stack, *method, o, progress, stats));
+        return to_array(run_denoise(stack, *method, o, progress, on_tile, stats));
       },
       py::arg("stack"), py::arg("model") = nn::kDefaultModel, py::arg("precision") = "fp32", py::arg("strength") = 1.0f,
       py::arg("ensemble") = 0, py::arg("tile") = 0, py::arg("energy_correction") = true, py::arg("roi") = std::nullopt,
-      py::arg("progress") = nullptr, py::arg("cancel") = nullptr,
+      py::arg("progress") = nullptr, py::arg("cancel") = nullptr, py::arg("on_tile") = py::none(),
       "Denoises a loaded render with a model (a name as residue-cli's -m takes it: multiscale, best, oidn, "
       "bilateral, or a file) and returns its colour, height x width x 3. roi=(x, y, w, h) denoises that rectangle "
       "only (the noisy colour elsewhere). progress(done, total) is called with the work done after every tile; "
-      "returning False stops the run (residue.Cancelled).");
+      "returning False stops the run (residue.Cancelled). on_tile((x, y, w, h), pixels) is called with each tile of "
+      "the result as the network left it (h x w x 3, for a preview: the energy correction and the strength, which "
+      "need whole bands, come later); returning False stops the run too.");
 
   m.def(
       "denoise_to_exr",
       [](const AovStack& stack, const std::string& path, const std::string& model, const std::string& precision,
          float strength, int ensemble, int64_t tile, bool energy_correction, const Roi& roi, bool half, bool overwrite,
-         std::function<bool(int64_t, int64_t)> progress, std::shared_ptr<CancelToken> cancel) {
+         std::function<bool(int64_t, int64_t)> progress, std::shared_ptr<CancelToken> cancel, py::object on_tile) {
         const DenoiseOptions o = denoise_options(precision, strength, ensemble, tile, energy_correction, roi, cancel.get());
         const std::unique_ptr<Method> method = resolve_method(model, feature_set_for(stack), models());
         io::ExrWriteOptions exr;
@@ -240,7 +248,7 @@ PYBIND11_MODULE(residue, m) {
         keep_render_header(exr, stack);
         io::prepare_exr_output(path, exr);  // before the work: a file that may not be replaced stops it here
         DenoiseStats stats;
-        const Image out = run_denoise(stack, *method, o, progress, stats);
+        const Image out = run_denoise(stack, *method, o, progress, on_tile, stats);
         io::record(exr.residue_attributes, {.source = stack.color.source.file, .written_by = "residue (Python)"});
         io::record(exr.residue_attributes, provenance_of(*method, stats));
         io::write_exr(path, out, exr);
@@ -251,7 +259,7 @@ PYBIND11_MODULE(residue, m) {
       py::arg("stack"), py::arg("path"), py::arg("model") = nn::kDefaultModel, py::arg("precision") = "fp32",
       py::arg("strength") = 1.0f, py::arg("ensemble") = 0, py::arg("tile") = 0, py::arg("energy_correction") = true,
       py::arg("roi") = std::nullopt, py::arg("half") = true, py::arg("overwrite") = false, py::arg("progress") = nullptr,
-      py::arg("cancel") = nullptr,
+      py::arg("cancel") = nullptr, py::arg("on_tile") = py::none(),
       "denoise() written as residue-cli denoise writes it: the render's header and windows, and residue:* "
       "provenance (model, architecture, backend, post-steps, time). Returns what ran.");
 

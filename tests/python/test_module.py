@@ -76,6 +76,22 @@ def test_progress_reaches_the_whole_work_and_false_stops(room):
         residue.denoise(room, "tiny", tile=64, progress=lambda done, total: False)
 
 
+def test_each_tile_of_the_result_arrives_with_its_pixels(room):
+    # tiny has no post-step that changes a tile afterwards once the energy correction and strength are off
+    tiles = []
+    out = residue.denoise(room, "tiny", tile=64, energy_correction=False,
+                          on_tile=lambda rect, pixels: tiles.append((rect, pixels.copy())))
+    assert len(tiles) == 9
+    covered = np.zeros(out.shape[:2], dtype=int)
+    for (x, y, w, h), pixels in tiles:
+        assert pixels.shape == (h, w, 3)
+        assert np.array_equal(pixels, out[y:y + h, x:x + w])
+        covered[y:y + h, x:x + w] += 1
+    assert (covered == 1).all()
+    with pytest.raises(residue.Cancelled):
+        residue.denoise(room, "tiny", tile=64, on_tile=lambda rect, pixels: False)
+
+
 def test_a_denoise_is_cancelled_from_another_thread(room):
     token = residue.CancelToken()
     reached, cancelled = threading.Event(), threading.Event()
