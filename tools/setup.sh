@@ -22,6 +22,8 @@ packages=(
   libgtest-dev libgmock-dev python3 python3-numpy python3-skimage python3-openimageio
   # `import residue` (app/python): pybind11, Python's headers, and pytest for its tests
   pybind11-dev python3-dev python3-pytest
+  # the Python module's PyTorch test (tensors in and out through NumPy)
+  python3-torch
   # data generation: Blender (Cycles) for tools/datagen
   blender
   # fuzzing (tools/dev/fuzz.sh, the `fuzz` preset): clang 14 and its compiler-rt, which holds libFuzzer

@@ -144,6 +144,22 @@ def test_arrays_by_role_denoise_as_the_file_does(room):
         residue.stack(room.color, albedo=np.zeros((4, 4, 3), np.float32))
 
 
+def test_pytorch_tensors_go_in_and_come_out_without_a_copy(room):
+    torch = pytest.importorskip("torch")  # Debian's python3-torch (tools/setup.sh installs it)
+    tensors = {role: torch.from_numpy(getattr(room, role)) for role in ("color", "albedo", "normal", "depth")}
+    # A tensor is taken as the array it shares memory with (.numpy(): no copy), and so is the result.
+    arrays = residue.stack(tensors["color"].numpy(), albedo=tensors["albedo"].numpy(),
+                           normal=tensors["normal"].numpy(), depth=tensors["depth"].numpy(), normal_space="camera")
+    out = residue.denoise(arrays, "tiny")
+    result = torch.from_numpy(out)
+    assert result.shape == (192, 192, 3) and result.dtype == torch.float32
+    assert result.data_ptr() == out.ctypes.data, "the result is the array's memory, not a copy"
+    assert torch.equal(result, torch.from_numpy(residue.denoise(room, "tiny")))
+    # Metrics of tensors, as of their arrays; a tensor computed in torch goes in as well.
+    doubled = (tensors["color"] * 2).numpy()
+    assert residue.metrics(doubled, room.reference)["relmse"] == residue.metrics(room.color * 2, room.reference)["relmse"]
+
+
 def test_denoise_to_exr_records_what_ran_as_the_cli_does(room, tmp_path):
     path = str(tmp_path / "out.exr")
     ran = residue.denoise_to_exr(room, path, "tiny", half=False)

@@ -12,6 +12,7 @@ trap 'rm -rf "$tmp"' EXIT
 /usr/bin/python3 "$here/make_zip.py" "$tmp/residue_blender.zip" > /dev/null
 export BLENDER_USER_CONFIG="$tmp/config" BLENDER_USER_SCRIPTS="$tmp/scripts" BLENDER_USER_DATAFILES="$tmp/datafiles"
 export RESIDUE_CLI="$cli" RESIDUE_ADDON_ZIP="$tmp/residue_blender.zip" RESIDUE_TEST_DIR="$tmp/work"
+export TMPDIR="$tmp"  # Blender's own temporary files (quit.blend) too
 mkdir -p "$tmp/work"
 "$blender" -b --factory-startup --python-exit-code 1 --python "$here/test_addon.py" 2>&1 | grep -v "^Fra:\|^Read \|^$" || true
 # grep hides Blender's render log; the result is what test_addon.py wrote
