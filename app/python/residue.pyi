@@ -100,6 +100,15 @@ def flip(test: Image, reference: Image) -> dict:
     """HDR-FLIP: {"mean": float, "map": H x W x 1 array, "exposures": (start, stop, count)}."""
 
 
+def denoise_frame(frames: list[AovStack], t: int, model: str = "multiscale-temporal", precision: str = "fp32",
+                  strength: float = 1.0, ensemble: int = 0, tile: int = 0, energy_correction: bool = True,
+                  roi: Optional[Roi] = None, progress: Optional[Callable[[int, int], bool]] = None,
+                  cancel: Optional[CancelToken] = None,
+                  on_tile: Optional[Callable[[Roi, Image], Optional[bool]]] = None) -> tuple[Image, list[int]]:
+    """Frame t of a shot denoised as residue-cli denoise --temporal does (a temporal model reads its neighbours
+    warped to it; frames beyond the list are missing). Returns (colour, the neighbour offsets that were missing)."""
+
+
 def temporal_blend(frames: list[AovStack], denoised: list[Image], t: int, tolerance: float = 0.5) -> Image:
     """Frame t's denoised colour blended with frames t-1 and t+1's along the motion, as --temporal-blend does."""
 

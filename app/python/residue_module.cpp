@@ -20,6 +20,7 @@
 #include "core/metrics/flip.h"
 #include "core/metrics/metrics.h"
 #include "core/nn/model_card.h"
+#include "core/temporal/frame_window.h"
 #include "core/temporal/temporal_blend.h"
 #include "core/nn/model_registry.h"
 #include "core/io/provenance.h"
@@ -313,6 +314,39 @@ PYBIND11_MODULE(residue, m) {
       py::arg("test"), py::arg("reference"),
       "HDR-FLIP of linear `test` against `reference`: its mean, its per-pixel map and the exposures (start, stop, "
       "count) it used, as NVIDIA's reference code computes them.");
+
+  m.def(
+      "denoise_frame",
+      [](const std::vector<std::shared_ptr<AovStack>>& frames, int t, const std::string& model,
+         const std::string& precision, float strength, int ensemble, int64_t tile, bool energy_correction,
+         const Roi& roi, std::function<bool(int64_t, int64_t)> progress, std::shared_ptr<CancelToken> cancel,
+         py::object on_tile) {
+        const int n = static_cast<int>(frames.size());
+        if (t < 0 || t >= n)
+          throw Error(ErrorKind::Usage, "denoise_frame: t = " + std::to_string(t) + " is not a frame of the " +
+                                            std::to_string(n) + " given");
+        const DenoiseOptions o = denoise_options(precision, strength, ensemble, tile, energy_correction, roi, cancel.get());
+        AovStack frame = *frames[static_cast<size_t>(t)];
+        const std::unique_ptr<Method> method = resolve_method(model, feature_set_for(frame), models());
+        std::vector<int> missing;
+        if (method->frame_radius() > 0) {
+          py::gil_scoped_release released;
+          missing = attach_neighbours(frame, method->frame_radius(), [&](int d) -> const AovStack* {
+            return t + d >= 0 && t + d < n ? frames[static_cast<size_t>(t + d)].get() : nullptr;
+          });
+        }
+        DenoiseStats stats;
+        const Image out = run_denoise(frame, *method, o, progress, on_tile, stats);
+        return py::make_tuple(to_array(out), missing);
+      },
+      py::arg("frames"), py::arg("t"), py::arg("model") = nn::kDefaultTemporalModel, py::arg("precision") = "fp32",
+      py::arg("strength") = 1.0f, py::arg("ensemble") = 0, py::arg("tile") = 0, py::arg("energy_correction") = true,
+      py::arg("roi") = std::nullopt, py::arg("progress") = nullptr, py::arg("cancel") = nullptr,
+      py::arg("on_tile") = py::none(),
+      "Frame t of a shot (frames: consecutive frames as loaded, each with its motion AOV) denoised as residue-cli "
+      "denoise --temporal denoises it: a temporal model (multiscale-temporal unless model names another) reads the "
+      "neighbours it needs warped to frame t; frames beyond the list's ends are missing and read as not valid. "
+      "Another model denoises frame t alone. Returns (colour, the neighbour offsets that were missing).");
 
   m.def(
       "temporal_blend",

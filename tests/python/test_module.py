@@ -188,6 +188,23 @@ def test_maps_and_cards(room):
 SHOT = os.path.join(os.environ["RESIDUE_SOURCE"], "tests", "data", "shot")
 
 
+def test_a_frame_denoised_with_its_neighbours_equals_the_clis_temporal_run(tmp_path):
+    frames = [residue.load(os.path.join(SHOT, f"noisy.{i:04d}.exr")) for i in (1, 2, 3, 4)]
+    pattern = str(tmp_path / "temporal.####.exr")
+    subprocess.run([CLI, "denoise", os.path.join(SHOT, "noisy.####.exr"), "--frames", "1-3", "--temporal", "--float",
+                    "-o", pattern], check=True, capture_output=True)
+    for t in (0, 1, 2):  # frame 1 has no frame before it; the CLI reads frame 4 beside frame 3, outside its range
+        out, missing = residue.denoise_frame(frames, t)
+        assert missing == ([-1] if t == 0 else [])
+        assert np.array_equal(out, read_rgb(str(tmp_path / f"temporal.{t + 1:04d}.exr"))), t
+    alone, _ = residue.denoise_frame(frames[1:2], 0)
+    assert not np.array_equal(alone, residue.denoise_frame(frames, 1)[0]), "the neighbours change it"
+    still, missing = residue.denoise_frame(frames, 1, model="tiny")  # a model for stills: the frame alone
+    assert missing == [] and np.array_equal(still, residue.denoise(frames[1], "tiny"))
+    with pytest.raises(residue.Error, match="t = 4"):
+        residue.denoise_frame(frames, 4)
+
+
 def test_temporal_blend_equals_the_clis(tmp_path):
     frames = [residue.load(os.path.join(SHOT, f"noisy.{i:04d}.exr")) for i in (1, 2, 3, 4)]
     assert all(f.motion is not None for f in frames)
