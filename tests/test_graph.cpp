@@ -237,7 +237,9 @@ TEST(Int8, CalibratedGraphsTrackTheFloat64Graph) {
     graphs.emplace_back("per-channel PReLU and a residual", g);
   }
   graphs.emplace_back("every op", every_op_graph(3));
-  for (auto& [name, g] : graphs) {
+  for (auto& entry : graphs) {
+    const std::string& name = entry.first;  // not a structured binding: clang 14 cannot capture one
+    nn::Graph& g = entry.second;
     const Image x = testing::random_image(32, 24, g.input_channels(), 11, -1.0f, 2.0f);
     EXPECT_NE(testing::error_message([&] { (void)nn::make_backend("onednn", g, {nn::Precision::INT8}); }, ErrorKind::Usage)
                   .find("no int8 calibration"),
