@@ -55,6 +55,11 @@ def load(path: str, reference: Optional[str] = None) -> AovStack:
     """Loads a render: one multilayer EXR, or a folder of single-AOV files."""
 
 
+def load_frames(pattern: str, frames: Optional[str] = None, reference: Optional[str] = None) -> list[AovStack]:
+    """Frames of a shot by pattern (shot.####.exr): those of `frames` (1001-1100, 1,5,7-20:2), else every one
+    that exists; `reference` a pattern of their references. A missing frame is an error naming its file."""
+
+
 def stack(color: Image, albedo: Optional[Image] = None, normal: Optional[Image] = None, depth: Optional[Image] = None,
           reference: Optional[Image] = None, normal_space: str = "camera") -> AovStack:
     """A render from arrays by role (normals in camera space have +z towards the viewer)."""

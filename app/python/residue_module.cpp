@@ -23,6 +23,7 @@
 #include "core/temporal/frame_window.h"
 #include "core/temporal/temporal_blend.h"
 #include "core/nn/model_registry.h"
+#include "core/io/frame_sequence.h"
 #include "core/io/provenance.h"
 #include "core/util/cancel.h"
 #include "core/util/error.h"
@@ -179,6 +180,33 @@ PYBIND11_MODULE(residue, m) {
       py::arg("path"), py::arg("reference") = std::nullopt,
       "Loads a render: one multilayer EXR, or a folder of single-AOV files. A reference.exr beside it is taken as "
       "its reference unless `reference` names another.");
+
+  m.def(
+      "load_frames",
+      [](const std::string& pattern, std::optional<std::string> frames, std::optional<std::string> reference) {
+        const auto p = io::FramePattern::parse(pattern);
+        if (!p) throw Error(ErrorKind::Usage, "'" + pattern + "' names no frame number (shot.####.exr or shot.%04d.exr)");
+        std::optional<io::FramePattern> ref;
+        if (reference) {
+          ref = io::FramePattern::parse(*reference);
+          if (!ref) throw Error(ErrorKind::Usage, "reference '" + *reference + "' names no frame number");
+        }
+        const std::vector<int64_t> numbers = frames ? io::parse_frame_spec(*frames) : io::find_frames(*p);
+        if (numbers.empty()) throw Error(ErrorKind::Input, "no frame of '" + pattern + "' exists");
+        std::vector<std::shared_ptr<AovStack>> out;
+        py::gil_scoped_release released;
+        for (const int64_t f : numbers) {
+          LoadOptions o;
+          if (ref) o.reference = ref->path(f);
+          out.push_back(std::make_shared<AovStack>(load_aov_stack({p->path(f)}, o)));
+        }
+        return out;
+      },
+      py::arg("pattern"), py::arg("frames") = std::nullopt, py::arg("reference") = std::nullopt,
+      "Loads frames of a shot by pattern (shot.####.exr or shot.%04d.exr): those of `frames` (a spec as "
+      "residue-cli's --frames takes it: 1001-1100, 1,5,7-20:2) in its order, else every frame that exists, "
+      "ascending; `reference` a pattern of their references. A frame that is missing is an error naming its file. "
+      "denoise_frame and temporal_blend take consecutive frames.");
 
   m.def(
       "stack",

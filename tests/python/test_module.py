@@ -188,8 +188,24 @@ def test_maps_and_cards(room):
 SHOT = os.path.join(os.environ["RESIDUE_SOURCE"], "tests", "data", "shot")
 
 
+def test_frames_load_by_pattern_as_one_by_one():
+    pattern = os.path.join(SHOT, "noisy.####.exr")
+    every = residue.load_frames(pattern)
+    on_disk = sorted(f for f in os.listdir(SHOT) if f.startswith("noisy."))
+    assert len(every) == len(on_disk) >= 4
+    some = residue.load_frames(pattern, "3,1-2", reference=os.path.join(SHOT, "reference.####.exr"))
+    for stack, frame in zip(some, (3, 1, 2)):
+        alone = residue.load(os.path.join(SHOT, f"noisy.{frame:04d}.exr"))
+        assert np.array_equal(stack.color, alone.color) and np.array_equal(stack.motion, alone.motion)
+        assert stack.reference is not None
+    with pytest.raises(residue.Error, match="noisy.0999.exr"):
+        residue.load_frames(pattern, "999")
+    with pytest.raises(residue.Error, match="names no frame number"):
+        residue.load_frames(os.path.join(SHOT, "noisy.exr"))
+
+
 def test_a_frame_denoised_with_its_neighbours_equals_the_clis_temporal_run(tmp_path):
-    frames = [residue.load(os.path.join(SHOT, f"noisy.{i:04d}.exr")) for i in (1, 2, 3, 4)]
+    frames = residue.load_frames(os.path.join(SHOT, "noisy.####.exr"), "1-4")
     pattern = str(tmp_path / "temporal.####.exr")
     subprocess.run([CLI, "denoise", os.path.join(SHOT, "noisy.####.exr"), "--frames", "1-3", "--temporal", "--float",
                     "-o", pattern], check=True, capture_output=True)
