@@ -9,6 +9,7 @@
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
 
+#include "core/nn/backend.h"
 #include "support/exr_fixture.h"
 #include "support/test_support.h"
 
@@ -131,6 +132,23 @@ TEST(Cli, BenchNamesTheCpuAndSeparatesTheColdRun) {
   // 2/16: head 9->16, four block convs and the tail 16->16, output 16->3; 2 x 9 taps x multiply-adds per pixel.
   EXPECT_NEAR(row["gflops"].get<double>() * warm, 2 * 9.0 * (9 * 16 + 5 * 16 * 16 + 16 * 3) / 1e3, 1e-6)
       << "GFLOP/s counts the useful work of the timed (warm) run";
+}
+
+// bench measures int8 for a model without a calibration (issue 55: "bench reports int8"), with ranges it measures
+// on its own image; rated against four times the fp32 ceiling (VNNI's four multiply-adds a lane).
+TEST(Cli, BenchMeasuresInt8WithoutACalibration) {
+  if (!nn::bf16_available()) GTEST_SKIP() << "int8 is measured where oneDNN has AVX-512";
+  std::string out;
+  ASSERT_EQ(run_cli({"bench", "--models", "2/16", "--size", "64", "--tiles", "32", "--backends", "onednn",
+                     "--precisions", "fp32,int8", "--repeat", "1", "--json"}, &out), 0) << out;
+  const auto j = nlohmann::json::parse(out);
+  ASSERT_EQ(j["rows"].size(), 2u) << out;
+  const auto& fp32 = j["rows"][0];
+  const auto& int8 = j["rows"][1];
+  EXPECT_EQ(int8["precision"], "int8");
+  EXPECT_NE(int8["implementation"].get<std::string>().find("onednn int8"), std::string::npos) << out;
+  EXPECT_GT(int8["seconds_per_megapixel"].get<double>(), 0) << out;
+  EXPECT_NEAR(int8["peak_gflops"].get<double>(), 4 * fp32["peak_gflops"].get<double>(), 1e-6);
 }
 
 TEST(Cli, InfoShowsTheMapping) {
