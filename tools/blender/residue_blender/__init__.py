@@ -337,24 +337,25 @@ def draw_settings(layout, context):
                      icon="TIME" if settings.running else "INFO")
 
 
-class RENDER_PT_residue(bpy.types.Panel):
+class ResiduePanel:
+    """The one panel, shown in two places."""
+
     bl_label = "Residue"
+
+    def draw(self, context):
+        draw_settings(self.layout, context)
+
+
+class RENDER_PT_residue(ResiduePanel, bpy.types.Panel):
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
 
-    def draw(self, context):
-        draw_settings(self.layout, context)
 
-
-class IMAGE_PT_residue(bpy.types.Panel):
-    bl_label = "Residue"
+class IMAGE_PT_residue(ResiduePanel, bpy.types.Panel):
     bl_space_type = "IMAGE_EDITOR"
     bl_region_type = "UI"
     bl_category = "Residue"
-
-    def draw(self, context):
-        draw_settings(self.layout, context)
 
 
 CLASSES = (ResidueSettings, ResiduePreferences, RESIDUE_OT_enable_passes, RESIDUE_OT_denoise,
