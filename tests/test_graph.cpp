@@ -615,7 +615,8 @@ TEST(MultiScale, ModelFileRoundTripAndBackends) {
 // training scenes; the model then loads with its ranges and runs --precision int8 close to fp32 through the tile
 // engine; a calibration for another network, or with a bad range, is refused naming the file; without one, and on
 // eigen, int8 is refused with the reason.
-TEST(Int8, CalibrateThenDenoiseAndRefusals) {
+// (It runs residue-cli, so it is an *Cli* test, which the sanitized run, without the programs, leaves out.)
+TEST(Int8Cli, CalibrateThenDenoiseAndRefusals) {
   const auto starter = testing::shared_dataset("cycles-starter");
   RESIDUE_REQUIRE_SHARED(starter);
   const nn::Network net = nn::random_network(multiscale_arch(), 4);
