@@ -532,10 +532,7 @@ void MainWindow::showBoxItem(int index) {
     return;
   }
   const int picked = item - kLayerItem;
-  try {
-    session_->otherLayer(picked);  // read now, so that a file that cannot be read is said here
-  } catch (const Error& e) {
-    say(tr("Cannot show layer %1: %2").arg(aov_box_->itemText(index), QString::fromStdString(e.what())), 8000);
+  if (!readLayer(picked)) {
     const QSignalBlocker block(aov_box_);
     aov_box_->setCurrentIndex(aov_box_->findData(layer_ >= 0 ? kLayerItem + layer_ : static_cast<int>(aov_)));
     return;
@@ -545,6 +542,19 @@ void MainWindow::showBoxItem(int index) {
   const QSignalBlocker block(aov_box_);
   aov_box_->setCurrentIndex(index);
   refreshPanes();
+}
+
+bool MainWindow::readLayer(int index) {
+  try {
+    session_->otherLayer(index);  // read now (then kept), so that a file that cannot be read is said here
+    return true;
+  } catch (const Error& e) {
+    say(tr("Cannot show layer %1: %2")
+            .arg(QString::fromStdString(session_->otherLayers()[static_cast<size_t>(index)].name),
+                 QString::fromStdString(e.what())),
+        8000);
+    return false;
+  }
 }
 
 void MainWindow::rebuildLayerItems() {
@@ -576,12 +586,9 @@ void MainWindow::rebuildLayerItems() {
     const int index = aov_box_->findData(wanted, Qt::ToolTipRole);
     if (index >= 0 && aov_box_->itemData(index).toInt() >= kLayerItem) {
       const int found = aov_box_->itemData(index).toInt() - kLayerItem;
-      try {
-        session_->otherLayer(found);
+      if (readLayer(found)) {
         layer_ = found;
         aov_box_->setCurrentIndex(index);
-      } catch (const Error& e) {
-        say(tr("Cannot show layer %1: %2").arg(wanted, QString::fromStdString(e.what())), 8000);
       }
     }
   }

@@ -246,6 +246,7 @@ class MainWindow : public QMainWindow {
   QString wanted_layer_;    // kept from render to render (a shot's frames, a layer asked for before the load)
   void rebuildLayerItems();  // the AOV box's entries for the shown render's other layers
   void showBoxItem(int index);
+  bool readLayer(int index);  // Session::otherLayer read; false, said, when its file cannot be read
   std::vector<Source> pane_sources_;
   Source wipe_a_ = Source::Denoised, wipe_b_ = Source::Compare;
   std::optional<Source> pending_pane_;  // to show in single layout once the panes include it

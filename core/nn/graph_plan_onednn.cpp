@@ -206,10 +206,9 @@ class Planner {
     return attr;
   }
 
-  // One part's conv: `accumulate` adds what dst holds (sum post-op) before the activation; `residual` adds it
-  // after; `act` applies the fused activation; `bias`: this part adds the bias.
-  // Part `k` of conv `i`. int8: its output scales per channel, s_src * s_weight[o] / s_dst (the sums add values
-  // of dst's own scale, unscaled).
+  // Part `k` of conv `i`: `accumulate` adds what dst holds (sum post-op) before the activation; `residual` adds it
+  // after; `act` applies the fused activation. int8: output scales per channel, s_src * s_weight[o] / s_dst; the
+  // accumulating sum adds dst's own quanta, the residual's sum rescales its quanta to dst's scale.
   dnnl::convolution_forward::primitive_desc conv_pd(int i, size_t k, const dnnl::memory::desc& src,
                                                     const dnnl::memory::desc& dst, bool accumulate, bool act,
                                                     bool residual) const {
