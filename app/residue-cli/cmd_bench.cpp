@@ -16,6 +16,8 @@
 #include "commands.h"
 #include "core/denoise/denoise_job.h"
 #include "core/denoise/denoiser.h"
+#include "core/denoise/value_ranges.h"
+#include "core/nn/calibration.h"
 #include "core/nn/model_alias.h"
 #include "core/nn/model_card.h"
 #include "core/nn/model_file.h"
@@ -96,17 +98,12 @@ void calibrate_for_speed(nn::Model& model, const BenchOptions& o) {
   const bool calibrated = std::any_of(model.graph.ops().begin(), model.graph.ops().end(),
                                       [](const nn::GraphOp& op) { return op.range > 0; });
   if (calibrated || model.prior || model.albedo_prefilter || model.normal_prefilter) return;
-  BackendCache cache;
-  std::vector<float> ranges;
-  cache.get(model, "onednn", nn::Precision::FP32).record_ranges(&ranges);
-  DenoiseOptions d;
-  d.backend = "onednn";
-  d.ensemble = 1;
-  d.threads = o.threads;
-  d.backends = &cache;
-  (void)denoise(synthetic_stack(std::min<int64_t>(o.size, 256)), model, d);
-  for (int i = 0; i < model.graph.size(); ++i) model.graph.set_range(i, ranges[static_cast<size_t>(i)]);
-  model.int8_calibration = "the bench's synthetic image (speed only)";
+  nn::Calibration c;
+  c.set = "the bench's synthetic image (speed only)";
+  c.ranges = measure_value_ranges(model, 1, [&](size_t) { return synthetic_stack(std::min<int64_t>(o.size, 256)); },
+                                  1.0, o.threads);
+  nn::apply_calibration(model.graph, c);
+  model.int8_calibration = c.statistic + " over " + c.set;
   if (!o.json)
     std::fprintf(stderr, "bench: %s has no int8 calibration; its ranges were measured on the bench image, for its "
                          "speed only\n", model.name.c_str());

@@ -7,7 +7,7 @@
 #include "cli_common.h"
 #include "commands.h"
 #include "core/aov/dataset.h"
-#include "core/denoise/denoiser.h"
+#include "core/denoise/value_ranges.h"
 #include "core/nn/calibration.h"
 #include "core/nn/model_registry.h"
 
@@ -34,22 +34,13 @@ int run_calibrate(const CalibrateArgs& a) {
   if (a.scenes > 0 && scenes.size() > a.scenes) scenes.resize(a.scenes);
   if (scenes.empty()) throw Error(ErrorKind::Input, "'" + a.set + "' has no training scenes to calibrate on");
 
-  BackendCache backends;
-  std::vector<float> ranges;
-  backends.get(model, "onednn", nn::Precision::FP32).record_ranges(&ranges, a.percentile / 100.0);
-  DenoiseOptions options;
-  options.backend = "onednn";
-  options.precision = nn::Precision::FP32;
-  options.ensemble = 1;
-  options.threads = a.threads;
-  options.backends = &backends;
   const auto t0 = std::chrono::steady_clock::now();
-  for (size_t k = 0; k < scenes.size(); ++k) {
-    const AovStack stack = load_dataset_scene(scenes[k], /*with_reference=*/false);
-    (void)denoise(stack, model, options);
-    std::fprintf(stderr, "\rcalibrating %s: scene %zu of %zu (%s)", model.name.c_str(), k + 1, scenes.size(),
-                 scenes[k].filename().c_str());
-  }
+  const std::vector<float> ranges = measure_value_ranges(
+      model, scenes.size(), [&](size_t k) { return load_dataset_scene(scenes[k], /*with_reference=*/false); },
+      a.percentile / 100.0, a.threads, [&](size_t k) {
+        std::fprintf(stderr, "\rcalibrating %s: scene %zu of %zu (%s)", model.name.c_str(), k + 1, scenes.size(),
+                     scenes[k].filename().c_str());
+      });
   std::fprintf(stderr, "\n");
 
   nn::Calibration c;
