@@ -32,6 +32,7 @@ namespace {
 namespace fs = std::filesystem;
 using testing::run_cli;
 using testing::TempDir;
+using testing::read_text;
 
 // Files in `dir` (hidden ones included), by name.
 std::vector<std::string> files_in(const fs::path& dir) {
@@ -39,11 +40,6 @@ std::vector<std::string> files_in(const fs::path& dir) {
   for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
   std::sort(names.begin(), names.end());
   return names;
-}
-
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 // A plain multilayer render (R,G,B, albedo, normal, depth) of size x size with a noisy-looking colour.

@@ -174,6 +174,14 @@ TEST(SequenceCli, AFailedFrameDoesNotStopTheOthersUnlessAsked) {
   EXPECT_EQ(j["frames"][2]["status"], "failed");
   EXPECT_NE(j["frames"][2]["error"].get<std::string>().find("shot.0003.exr"), std::string::npos);
   EXPECT_NE(j["frames"][5]["error"].get<std::string>().find("does not exist"), std::string::npos);
+  // Frames are read ahead and written behind the network, yet each frame's line comes in the frame's order (frame
+  // 3's read failed while frame 2 was being written).
+  size_t at = 0;
+  for (const char* line : {"frame 1 ", "frame 2 ", "frame 3  failed", "frame 4 ", "frame 5 ", "frame 6  failed"}) {
+    const size_t next = out.find(line, at);
+    ASSERT_NE(next, std::string::npos) << "'" << line << "' after the line before it: " << out;
+    at = next + 1;
+  }
   for (const char* f : {"out.0001.exr", "out.0002.exr", "out.0004.exr", "out.0005.exr"}) EXPECT_TRUE(fs::exists(dir / f)) << f;
   for (const char* f : {"out.0001.exr", "out.0002.exr", "out.0004.exr", "out.0005.exr"}) fs::remove(dir / f);
   auto args = base;
@@ -184,6 +192,51 @@ TEST(SequenceCli, AFailedFrameDoesNotStopTheOthersUnlessAsked) {
   EXPECT_EQ(j["done"], 2);
   EXPECT_EQ(j["frames"][3]["status"], "pending") << "not reached";
   EXPECT_FALSE(fs::exists(dir / "out.0004.exr"));
+}
+
+// SIGINT while a frame is denoised (the frame before it written meanwhile, on the background thread): the run
+// stops within that frame, keeps every frame it finished whole, says which frame it stopped in, and leaves no
+// temporary file or claim behind.
+TEST(SequenceCli, AnInterruptKeepsTheFramesFinishedBeforeIt) {
+  TempDir dir;
+  write_frames(dir.path(), 1, 4, 768);
+  const fs::path log = fs::temp_directory_path() / ("residue-seq-int-" + std::to_string(::getpid()) + ".log");
+  const std::vector<std::string> args = {"denoise", (dir / "shot.####.exr").string(), "-m", "base", "-o",
+                                         (dir / "out.####.exr").string(), "--backend", "eigen", "--summary",
+                                         (dir / "s.json").string()};
+  int status = 0;
+  {
+    testing::ChildProcess child(args, log);
+    ASSERT_TRUE(child.wait_until_handling(SIGINT, std::chrono::seconds(60)));
+    // Frame 1 is written while frame 2 is denoised: its file appears a moment into frame 2 (seconds of work).
+    for (int i = 0; i < 4800 && !fs::exists(dir / "out.0001.exr"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(25));
+    ASSERT_TRUE(fs::exists(dir / "out.0001.exr")) << testing::read_text(log);
+    child.signal(SIGINT);
+    child.wait();
+    status = child.wait_status();
+  }
+  const std::string text = testing::read_text(log);
+  fs::remove(log);
+  ASSERT_TRUE(WIFEXITED(status)) << text;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << text;
+  const auto j = read_json(dir / "s.json");
+  EXPECT_EQ(j["exit_code"], 130);
+  ASSERT_EQ(j["frames"].size(), 4u);
+  EXPECT_EQ(j["frames"][0]["status"], "done") << text;
+  size_t stopped = 0;  // the frame the signal came in: whole outputs before it, nothing from it on
+  while (stopped < 4 && j["frames"][stopped]["status"] == "done") {
+    EXPECT_EQ(load_aov_stack({j["frames"][stopped]["output"].get<std::string>()}).width(), 768) << stopped;
+    ++stopped;
+  }
+  ASSERT_LT(stopped, 4u) << "the signal came before the end: " << text;
+  EXPECT_EQ(j["frames"][stopped]["status"], "interrupted") << text;
+  for (size_t f = stopped; f < 4; ++f) {
+    EXPECT_FALSE(fs::exists(j["frames"][f]["output"].get<std::string>())) << f;
+    if (f > stopped) {
+      EXPECT_EQ(j["frames"][f]["status"], "pending");
+    }
+  }
+  for (const auto& name : outputs_in(dir.path())) EXPECT_NE(name.front(), '.') << name << " was left behind";
 }
 
 // A run killed between writing a frame and removing its claim leaves the claim file beside a finished frame.

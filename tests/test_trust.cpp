@@ -28,13 +28,9 @@ namespace {
 namespace fs = std::filesystem;
 using testing::run_cli;
 using testing::TempDir;
+using testing::read_text;
 
 const fs::path kRoom = fs::path(RESIDUE_SOURCE_RESOURCES) / "examples/room";
-
-std::string read_text(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
 

@@ -181,12 +181,27 @@ io::ExrWriteOptions DenoiseCliOptions::write_options() const {
   return w;
 }
 
-FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
-                          const LoadOptions& load, const std::string& output, const NeighbourInputs* neighbours) {
+FrameRead read_frame_ahead(const std::vector<std::filesystem::path>& inputs, const LoadOptions& load, size_t max_memory) {
+  FrameRead r;
+  const auto t0 = std::chrono::steady_clock::now();
+  r.reader = std::make_shared<const AovReader>(inputs, load);
+  const AovStack& layout = r.reader->layout();
+  if (2 * whole_image_bytes(layout) <= max_memory)
+    r.stack = std::make_shared<AovStack>(r.reader->read({0, 0, layout.data_window.width, layout.data_window.height}));
+  r.read_s = seconds_since(t0);
+  return r;
+}
+
+FrameToWrite denoise_frame_image(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
+                                  const LoadOptions& load, const std::string& output, const NeighbourInputs* neighbours,
+                                  std::future<FrameRead>* ahead) {
   const DenoiseCliOptions& o = context.options;
-  const AovReader reader(inputs, load);
+  FrameRead read = ahead ? ahead->get() : FrameRead{std::make_shared<const AovReader>(inputs, load), nullptr, 0};
+  const AovReader& reader = *read.reader;
   const AovStack& layout = reader.layout();
-  FrameResult result;
+  FrameToWrite frame;
+  frame.reader = read.reader;
+  FrameResult& result = frame.result;
   result.output = output;
   result.notes = layout.notes;
   if (context.show_progress)
@@ -195,8 +210,10 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   DenoiseOptions d = o.denoise_options();
   d.cancel = &context.interrupt.token();
   d.backends = &context.backends;
+  frame.roi = d.roi;
 
-  io::ExrWriteOptions w = o.write_options();
+  io::ExrWriteOptions& w = frame.write;
+  w = o.write_options();
   keep_render_header(w, layout);
   io::record(w.residue_attributes, {.source = layout.color.source.file, .written_by = "residue-cli"});
   check_output(output, layout, w);
@@ -234,14 +251,15 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
   if (result.streamed) {  // the header, written first, says which post-steps run (core decides, as below)
     stats = denoise_to_exr(reader, *method, d, output, w, on_tile);
   } else {
-    auto t0 = std::chrono::steady_clock::now();
-    auto stack = std::make_shared<AovStack>(reader.read(whole));
+    const auto t0 = std::chrono::steady_clock::now();
+    const double read_ahead_s = read.stack ? read.read_s : 0.0;
+    auto stack = read.stack ? std::move(read.stack) : std::make_shared<AovStack>(reader.read(whole));
     const bool blend = o.temporal_blend && neighbours;
     if (result.frame_radius > 0 && neighbours && !blend)
       result.missing_neighbours = read_neighbours(context, *stack, result.frame_radius, *neighbours);
-    result.read_s = seconds_since(t0);
-    const Image out = blend ? blended(context, *method, d, inputs, stack, *neighbours, on_tile, result)
-                            : denoise(*stack, *method, d, on_tile, &stats);
+    result.read_s = read_ahead_s + seconds_since(t0);
+    Image out = blend ? blended(context, *method, d, inputs, stack, *neighbours, on_tile, result)
+                      : denoise(*stack, *method, d, on_tile, &stats);
     if (result.frame_radius > 0 && neighbours && !blend) {  // the next frames read this one as a neighbour
       stack->neighbours.clear();
       context.neighbour_frames[layout.color.source.file] = stack;
@@ -250,17 +268,29 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     throw_if_cancelled(d.cancel);
     io::record(w.residue_attributes, provenance_of(*method, stats));
     if (blend) io::record(w.residue_attributes, {.temporal_blend = static_cast<float>(o.blend_tolerance)});
-    t0 = std::chrono::steady_clock::now();
-    stats.clamped_to_half = io::write_exr(output, out, w).clamped_to_half;
-    result.write_s = seconds_since(t0);
+    frame.image = std::move(out);
   }
   result.megapixels = static_cast<double>(d.roi ? d.roi->area() : whole.area()) / 1e6;
+  return frame;
+}
 
-  if (layout.reference && !context.interrupt.interrupted()) {
+FrameResult write_frame(FrameToWrite frame, const CancelToken& cancel) {
+  FrameResult& result = frame.result;
+  const std::string& output = result.output;
+  if (frame.image) {
+    const auto t0 = std::chrono::steady_clock::now();
+    result.stats.clamped_to_half = io::write_exr(output, *frame.image, frame.write).clamped_to_half;
+    result.write_s = seconds_since(t0);
+    frame.image.reset();
+  }
+  const AovReader& reader = *frame.reader;
+  const AovStack& layout = reader.layout();
+  if (layout.reference && !cancel.requested()) {
     // Scored from the file written, as the user will see it, band by band (the noisy input, the output and the
     // reference are never whole in memory: the streamed denoise's --max-memory holds here too).
+    const Rect whole{0, 0, layout.data_window.width, layout.data_window.height};
     metrics::Options m;
-    m.roi = d.roi;
+    m.roi = frame.roi;
     LoadOptions lo;
     lo.load_reference = false;
     const AovReader written({output}, lo);
@@ -268,7 +298,7 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     const Rect region = noisy.region();
     constexpr int64_t kBand = 4 * metrics::ScoreAccumulator::kRowMultiple;
     for (int64_t y0 = region.y; y0 < region.y + region.height; y0 += kBand) {
-      throw_if_cancelled(&context.interrupt.token());
+      if (cancel.requested()) return std::move(result);  // the output is whole: only its scores are left out
       const int64_t y1 = std::min(y0 + kBand, region.y + region.height);
       const int64_t r0 = std::max<int64_t>(0, y0 - metrics::ScoreAccumulator::kHalo);
       const int64_t r1 = std::min(whole.height, y1 + metrics::ScoreAccumulator::kHalo);
@@ -283,7 +313,12 @@ FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesyst
     report.rows.push_back({"denoised", output, denoised.scores()});
     result.metrics = std::move(report);
   }
-  return result;
+  return std::move(result);
+}
+
+FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
+                          const LoadOptions& load, const std::string& output, const NeighbourInputs* neighbours) {
+  return write_frame(denoise_frame_image(context, inputs, load, output, neighbours), context.interrupt.token());
 }
 
 }  // namespace residue::cli

@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <future>
 #include <memory>
 #include <map>
 #include <optional>
@@ -92,9 +93,37 @@ struct FrameResult {
   std::vector<int> blend_missing;            // --temporal-blend: the offsets of -1, +1 the sequence lacked
 };
 
+// A render read whole ahead of its turn (a sequence reads frame n+1 on its background thread while frame n is
+// denoised). `stack` is null when two such renders would not fit in `max_memory` (the one denoised and the one
+// read ahead): it is then read, or streamed, when its turn comes.
+struct FrameRead {
+  std::shared_ptr<const AovReader> reader;
+  std::shared_ptr<AovStack> stack;
+  double read_s = 0;
+};
+FrameRead read_frame_ahead(const std::vector<std::filesystem::path>& inputs, const LoadOptions& load, size_t max_memory);
+
+// A render denoised in memory whose output is not written yet: write_frame() finishes it, on any thread. (A
+// streamed render is written by then: `image` is empty and only the scores are left.)
+struct FrameToWrite {
+  FrameResult result;
+  std::shared_ptr<const AovReader> reader;  // the render's: its reference scores the output
+  std::optional<Image> image;
+  io::ExrWriteOptions write;
+  std::optional<Rect> roi;
+};
+
 // Throws residue::Error (nothing written), or Cancelled when interrupted before the output was complete.
 // `neighbours`: for a sequence, where frame t's neighbours are (a temporal method reads them; a still's ignores
-// them); null for a single render, which a temporal method denoises from its own frame alone.
+// them); null for a single render, which a temporal method denoises from its own frame alone. `ahead`: the render
+// read by read_frame_ahead() (the same inputs and load options), or null to read it here.
+FrameToWrite denoise_frame_image(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
+                                  const LoadOptions& load, const std::string& output,
+                                  const NeighbourInputs* neighbours = nullptr, std::future<FrameRead>* ahead = nullptr);
+// Writes the output (atomically) and scores it against the render's reference when it has one (left unscored
+// when `cancel` comes first: the output is whole then).
+FrameResult write_frame(FrameToWrite frame, const CancelToken& cancel);
+// The two in turn.
 FrameResult denoise_frame(FrameContext& context, const std::vector<std::filesystem::path>& inputs,
                           const LoadOptions& load, const std::string& output, const NeighbourInputs* neighbours = nullptr);
 

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "background_io.h"
 #include "core/io/atomic_file.h"
 #include "core/io/frame_claim.h"
 #include "core/io/frame_sequence.h"
@@ -91,6 +92,24 @@ nlohmann::ordered_json to_json(const std::vector<FrameRecord>& records, const De
   return doc;
 }
 
+// A denoised frame's line: its output, time, scores and missing neighbours, [index/total].
+void print_done(const FrameRecord& r, size_t index, size_t total) {
+  std::printf("frame %lld  %s  %.2f s (%.2f s/MP)", static_cast<long long>(r.frame), display_path(r.output.string()).c_str(),
+              r.seconds, r.seconds / std::max(r.megapixels, 1e-9));
+  if (r.metrics)
+    std::printf("  relMSE %.5f (noisy %.5f)  SSIM %.4f", r.metrics->rows[1].scores.relmse, r.metrics->rows[0].scores.relmse,
+                r.metrics->rows[1].scores.ssim);
+  if (!r.missing_neighbours.empty()) {
+    std::string missing;
+    for (int d : r.missing_neighbours) missing += (missing.empty() ? "" : ", ") + std::string(d < 0 ? "t" : "t+") + std::to_string(d);
+    std::printf("  (fewer neighbours: no frame %s)", missing.c_str());
+  }
+  if (r.blend_missing.size() == 2) std::printf("  (no frame beside it to blend with)");
+  else if (!r.blend_missing.empty()) std::printf("  (blended with frame %s only)", r.blend_missing.front() < 0 ? "t+1" : "t-1");
+  std::printf("  [%zu/%zu]\n", index, total);
+  std::fflush(stdout);
+}
+
 }  // namespace
 
 bool is_sequence(const DenoiseCliOptions& o) {
@@ -166,56 +185,51 @@ int run_sequence(const DenoiseCliOptions& o) {
   const InterruptScope interrupt;
   FrameContext context{o, interrupt, false};
   int exit_code = kOk;
-  size_t index = 0;
-  for (FrameRecord& r : records) {
-    ++index;
-    if (r.status == "skipped") {
-      const bool foreign = r.note != "exists";
-      std::printf("frame %lld  skipped: %s exists%s\n", static_cast<long long>(r.frame), display_path(r.output.string()).c_str(),
-                  foreign ? " (not an OpenEXR file: left alone)" : "");
-      continue;
-    }
-    if (interrupt.interrupted()) break;
-    // Claimed while it is denoised, so that another process on this sequence moves on to the next frame; a frame
-    // it finished meanwhile counts as skipped.
-    std::optional<io::FrameClaim> claim = io::FrameClaim::take(r.output);
-    if (!claim) {
-      r.status = "skipped", r.note = "claimed by another process";
-      std::printf("frame %lld  skipped: another process is denoising it\n", static_cast<long long>(r.frame));
-      continue;
-    }
-    std::error_code ec;
-    if (fs::exists(fs::symlink_status(r.output, ec)) && !o.force) {
-      if (io::inspect_output(r.output) != io::ExistingOutput::Damaged) {
-        r.status = "skipped", r.note = "finished by another process";
-        std::printf("frame %lld  skipped: %s was finished by another process\n", static_cast<long long>(r.frame),
-                    display_path(r.output.string()).c_str());
-        continue;
-      }
-      if (!skip_existing) {  // appeared since the checks: not ours to replace
-        r.status = "failed", r.exit_code = kOutputError;
-        r.error = "output '" + r.output.string() + "' appeared during the run; pass --force to replace it";
-        std::fprintf(stderr, "frame %lld  failed: %s\n", static_cast<long long>(r.frame), r.error.c_str());
-        if (exit_code == kOk) exit_code = kOutputError;
-        if (o.fail_fast) break;
-        continue;
-      }
-      std::printf("frame %lld  re-doing damaged frame: %s is cut short or empty\n", static_cast<long long>(r.frame),
-                  display_path(r.output.string()).c_str());
-      r.note = "damaged output redone";
-      fs::remove(r.output, ec);
-    }
+  const auto load_for = [&](const FrameRecord& r) {
     LoadOptions load = o.input.load_options();
     if (reference) load.reference = reference->path(r.frame);
+    return load;
+  };
+  // A temporal method's neighbours: the frames beside this one on disk, whatever --frames selects.
+  const auto neighbours_of = [&](const FrameRecord& r) -> NeighbourInputs {
+    return [&in, frame = r.frame](int d) -> std::optional<std::vector<fs::path>> {
+      const fs::path p = in.path(frame + d);
+      if (!fs::exists(p)) return std::nullopt;
+      return std::vector<fs::path>{p};
+    };
+  };
+  const auto failed = [&](FrameRecord& r, const Error& e) {
+    r.status = "failed";
+    r.error = e.what();
+    r.exit_code = exit_code_for(e.kind());
+    std::fprintf(stderr, "frame %lld  failed: %s\n", static_cast<long long>(r.frame), e.what());
+    if (exit_code == kOk) exit_code = r.exit_code;
+  };
+
+  // While frame n is denoised, frame n-1 is written (and scored) and the next frame to denoise is read
+  // (background_io.h). A temporal method reads its neighbours as it goes, so its frames are not read ahead.
+  const bool read_ahead = !o.temporal && !o.temporal_blend;
+  struct Ahead {
+    size_t index;
+    std::future<FrameRead> read;
+  };
+  struct Writing {
+    size_t index;
+    std::future<FrameResult> result;
+    std::optional<io::FrameClaim> claim;  // held until the frame is written
+  };
+  std::optional<Ahead> ahead;
+  std::optional<Writing> writing;
+  BackgroundIo background;  // after what its tasks use; joined first
+
+  // The frame being written finished: its line printed in order, its record filled. False when the run stops.
+  const auto finish_writing = [&]() -> bool {
+    if (!writing) return true;
+    FrameRecord& r = records[writing->index];
+    const size_t index = writing->index;
+    bool go_on = true;
     try {
-      if (!fs::exists(r.input)) throw Error(ErrorKind::Input, "input '" + r.input.string() + "' does not exist");
-      // A temporal method's neighbours: the frames beside this one on disk, whatever --frames selects.
-      const NeighbourInputs neighbours = [&](int d) -> std::optional<std::vector<fs::path>> {
-        const fs::path p = in.path(r.frame + d);
-        if (!fs::exists(p)) return std::nullopt;
-        return std::vector<fs::path>{p};
-      };
-      const FrameResult result = denoise_frame(context, {r.input}, load, r.output.string(), &neighbours);
+      const FrameResult result = writing->result.get();
       r.missing_neighbours = result.missing_neighbours;
       r.blend_missing = result.blend_missing;
       r.status = "done";
@@ -223,33 +237,92 @@ int run_sequence(const DenoiseCliOptions& o) {
       r.megapixels = result.megapixels;
       r.model = result.model;
       r.metrics = result.metrics;
-      std::printf("frame %lld  %s  %.2f s (%.2f s/MP)", static_cast<long long>(r.frame),
-                  display_path(r.output.string()).c_str(), r.seconds, r.seconds / std::max(r.megapixels, 1e-9));
-      if (r.metrics)
-        std::printf("  relMSE %.5f (noisy %.5f)  SSIM %.4f", r.metrics->rows[1].scores.relmse,
-                    r.metrics->rows[0].scores.relmse, r.metrics->rows[1].scores.ssim);
-      if (!r.missing_neighbours.empty()) {
-        std::string missing;
-        for (int d : r.missing_neighbours) missing += (missing.empty() ? "" : ", ") + std::string(d < 0 ? "t" : "t+") + std::to_string(d);
-        std::printf("  (fewer neighbours: no frame %s)", missing.c_str());
+      print_done(r, index + 1, records.size());
+    } catch (const Cancelled&) {
+      r.status = "interrupted";
+      go_on = false;
+    } catch (const Error& e) {
+      failed(r, e);
+      go_on = !o.fail_fast;
+    }
+    writing.reset();  // the claim ends
+    return go_on;
+  };
+
+  for (size_t i = 0; i < records.size(); ++i) {
+    FrameRecord& r = records[i];
+    if (r.status != "skipped" && interrupt.interrupted()) break;
+    // Why a frame is not denoised (or is redone), said after the frame before it is written, in order.
+    std::string line;
+    // Claimed while it is denoised, so that another process on this sequence moves on to the next frame; a frame
+    // it finished meanwhile counts as skipped.
+    std::optional<io::FrameClaim> claim = r.status == "skipped" ? std::nullopt : io::FrameClaim::take(r.output);
+    if (r.status == "skipped") {
+      line = "skipped: " + display_path(r.output.string()) + " exists" +
+             (r.note != "exists" ? " (not an OpenEXR file: left alone)" : "");
+    } else if (!claim) {
+      r.status = "skipped", r.note = "claimed by another process";
+      line = "skipped: another process is denoising it";
+    } else if (std::error_code ec; fs::exists(fs::symlink_status(r.output, ec)) && !o.force) {
+      if (io::inspect_output(r.output) != io::ExistingOutput::Damaged) {
+        r.status = "skipped", r.note = "finished by another process";
+        line = "skipped: " + display_path(r.output.string()) + " was finished by another process";
+      } else if (!skip_existing) {  // appeared since the checks: not ours to replace
+        r.status = "failed";
+        r.error = "output '" + r.output.string() + "' appeared during the run; pass --force to replace it";
+      } else {
+        line = "re-doing damaged frame: " + display_path(r.output.string()) + " is cut short or empty";
+        r.note = "damaged output redone";
+        fs::remove(r.output, ec);
       }
-      if (r.blend_missing.size() == 2) std::printf("  (no frame beside it to blend with)");
-      else if (!r.blend_missing.empty())
-        std::printf("  (blended with frame %s only)", r.blend_missing.front() < 0 ? "t+1" : "t-1");
-      std::printf("  [%zu/%zu]\n", index, records.size());
+    }
+    if ((!line.empty() || r.status == "failed") && !finish_writing()) break;
+    if (!line.empty()) {
+      std::printf("frame %lld  %s\n", static_cast<long long>(r.frame), line.c_str());
       std::fflush(stdout);
+    }
+    if (r.status == "failed") {
+      failed(r, Error(ErrorKind::Output, r.error));
+      if (o.fail_fast) break;
+      continue;
+    }
+    if (r.status != "pending") continue;
+
+    const LoadOptions load = load_for(r);
+    const NeighbourInputs neighbours = neighbours_of(r);
+    try {
+      if (!fs::exists(r.input)) throw Error(ErrorKind::Input, "input '" + r.input.string() + "' does not exist");
+      std::optional<std::future<FrameRead>> mine;
+      if (ahead && ahead->index == i) mine = std::move(ahead->read);
+      ahead.reset();
+      if (read_ahead)  // the next frame to denoise, read while this one is
+        for (size_t n = i + 1; n < records.size(); ++n)
+          if (records[n].status == "pending") {
+            if (fs::exists(records[n].input))
+              ahead = Ahead{n, background.submit([inputs = std::vector<fs::path>{records[n].input}, next = load_for(records[n]),
+                                                  max_memory = o.denoise_options().max_memory] {
+                return read_frame_ahead(inputs, next, max_memory);
+              })};
+            break;
+          }
+      FrameToWrite denoised =
+          denoise_frame_image(context, {r.input}, load, r.output.string(), &neighbours, mine ? &*mine : nullptr);
+      if (!finish_writing()) break;
+      writing.emplace(Writing{i, background.submit([frame = std::make_shared<FrameToWrite>(std::move(denoised)), &interrupt] {
+                          return write_frame(std::move(*frame), interrupt.token());
+                        }),
+                        std::move(claim)});
     } catch (const Cancelled&) {
       r.status = "interrupted";
       break;
     } catch (const Error& e) {
-      r.status = "failed";
-      r.error = e.what();
-      r.exit_code = exit_code_for(e.kind());
-      std::fprintf(stderr, "frame %lld  failed: %s\n", static_cast<long long>(r.frame), e.what());
-      if (exit_code == kOk) exit_code = r.exit_code;
-      if (o.fail_fast) break;
+      const bool go_on = finish_writing();
+      failed(r, e);
+      if (!go_on || o.fail_fast) break;
     }
   }
+  finish_writing();
+  ahead.reset();
   if (interrupt.interrupted()) exit_code = interrupt.exit_code();
 
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -80,6 +80,11 @@ Image read_exr_float(const std::filesystem::path& p) {
   return load_aov_stack({p}, lo).color.image;
 }
 
+std::string read_text(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
 int run_cli(const std::vector<std::string>& args, std::string* output) { return run_program(RESIDUE_CLI_PATH, args, output); }
 
 int run_program(const std::string& program, const std::vector<std::string>& args, std::string* output) {

@@ -48,6 +48,9 @@ Image read_exr_float(const std::filesystem::path& p);
 // another kind.
 std::string error_message(const std::function<void()>& f, ErrorKind kind);
 
+// A file's whole content ("" when it cannot be read).
+std::string read_text(const std::filesystem::path& p);
+
 // Runs residue-cli with the given arguments; returns its exit code and captures stdout+stderr.
 int run_cli(const std::vector<std::string>& args, std::string* output = nullptr);
 // The same for any program.
