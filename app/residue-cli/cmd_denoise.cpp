@@ -52,6 +52,10 @@ int run(const DenoiseCliOptions& o) {
   std::printf("time       %.3f s, %.3f s per megapixel; %lld tiles of %lld px, %lld skipped (empty)\n", stats.seconds,
               stats.seconds / r.megapixels, static_cast<long long>(stats.tiles), static_cast<long long>(stats.tile_size),
               static_cast<long long>(stats.skipped));
+  if (stats.skip_converged > 0)
+    std::printf("converged  %.1f %% of the pixels kept as rendered (relative variance <= %g); the network on %lld "
+                "rectangle%s\n", 100.0 * static_cast<double>(stats.converged_pixels) / (r.megapixels * 1e6),
+                static_cast<double>(stats.skip_converged), static_cast<long long>(stats.regions), stats.regions == 1 ? "" : "s");
   if (r.read_s >= 0) std::printf("files      read %.3f s, written %.3f s\n", r.read_s, r.write_s);
   if (stats.clamped_to_half > 0)
     std::fprintf(stderr, "warning: %lld output values exceed the half-float range and were written as +-65504; "
@@ -115,6 +119,12 @@ Command add_denoise_command(CLI::App& app) {
                   "two (which keeps the image's brightness)")
       ->capture_default_str()
       ->check(CLI::Range(0.0f, 1.0f));
+  cmd->add_option("--skip-converged", o->skip_converged,
+                  "Keep the noisy colour where the render has converged (its relative variance, from a variance AOV "
+                  "or the two halves of a render, is at most RV: its relMSE as it is) and run the network only on "
+                  "rectangles covering the rest, faded into it (off by default; docs/PERFORMANCE.md has the curve)")
+      ->type_name("RV")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--ensemble", o->ensemble,
                   "Self-ensemble: run the network under 1, 2, 4 or 8 flips and transposes of the image and average "
                   "(N times the work for a lower error; default: the model's, 1 for most)")

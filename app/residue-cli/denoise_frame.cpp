@@ -168,6 +168,7 @@ DenoiseOptions DenoiseCliOptions::denoise_options() const {
   d.energy_correction = !no_energy_correction;
   d.variance_blend = !no_variance_blend;
   d.strength = strength;
+  d.skip_converged = skip_converged;
   d.ensemble = ensemble;
   if (!roi.empty()) d.roi = parse_roi(roi);
   return d;

@@ -37,6 +37,7 @@ struct DenoiseCliOptions {
   bool no_variance_blend = false;
   bool float_output = false;
   float strength = 1.0f;
+  float skip_converged = 0;  // 0: off
   int ensemble = 0;  // 0: the model's
   std::string compression = "zip";
   bool force = false;

@@ -54,6 +54,9 @@ struct DenoiseOptions {
   bool variance_blend = true;                   // with a variance AOV: keep clean input pixels (variance_blend.h)
   float blend_tau = 0;                          // the blend's tau; 0: the model's (residue.blend_tau) or the default
   float strength = 1.0f;                        // 1: the output; 0: the noisy input; between: blend (strength.h)
+  // With a variance AOV: keep the noisy colour where its relative variance is at most this, and run the method
+  // only on rectangles covering the rest (converged_regions.h). 0: off.
+  float skip_converged = 0;
   // The self-ensemble: the network runs on each tile under the first 1, 2, 4 or 8 flips and transposes
   // (core/image/dihedral.h; normals turned with the image) and the mean of its outputs, turned back, is kept:
   // that many times the network's work for a lower error (measured in docs/MODELS.md). 0: the model's.
@@ -85,6 +88,11 @@ struct DenoiseStats {
   int64_t guarded_values = 0;     // output values the guard clamped (channels, not pixels)
   int64_t clamped_to_half = 0;    // denoise_to_exr into half: finite values beyond 65504 written as 65504
   float strength = 1.0f;          // the blend towards the noisy colour applied last (strength.h)
+  // skip_converged: its threshold (0: off), the pixels kept as the noisy colour, and the rectangles the method
+  // ran on (1: the region).
+  float skip_converged = 0;
+  int64_t converged_pixels = 0;
+  int64_t regions = 1;
 };
 
 // Called after every tile with its denoised pixels (before the energy correction and the strength, which run per

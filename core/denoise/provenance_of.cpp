@@ -10,6 +10,7 @@ io::Provenance run_provenance(const DenoiseStats& stats) {
   p.variance_blend = stats.variance_blended;
   p.strength = stats.strength;
   p.ensemble = stats.ensemble;
+  if (stats.skip_converged > 0) p.skip_converged = stats.skip_converged;
   return p;
 }
 

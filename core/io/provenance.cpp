@@ -19,6 +19,7 @@ void record(OIIO::ParamValueList& attributes, const Provenance& p) {
   if (p.strength) attributes.attribute("residue:strength", *p.strength);
   if (p.ensemble) attributes.attribute("residue:ensemble", *p.ensemble);
   if (p.temporal_blend) attributes.attribute("residue:temporal_blend", *p.temporal_blend);
+  if (p.skip_converged) attributes.attribute("residue:skip_converged", *p.skip_converged);
 }
 
 }  // namespace residue::io

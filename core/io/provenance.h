@@ -22,6 +22,7 @@ struct Provenance {
   std::optional<float> strength;            // residue:strength
   std::optional<int> ensemble;              // residue:ensemble, the self-ensemble's members (1, 2, 4, 8)
   std::optional<float> temporal_blend;      // residue:temporal_blend, the tolerance of the blend with frames t-1, t+1
+  std::optional<float> skip_converged;      // residue:skip_converged, the relative variance kept as converged
 };
 
 // Adds the set fields, and residue:version always, to `attributes` (replacing attributes of the same name).

@@ -49,6 +49,9 @@ def parse_args():
     p.add_argument("--res", type=int, default=256)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--max-bounces", type=int, default=8)
+    p.add_argument("--adaptive-threshold", type=float, default=0.0,
+                   help="Cycles' adaptive sampling for the noisy renders (not the reference), with this noise "
+                        "threshold: the spp given is then the most a pixel gets (0: off, every pixel gets it)")
     p.add_argument("--clamp-indirect", type=float, default=CLAMP_INDIRECT, help="Cycles' indirect clamp (0: none)")
     p.add_argument("--caustics", action="store_true",
                    help="keep caustics and sharp glossy reflections (no glossy filter): the fireflies other "
@@ -1799,7 +1802,7 @@ def render_settings(scene, args, command):
         "device": "CPU",
         "threads": args.threads,
         "sampling_pattern": scene.cycles.sampling_pattern,
-        "adaptive_sampling": False,
+        "adaptive_sampling": {"threshold": args.adaptive_threshold, "for": "noisy renders"} if args.adaptive_threshold > 0 else False,
         "denoising": False,
         "max_bounces": scene.cycles.max_bounces,
         "diffuse_bounces": scene.cycles.diffuse_bounces,
@@ -2522,6 +2525,8 @@ def main():
     for i, ((spp, seed), name) in enumerate(zip(args.render_list, args.name_list)):
         ref = i == len(args.render_list) - 1
         path = os.path.join(args.outdir, name + ".exr")
+        scene.cycles.use_adaptive_sampling = args.adaptive_threshold > 0 and not ref
+        scene.cycles.adaptive_threshold = args.adaptive_threshold
         walls[name] = round(render_one(scene, path, spp, seed, not ref), 2)
         spp_of[name], seed_of[name] = spp, seed
         print(f"make_scene: seed {args.scene_seed} {name} {spp} spp in {walls[name]:.2f} s", flush=True)
