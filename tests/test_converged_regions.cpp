@@ -2,6 +2,7 @@
 // blocks need the network, the fade into the noisy colour, the rectangles and what they cost, and a denoise with
 // it: the noisy colour where converged, the ordinary denoise elsewhere, bit for bit where nothing converged.
 #include <gtest/gtest.h>
+#include <OpenImageIO/imageio.h>
 
 #include <cmath>
 #include <limits>
@@ -10,6 +11,7 @@
 #include "core/denoise/denoiser.h"
 #include "core/nn/model_file.h"
 #include "core/util/error.h"
+#include "tests/support/exr_fixture.h"
 #include "tests/support/test_support.h"
 
 namespace residue {
@@ -133,6 +135,56 @@ TEST(ConvergedRegions, ARenderWithoutVarianceOrABadThresholdIsRefused) {
   const std::string e = testing::error_message([&] { denoise(s, model, o); }, ErrorKind::Input);
   EXPECT_NE(e.find("render.exr"), std::string::npos) << e;
   EXPECT_NE(e.find("variance"), std::string::npos) << e;
+}
+
+// End to end: a render whose variance layer says its left part has converged; the option's report and header,
+// the kept pixels as rendered, and the refusals naming what is missing.
+TEST(ConvergedRegionsCli, KeepsTheConvergedPartOfARender) {
+  testing::TempDir dir;
+  testing::FixturePart part;
+  part.width = 384;
+  part.height = 192;
+  const char* rgb[] = {"R", "G", "B"};
+  for (int c = 0; c < 3; ++c) {
+    part.channels.push_back({rgb[c], false, [c](int x, int y) {
+      const uint32_t h = (static_cast<uint32_t>(x) * 73856093u) ^ (static_cast<uint32_t>(y) * 19349663u) ^ (static_cast<uint32_t>(c) * 83492791u);
+      return 0.3f + 0.4f * static_cast<float>((h >> 7) & 0xffffu) / 65535.0f;
+    }});
+    part.channels.push_back({std::string("variance.") + rgb[c], false, [](int x, int) { return x < 192 ? 0.0f : 0.04f; }});
+  }
+  testing::write_fixture_exr((dir / "render.exr").string(), {part});
+  std::string out;
+  ASSERT_EQ(testing::run_cli({"denoise", (dir / "render.exr").string(), "-m", "base", "--float", "--skip-converged", "1e-4",
+                              "-o", (dir / "out.exr").string()}, &out), 0) << out;
+  EXPECT_NE(out.find("of the pixels kept as rendered"), std::string::npos) << out;
+  const Image in = testing::read_exr_float(dir / "render.exr"), den = testing::read_exr_float(dir / "out.exr");
+  for (int64_t y = 0; y < 192; ++y)
+    for (int64_t x = 0; x < 160; ++x)  // the fade ends 32 px left of the noisy part (its box, then 16 px)
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(den.at(x, y, c), in.at(x, y, c)) << x << "," << y;
+  bool denoised = false;
+  for (int64_t x = 200; x < 384 && !denoised; ++x) denoised = den.at(x, 40, 0) != in.at(x, 40, 0);
+  EXPECT_TRUE(denoised) << "the noisy part went through the network";
+  auto file = OIIO::ImageInput::open((dir / "out.exr").string());
+  ASSERT_TRUE(file);
+  EXPECT_EQ(file->spec().get_float_attribute("residue:skip_converged"), 1e-4f);
+  file->close();
+
+  // A render without variance: nothing says where it converged.
+  testing::FixturePart plain = part;
+  plain.channels.resize(0);
+  for (int c = 0; c < 3; ++c) plain.channels.push_back(part.channels[static_cast<size_t>(2 * c)]);
+  testing::write_fixture_exr((dir / "plain.exr").string(), {plain});
+  EXPECT_EQ(testing::run_cli({"denoise", (dir / "plain.exr").string(), "-m", "base", "--skip-converged", "1e-4", "-o",
+                              (dir / "out2.exr").string()}, &out), 3) << out;
+  EXPECT_NE(out.find("plain.exr' has no variance AOV"), std::string::npos) << out;
+  // Streamed band by band (3.5 MB as float: more than --max-memory): refused, saying how to hold it.
+  EXPECT_EQ(testing::run_cli({"denoise", (dir / "render.exr").string(), "-m", "base", "--skip-converged", "1e-4", "--max-memory",
+                              "1", "-o", (dir / "out3.exr").string()}, &out), 2) << out;
+  EXPECT_NE(out.find("raise --max-memory"), std::string::npos) << out;
+  EXPECT_EQ(testing::run_cli({"denoise", (dir / "render.exr").string(), "-m", "base", "--skip-converged", "0", "-o",
+                              (dir / "out4.exr").string()}, &out), 2) << out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "out2.exr") || std::filesystem::exists(dir / "out3.exr") ||
+               std::filesystem::exists(dir / "out4.exr"));
 }
 
 }  // namespace

@@ -249,6 +249,10 @@ FrameToWrite denoise_frame_image(FrameContext& context, const std::vector<std::f
   // (then the header cannot carry the time, which is known only at the end).
   // (The temporal blend holds frames t-1..t+1 whole: it does not stream.)
   result.streamed = method->streams() && whole_image_bytes(layout) > d.max_memory && !(o.temporal_blend && neighbours);
+  if (result.streamed && o.skip_converged > 0)
+    throw Error(ErrorKind::Usage, "--skip-converged needs the render in memory, and '" + layout.color.source.file + "' (" +
+                                      std::to_string(whole_image_bytes(layout) >> 20) + " MiB as float) is more than "
+                                      "--max-memory " + std::to_string(o.max_memory_mib) + ": raise --max-memory to hold it");
   if (result.streamed) {  // the header, written first, says which post-steps run (core decides, as below)
     stats = denoise_to_exr(reader, *method, d, output, w, on_tile);
   } else {
