@@ -25,6 +25,8 @@
 #include "core/nn/model_registry.h"
 #include "core/util/error.h"
 #include "core/util/openmp_env.h"
+#include "checkpoint.h"
+#include "quantise.h"
 #include "torch_network.h"
 #include "app/common/cli_enum.h"
 #include "training_loss.h"
@@ -78,6 +80,9 @@ struct Options {
   std::string grow_from;         // a multi-scale model file one level shallower to start from (a fresh run only)
   std::string widen_from;        // a model file of the same architecture, narrower, to start from (a fresh run only)
   std::string export_set;        // write the loaded training and validation scenes to this file and stop
+  std::string quantise;          // quantisation-aware fine-tuning of this model for int8 (quantise.h)
+  double range_lr = 1e-3;        // --quantise: the log ranges' learning rate
+  double range_init = 0.25;      // --quantise: the ranges' start, as a share of the largest values
 };
 
 struct Validation {
@@ -119,20 +124,6 @@ Validation validate(train::ResidueNet& net, const std::vector<train::TrainingSou
   v.noisy_ssim /= n;
   v.mean_ratio /= n;
   return v;
-}
-
-// Model, optimiser, step and the training time so far (wall_s: summed over resumed runs), each replaced
-// atomically, the step last so that a kill in between leaves the previous checkpoint whole.
-void save_checkpoint(const fs::path& dir, train::ResidueNet& net, torch::optim::Adam& opt, int step, double wall_s) {
-  fs::create_directories(dir);
-  std::ofstream(dir / "wall_s.tmp") << wall_s;
-  fs::rename(dir / "wall_s.tmp", dir / "wall_s");
-  torch::save(net, (dir / "model.pt.tmp").string());
-  torch::save(opt, (dir / "optim.pt.tmp").string());
-  fs::rename(dir / "model.pt.tmp", dir / "model.pt");
-  fs::rename(dir / "optim.pt.tmp", dir / "optim.pt");
-  std::ofstream(dir / "step.tmp") << step;
-  fs::rename(dir / "step.tmp", dir / "step");
 }
 
 // A network that reaches past the patch sees, at every training pixel, the zero padding of both opposite sides of
@@ -211,6 +202,11 @@ int run(const Options& o) {
     if (!d) throw Error(ErrorKind::Usage, "--dilations: expected integers from 1 to 64, e.g. 1,2,4,8");
     arch.dilations = *d;
   }
+  std::optional<nn::Model> to_quantise;
+  if (!o.quantise.empty()) {
+    to_quantise = nn::load_model(nn::find_model_for(o.quantise, FeatureSet::Full));
+    arch = to_quantise->network.arch;  // the model's own: --arch, --features and the variants do not apply
+  }
   // --arch, --features, --dilations, --demodulate, --prior and --temporal together (the rules model files obey).
   if (const auto c = arch.contradiction()) throw Error(ErrorKind::Usage, "these options cannot go together: " + *c);
   const int normal_at = train::normal_plane(arch.features);
@@ -263,6 +259,28 @@ int run(const Options& o) {
                                {teacher ? &*teacher : nullptr, o.teacher_weight, o.teacher_ensemble});
   std::printf("loaded in %.1f s\n", std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count());
   if (!o.export_set.empty()) return export_training_set(o, arch, set, val_scenes, prior ? &*prior : nullptr);
+  if (to_quantise) {
+    train::QuantiseOptions q;
+    q.steps = o.steps;
+    q.batch = o.batch;
+    q.lr = o.lr;
+    q.range_lr = o.range_lr;
+    q.range_init = o.range_init;
+    q.loss = o.loss;
+    q.ssim_weight = o.ssim_weight;
+    q.relmse_weight = o.relmse_weight;
+    q.val_every = o.val_every;
+    q.checkpoint_every = o.checkpoint_every;
+    q.seed = o.seed;
+    q.threads = o.threads;
+    q.out = o.out;
+    q.checkpoint = o.checkpoint;
+    q.log = o.log;
+    q.name = o.name;
+    q.force = o.force;
+    q.data = nlohmann::json(o.data).dump() + (teacher ? ", targets distilled from " + o.teacher : "");
+    return train::quantise(*to_quantise, set, val_scenes, q);
+  }
 
   // Input batches for batch-norm statistics, drawn as training draws them.
   auto input_batches = [&set, &o](std::mt19937& rng) {
@@ -298,10 +316,7 @@ int run(const Options& o) {
   int step = 0;
   double wall_before = 0;  // training time of earlier runs of this model
   if (resuming) {
-    torch::load(net, (ckpt / "model.pt").string());
-    torch::load(opt, (ckpt / "optim.pt").string());
-    std::ifstream(ckpt / "step") >> step;
-    if (fs::exists(ckpt / "wall_s")) std::ifstream(ckpt / "wall_s") >> wall_before;
+    step = train::load_checkpoint(ckpt, net, opt, &wall_before);
     std::printf("resumed from %s at step %d (%.0f s of training before)\n", ckpt.string().c_str(), step, wall_before);
   } else if (!init_from_name.empty()) {
     std::printf("initialised from %s (%s)\n", start_file.string().c_str(), init_from_name.c_str());
@@ -348,10 +363,7 @@ int run(const Options& o) {
                 << "\n" << std::flush;
   };
   while (step < o.steps) {
-    // Cosine decay from lr to lr / 100, after 100 steps of linear warm-up.
-    const double progress = static_cast<double>(step) / o.steps;
-    double lr = o.lr * (0.01 + 0.99 * 0.5 * (1 + std::cos(M_PI * progress)));
-    if (step < 100) lr *= (step + 1) / 100.0;
+    const double lr = train::cosine_learning_rate(o.lr, step, o.steps);
     for (auto& g : opt.param_groups()) static_cast<torch::optim::AdamOptions&>(g.options()).lr(lr);
 
     if (step == freeze_step && frozen()) recalibrate();  // freeze the best statistics there are
@@ -405,7 +417,7 @@ int run(const Options& o) {
         val_cols = std::to_string(last_val.relmse) + "," + std::to_string(last_val.ssim) + "," +
                    std::to_string(last_val.noisy_relmse) + "," + std::to_string(last_val.mean_ratio);
       }
-      if (do_val || step % o.checkpoint_every == 0) save_checkpoint(ckpt, net, opt, step, wall_total());
+      if (do_val || step % o.checkpoint_every == 0) train::save_checkpoint(ckpt, net, opt, step, wall_total());
       std::printf("step %6d  loss %.5f  lr %.2e  %.3f s/step%s\n", step, loss_sum / loss_n, lr, sps,
                   do_val ? ("  val relMSE " + std::to_string(last_val.relmse) + " (noisy " +
                             std::to_string(last_val.noisy_relmse) + ") SSIM " + std::to_string(last_val.ssim) +
@@ -570,6 +582,17 @@ int main(int argc, char** argv) {
   app.add_option("--export-training-set", o.export_set,
                  "Write the training and validation scenes as loaded (feature planes, targets, patch weights) to "
                  "this safetensors file and stop, for tools/models/torch_train.py (a GPU trainer)");
+  app.add_option("--quantise", o.quantise,
+                 "Quantisation-aware fine-tuning of this model (a name or file) for --precision int8: its weights "
+                 "and a range per value trained through the int8 plan's rounding; writes --out and its calibration "
+                 "beside it (STEM.int8.json). --steps, --batch, --lr (the weights'), --loss, --teacher apply; the "
+                 "architecture is the model's")
+      ->excludes("--init-from")->excludes("--grow-from")->excludes("--widen-from");
+  app.add_option("--range-lr", o.range_lr, "With --quantise: the learning rate of the ranges (of their logarithms)")
+      ->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--range-init", o.range_init,
+                 "With --quantise: each range starts at this share of the largest |value| over 16 batches")
+      ->capture_default_str()->check(CLI::Range(0.01, 1.0));
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser: faster on the Zen CPUs measured, slower on an Intel one (MODELS.md, \"Training speed\")");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -223,4 +223,11 @@ torch::Tensor edge_ssim_loss(const torch::Tensor& prediction, const torch::Tenso
   return (loss * edges.slice(2, kRadius, h - kRadius).slice(3, kRadius, w - kRadius)).mean();
 }
 
+double cosine_learning_rate(double peak, int step, int steps) {
+  const double progress = static_cast<double>(step) / steps;
+  double lr = peak * (0.01 + 0.99 * 0.5 * (1 + std::cos(M_PI * progress)));
+  if (step < 100) lr *= (step + 1) / 100.0;
+  return lr;
+}
+
 }  // namespace residue::train

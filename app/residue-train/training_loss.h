@@ -32,6 +32,9 @@ std::optional<Loss> loss_from_name(const std::string& name);
 torch::Tensor training_loss(Loss loss, const torch::Tensor& prediction, const torch::Tensor& target,
                             double ssim_weight = 1.0);
 
+// The learning rate at `step` of `steps`: cosine decay from `peak` to peak / 100, after 100 steps of linear warm-up.
+double cosine_learning_rate(double peak, int step, int steps);
+
 // The relMSE metric (core/metrics) on the linear values of log(1 + c) predictions and targets: the mean of
 // (p - t)^2 / (t^2 + eps) over pixels and channels. --relmse-weight adds it to any loss.
 torch::Tensor relative_mse(const torch::Tensor& prediction, const torch::Tensor& target, double eps = 0.01);

@@ -113,6 +113,17 @@ int Graph::add(int a, int b) {
   return push(std::move(o));
 }
 
+void Graph::set_conv_parameters(int x, std::vector<float> weight, std::vector<float> bias, std::vector<float> slopes) {
+  check_value(x, "conv parameters");
+  GraphOp& o = ops_[static_cast<size_t>(x)];
+  if (o.kind != OpKind::Conv || weight.size() != o.weight.size() || bias.size() != o.bias.size() ||
+      slopes.size() != o.slopes.size())
+    throw std::invalid_argument("conv parameters of " + o.name + ": not a conv, or sizes that differ from its own");
+  o.weight = std::move(weight);
+  o.bias = std::move(bias);
+  o.slopes = std::move(slopes);
+}
+
 void Graph::set_output(int x) {
   check_value(x, "output");
   if (op(x).level != 0) throw std::invalid_argument("output: must be at full resolution");

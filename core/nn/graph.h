@@ -63,6 +63,9 @@ class Graph {
   int add(int a, int b);
   void set_output(int x);  // default: the last op added
   void set_range(int x, float range) { ops_[static_cast<size_t>(x)].range = range; }  // calibration.h
+  // New weights (OIHW), bias and PReLU slopes for conv x, of the sizes it has (fine-tuning: residue-train's
+  // quantisation-aware training); std::invalid_argument otherwise.
+  void set_conv_parameters(int x, std::vector<float> weight, std::vector<float> bias, std::vector<float> slopes);
 
   const std::vector<GraphOp>& ops() const { return ops_; }
   const GraphOp& op(int i) const { return ops_[static_cast<size_t>(i)]; }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <map>
 #include <random>
 
 namespace residue::nn {
@@ -200,6 +201,42 @@ Graph to_graph(const Network& n) {
   }
   conv("out", y, n.out, {}, 1, skip);
   return g;
+}
+
+void set_weights_from_graph(Network& n, const Graph& g) {
+  std::map<std::string, int> by_name;
+  for (int i = 0; i < g.size(); ++i)
+    if (g.op(i).kind == OpKind::Conv) by_name[g.op(i).name] = i;
+  auto take = [&](const std::string& name, Conv3x3& c, std::vector<float>* prelu) {
+    const auto it = by_name.find(name);
+    if (it == by_name.end()) throw std::invalid_argument("the graph has no conv " + name);
+    const GraphOp& op = g.op(it->second);
+    if (op.weight.size() != c.weight.size() || op.bias.size() != c.bias.size() ||
+        op.slopes.size() != (prelu ? prelu->size() : 0))
+      throw std::invalid_argument("conv " + name + ": the graph's sizes differ from the network's");
+    c.weight = op.weight;
+    c.bias = op.bias;
+    if (prelu) *prelu = op.slopes;
+  };
+  auto blocks = [&](const std::string& prefix, std::vector<ResBlock>& bs) {
+    for (size_t b = 0; b < bs.size(); ++b) {
+      take(prefix + std::to_string(b) + ".conv1", bs[b].conv1, &bs[b].prelu);
+      take(prefix + std::to_string(b) + ".conv2", bs[b].conv2, nullptr);
+    }
+  };
+  take("head", n.head, &n.head_prelu);
+  blocks("blocks.", n.blocks);
+  for (size_t l = 0; l < n.scales.size(); ++l) {
+    ScaleLevel& s = n.scales[l];
+    const std::string p = "levels." + std::to_string(l);
+    blocks(p + ".enc.", s.enc);
+    if (l + 1 == n.scales.size()) break;
+    take(p + ".down", s.down.conv, &s.down.prelu);
+    take(p + ".up", s.up.conv, &s.up.prelu);
+    blocks(p + ".dec.", s.dec);
+  }
+  take("tail", n.tail, nullptr);
+  take("out", n.out, nullptr);
 }
 
 namespace {

@@ -151,6 +151,9 @@ struct Network {
 // The network as a graph: head, blocks (conv1 -> PReLU -> conv2 + identity, in place), tail + head, out (+ the
 // input's colour planes through a 1x1 selection conv for the input-skip variant).
 Graph to_graph(const Network& network);
+// The inverse for weights: every conv's weights, bias and slopes taken from the op to_graph names after it in
+// `graph` (a fine-tuned copy of to_graph(network)); std::invalid_argument when one is missing or of another size.
+void set_weights_from_graph(Network& network, const Graph& graph);
 
 // A network with He-initialised weights, random PReLU slopes and biases: for tests and benchmarks.
 Network random_network(const Architecture& arch, uint32_t seed);
