@@ -65,8 +65,18 @@ TEST(ConvergedRegions, BlocksFadeAndRectangles) {
   EXPECT_LT(two.network_pixels, network_pixels({box}, 20, box) / 9);
   const ConvergedPlan one = plan_converged(corners, {0, 0, 512, 512}, 1e-4f, 400);
   EXPECT_EQ(one.regions.size(), 1u);
+
+  // Noise all round a converged middle (a 48 px border): no single cut of the bounding box lowers the cost,
+  // its four sides do. Each covers 80 px (the border's 3 blocks, the 7 x 7 box's 3 px in the next, the fade's);
+  // the middle kept is 354 px across (x = 79..432: the fade reaches 0 16 px beyond the blocks needing the network).
+  const AovStack ring = stack_where(512, 512, 0.04f, [](int64_t x, int64_t y) { return x < 48 || y < 48 || x >= 464 || y >= 464; });
+  const ConvergedPlan sides = plan_converged(ring, {0, 0, 512, 512}, 1e-4f, 20);
+  EXPECT_EQ(sides.regions.size(), 4u);
+  EXPECT_EQ(sides.kept_pixels, 354 * 354);
+  EXPECT_EQ(sides.network_pixels, 2 * 512 * (80 + 20) + 2 * (80 + 20) * (352 + 2 * 20)) << "halos inside the image only";
+  EXPECT_LT(sides.network_pixels, network_pixels({box}, 20, box) * 7 / 10);
   // Every pixel with a weight lies in a rectangle.
-  for (const ConvergedPlan* p : {&plan, &two, &one})
+  for (const ConvergedPlan* p : {&plan, &two, &one, &sides})
     for (int64_t y = 0; y < p->weight.height(); ++y)
       for (int64_t x = 0; x < p->weight.width(); ++x) {
         if (p->weight.at(x, y, 0) == 0.0f) continue;
@@ -86,29 +96,47 @@ TEST(ConvergedRegions, ANonFinitePixelNeedsTheNetwork) {
 
 TEST(ConvergedRegions, DenoiseKeepsTheConvergedAndDenoisesTheRest) {
   const nn::Model model = nn::model_from_network(nn::random_network({2, 8, FeatureSet::ColorOnly}, 4));
-  const AovStack s = stack_where(160, 96, 0.04f, [](int64_t x, int64_t y) { return x >= 96 || y >= 80; });
+  // An L of noise (one rectangle) and a frame of noise round a converged middle (its sides, several).
+  for (const bool frame : {false, true}) {
+    SCOPED_TRACE(frame ? "frame" : "L");
+    const int64_t W = frame ? 256 : 160, H = frame ? 192 : 96;
+    const AovStack s = stack_where(W, H, 0.04f, [&](int64_t x, int64_t y) {
+      return frame ? x < 16 || y < 16 || x >= W - 16 || y >= H - 16 : x >= 96 || y >= 80;
+    });
+    DenoiseOptions o;
+    o.backend = "eigen";
+    o.energy_correction = false;  // a local mean over the region would differ at its border; the network does not
+    o.tile = 48;
+    const Image plain = denoise(s, model, o);
+    o.skip_converged = 1e-4f;
+    DenoiseStats st;
+    const Image skipped = denoise(s, model, o, {}, &st);
+    const ConvergedPlan plan = plan_converged(s, {0, 0, W, H}, 1e-4f, model.graph.halo());
+    EXPECT_EQ(st.converged_pixels, plan.kept_pixels);
+    EXPECT_GT(st.converged_pixels, 0);
+    EXPECT_EQ(st.regions, static_cast<int64_t>(plan.regions.size()));
+    for (int64_t y = 0; y < H; ++y)
+      for (int64_t x = 0; x < W; ++x) {
+        const float w = plan.weight.at(x, y, 0);
+        for (int c = 0; c < 3; ++c) {
+          const float noisy = s.color.image.at(x, y, c), den = plain.at(x, y, c), got = skipped.at(x, y, c);
+          if (w == 0.0f) {
+            ASSERT_EQ(got, noisy) << x << "," << y << ": kept as rendered";
+          } else if (w == 1.0f) {
+            ASSERT_NEAR(got, den, 1e-5f) << x << "," << y << ": the ordinary denoise";
+          } else {
+            ASSERT_NEAR(got, noisy + w * (den - noisy), 1e-5f) << x << "," << y << ": the fade";
+          }
+        }
+      }
+    if (frame) {
+      EXPECT_GT(st.regions, 1);
+    }
+  }
   DenoiseOptions o;
   o.backend = "eigen";
-  o.energy_correction = false;  // a local mean over the region would differ at its border; the network does not
   o.tile = 48;
-  const Image plain = denoise(s, model, o);
-  o.skip_converged = 1e-4f;
   DenoiseStats st;
-  const Image skipped = denoise(s, model, o, {}, &st);
-  const ConvergedPlan plan = plan_converged(s, {0, 0, 160, 96}, 1e-4f, model.graph.halo());
-  EXPECT_EQ(st.converged_pixels, plan.kept_pixels);
-  EXPECT_GT(st.converged_pixels, 0);
-  EXPECT_EQ(st.regions, static_cast<int64_t>(plan.regions.size()));
-  for (int64_t y = 0; y < 96; ++y)
-    for (int64_t x = 0; x < 160; ++x) {
-      const float w = plan.weight.at(x, y, 0);
-      for (int c = 0; c < 3; ++c) {
-        const float noisy = s.color.image.at(x, y, c), den = plain.at(x, y, c), got = skipped.at(x, y, c);
-        if (w == 0.0f) ASSERT_EQ(got, noisy) << x << "," << y << ": kept as rendered";
-        else if (w == 1.0f) ASSERT_NEAR(got, den, 1e-5f) << x << "," << y << ": the ordinary denoise";
-        else ASSERT_NEAR(got, noisy + w * (den - noisy), 1e-5f) << x << "," << y << ": the fade";
-      }
-    }
   // Nothing converged (every pixel noisy): the ordinary denoise, bit for bit, energy correction on.
   const AovStack all = stack_where(160, 96, 0.04f, [](int64_t, int64_t) { return true; });
   o.energy_correction = true;

@@ -69,11 +69,11 @@ std::vector<uint8_t> blocks_needing_network(const AovStack& stack, const Rect& r
   return need;
 }
 
-// Rectangles of blocks covering every marked block, cut while a cut lowers what the network computes.
+// Rectangles (in blocks of the region's grid) covering every marked block, for the least the network computes.
 class RegionCutter {
  public:
   RegionCutter(const std::vector<uint8_t>& covered, int64_t bw, int64_t bh, const Rect& region, int64_t halo, const Rect& bounds)
-      : bw_(bw), region_(region), halo_(halo), bounds_(bounds) {
+      : bw_(bw), bh_(bh), region_(region), halo_(halo), bounds_(bounds) {
     std::vector<int64_t> ones(covered.begin(), covered.end());
     sum_ = summed(ones, bw, bh);
   }
@@ -93,7 +93,7 @@ class RegionCutter {
       if (const int64_t k = cost(a) + cost(b); k < best) best = k, best_a = a, best_b = b;
     }
     if (best >= whole) {
-      out.push_back(pixels(blocks));
+      out.push_back(blocks);
       return;
     }
     cut(best_a, out);
@@ -107,7 +107,6 @@ class RegionCutter {
     return {x0, y0, x1 - x0, y1 - y0};
   }
 
- private:
   int64_t count(const Rect& b) const { return box_sum(sum_, bw_, b.x, b.y, b.x + b.width, b.y + b.height); }
 
   // The smallest rectangle holding the covered blocks of `b` (empty when there are none).
@@ -122,7 +121,92 @@ class RegionCutter {
 
   int64_t cost(const Rect& b) const { return b.empty() ? 0 : network_pixels({pixels(b)}, halo_, bounds_); }
 
-  int64_t bw_;
+  int64_t cost(const std::vector<Rect>& blocks) const {
+    int64_t n = 0;
+    for (const Rect& b : blocks) n += cost(b);
+    return n;
+  }
+
+  // Bottom-up: the runs of covered blocks along each row (of cells of f x f blocks, f doubled until there are at
+  // most kMaxRuns), stacked where a run continues unchanged on the next row, then merged two at a time into their
+  // bounding box while a merge lowers the cost, the best merge first. This finds what no single cut of the
+  // top-down search opens, such as a ring of noise round a converged hole (its four sides). Rectangles may
+  // overlap; each is its covered blocks' bounding box in the end.
+  std::vector<Rect> merged() const {
+    constexpr size_t kMaxRuns = 256;
+    std::vector<Rect> r;
+    for (int64_t f = 1;; f *= 2) {
+      r = runs(f);
+      if (r.size() <= kMaxRuns || f >= std::max(bw_, bh_)) break;
+    }
+    if (r.size() > kMaxRuns) return {};
+    std::vector<int64_t> c(r.size());
+    for (size_t i = 0; i < r.size(); ++i) c[i] = cost(r[i]);
+    for (;;) {
+      int64_t best = 0;
+      size_t bi = 0, bj = 0;
+      for (size_t i = 0; i < r.size(); ++i)
+        for (size_t j = i + 1; j < r.size(); ++j)
+          if (const int64_t saving = c[i] + c[j] - cost(bound(r[i], r[j])); saving > best) best = saving, bi = i, bj = j;
+      if (best == 0) break;
+      const Rect m = bound(r[bi], r[bj]);
+      std::vector<Rect> next{m};
+      for (size_t k = 0; k < r.size(); ++k)
+        if (k != bi && k != bj && !m.contains(r[k])) next.push_back(r[k]);
+      r = std::move(next);
+      c.resize(r.size());
+      for (size_t i = 0; i < r.size(); ++i) c[i] = cost(r[i]);
+    }
+    std::vector<Rect> out;
+    for (const Rect& b : r)
+      if (const Rect t = bbox(b); !t.empty()) out.push_back(t);
+    return out;
+  }
+
+ private:
+  static Rect bound(const Rect& a, const Rect& b) {
+    const int64_t x0 = std::min(a.x, b.x), y0 = std::min(a.y, b.y);
+    return {x0, y0, std::max(a.x + a.width, b.x + b.width) - x0, std::max(a.y + a.height, b.y + b.height) - y0};
+  }
+
+  // The row runs of covered cells of f x f blocks, in blocks, stacked down while unchanged.
+  std::vector<Rect> runs(int64_t f) const {
+    std::vector<Rect> done, open;  // open: the runs that reach the previous cell row
+    for (int64_t y = 0; y < bh_; y += f) {
+      const int64_t h = std::min(f, bh_ - y);
+      std::vector<Rect> row;
+      for (int64_t x = 0; x < bw_;) {
+        const auto covered = [&](int64_t cx) { return count({cx, y, std::min(f, bw_ - cx), h}) > 0; };
+        if (!covered(x)) {
+          x += f;
+          continue;
+        }
+        int64_t end = x;
+        while (end < bw_ && covered(end)) end += f;
+        end = std::min(end, bw_);
+        row.push_back({x, y, end - x, h});
+        x = end;
+      }
+      std::vector<Rect> still;
+      for (Rect& o : open) {
+        bool continued = false;
+        for (Rect& n : row)
+          if (n.width > 0 && n.x == o.x && n.width == o.width) {
+            o.height += n.height;
+            n.width = 0;
+            continued = true;
+          }
+        (continued ? still : done).push_back(o);
+      }
+      for (const Rect& n : row)
+        if (n.width > 0) still.push_back(n);
+      open = std::move(still);
+    }
+    done.insert(done.end(), open.begin(), open.end());
+    return done;
+  }
+
+  int64_t bw_, bh_;
   Rect region_;
   int64_t halo_;
   Rect bounds_;
@@ -187,7 +271,12 @@ ConvergedPlan plan_converged(const AovStack& stack, const Rect& region, float th
       else ++plan.kept_pixels;
     }
   const Rect bounds{0, 0, stack.width(), stack.height()};
-  RegionCutter(covered, bw, bh, region, halo, bounds).cut({0, 0, bw, bh}, plan.regions);
+  // Two searches, the cheaper plan kept: cutting the bounding box down, and merging the rows' runs up.
+  const RegionCutter cutter(covered, bw, bh, region, halo, bounds);
+  std::vector<Rect> cut, merged = cutter.merged();
+  cutter.cut({0, 0, bw, bh}, cut);
+  const std::vector<Rect>& best = !merged.empty() && cutter.cost(merged) < cutter.cost(cut) ? merged : cut;
+  for (const Rect& b : best) plan.regions.push_back(cutter.pixels(b));
   plan.network_pixels = network_pixels(plan.regions, halo, bounds);
   return plan;
 }

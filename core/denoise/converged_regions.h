@@ -11,8 +11,10 @@
 //
 // The rectangles are chosen for what they cost the network: each one computes its area grown by the network's
 // halo on every side (as a tile does, tiling.h), so two rectangles beat their bounding box only when the gap
-// between them is worth more than the halos they add. They are found by cutting the covered blocks' bounding
-// box in two, at the cut that lowers that cost most, again in each part, until no cut lowers it.
+// between them is worth more than the halos they add. Two searches run and the cheaper plan is kept: cutting the
+// covered blocks' bounding box in two at the cut that lowers that cost most, again in each part, until no cut
+// lowers it; and merging the rows' runs of covered blocks two at a time while a merge lowers it (which finds
+// what no single cut opens, such as noise all round a converged middle). Rectangles may overlap.
 #pragma once
 
 #include <cstdint>

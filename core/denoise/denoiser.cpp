@@ -59,12 +59,16 @@ Image denoise_where_needed(const AovStack& stack, const Method& method, const De
     for (int64_t x = 0; x < W; ++x)
       for (int c = 0; c < 3; ++c) out.at(x, y, c) = stack.color.image.at(x, y, c);
   bool first = true;
+  std::vector<uint8_t> blended(static_cast<size_t>(region.area()), 0);  // rectangles may overlap: blend once
   for (const Rect& r : plan.regions) {
     each.roi = r;
     DenoiseStats s;
     const Image den = method.denoise(stack, each, on_tile, s, work);
     for (int64_t y = r.y; y < r.y + r.height; ++y)
       for (int64_t x = r.x; x < r.x + r.width; ++x) {
+        uint8_t& done = blended[static_cast<size_t>((y - region.y) * region.width + (x - region.x))];
+        if (done) continue;
+        done = 1;
         const float w = plan.weight.at(x - region.x, y - region.y, 0);
         for (int c = 0; c < 3; ++c) out.at(x, y, c) += w * (den.at(x, y, c) - out.at(x, y, c));
       }
