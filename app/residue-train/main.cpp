@@ -83,6 +83,7 @@ struct Options {
   std::string quantise;          // quantisation-aware fine-tuning of this model for int8 (quantise.h)
   double range_lr = 1e-3;        // --quantise: the log ranges' learning rate
   double range_init = 0.25;      // --quantise: the ranges' start, as a share of the largest values
+  std::string range_start;       // --quantise: or the ranges of this calibration file
 };
 
 struct Validation {
@@ -266,6 +267,7 @@ int run(const Options& o) {
     q.lr = o.lr;
     q.range_lr = o.range_lr;
     q.range_init = o.range_init;
+    q.range_start = o.range_start;
     q.loss = o.loss;
     q.ssim_weight = o.ssim_weight;
     q.relmse_weight = o.relmse_weight;
@@ -593,6 +595,9 @@ int main(int argc, char** argv) {
   app.add_option("--range-init", o.range_init,
                  "With --quantise: each range starts at this share of the largest |value| over 16 batches")
       ->capture_default_str()->check(CLI::Range(0.01, 1.0));
+  app.add_option("--range-start", o.range_start,
+                 "With --quantise: the ranges start as this calibration file gives them (residue-cli calibrate's, "
+                 "measured on whole images) instead of --range-init's share of the patches' largest values");
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser: faster on the Zen CPUs measured, slower on an Intel one (MODELS.md, \"Training speed\")");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -1,6 +1,7 @@
 #include "quantise.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 
@@ -33,6 +34,25 @@ void write_quantised(const nn::Model& model, const QuantisedGraph& q, const fs::
   c.statistic = "learnt by quantisation-aware training";
   c.ranges = q->ranges();
   nn::write_calibration(nn::calibration_path(file), graph, c);
+}
+
+// The ranges of a calibration file (residue-cli calibrate's, measured on whole images) for `graph`'s ops.
+std::vector<float> calibration_ranges(const fs::path& file, const nn::Graph& graph) {
+  std::ifstream in(file);
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  const std::string where = "--range-start '" + file.string() + "'";
+  if (j.is_discarded() || !j.is_object() || !j.contains("ranges") || !j["ranges"].is_array())
+    throw Error(ErrorKind::Input, where + ": not a calibration file (a JSON object with a \"ranges\" array)");
+  if (j["ranges"].size() != static_cast<size_t>(graph.size()) || j.value("graph", "") != graph.summary())
+    throw Error(ErrorKind::Input, where + " is for another network (" + j.value("graph", std::string("?")) + ") than " +
+                                      graph.summary());
+  std::vector<float> r;
+  for (const auto& v : j["ranges"]) {
+    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < 0)
+      throw Error(ErrorKind::Input, where + ": range " + std::to_string(r.size()) + " is not a finite value >= 0");
+    r.push_back(v.get<float>());
+  }
+  return r;
 }
 
 struct Scores {
@@ -83,6 +103,10 @@ int quantise(const nn::Model& model, const TrainingSet& set, const std::vector<T
   }
   std::vector<float> start(largest.size());
   for (size_t i = 0; i < largest.size(); ++i) start[i] = largest[i] > 0 ? largest[i] * static_cast<float>(o.range_init) : 1.0f;
+  if (!o.range_start.empty()) {
+    const std::vector<float> given = calibration_ranges(o.range_start, model.graph);
+    for (size_t i = 0; i < start.size(); ++i) start[i] = given[i] > 0 ? given[i] : start[i];
+  }
   QuantisedGraph q(model.graph, start);
 
   torch::optim::Adam opt({torch::optim::OptimizerParamGroup(q->weight_parameters(), std::make_unique<torch::optim::AdamOptions>(o.lr)),
@@ -158,7 +182,7 @@ int quantise(const nn::Model& model, const TrainingSet& set, const std::vector<T
   if (!val_scenes.empty() && last.per_scene.empty()) validate();
   metadata["training"] = nlohmann::json{
       {"quantisation_aware", true}, {"from", model.name}, {"data", o.data}, {"train_scenes", set.size()},
-      {"steps", o.steps}, {"batch", o.batch}, {"lr", o.lr}, {"range_lr", o.range_lr}, {"range_init", o.range_init},
+      {"steps", o.steps}, {"batch", o.batch}, {"lr", o.lr}, {"range_lr", o.range_lr}, {"range_init", o.range_init}, {"range_start", o.range_start.string()},
       {"loss", std::string(loss_kind(o.loss).description) + (o.relmse_weight > 0 ? " + w * relMSE (eps 0.01)" : "")},
       {"relmse_weight", o.relmse_weight}, {"seed", o.seed}, {"threads", o.threads},
       {"schedule", "cosine to lr/100, 100 warm-up"}, {"optimizer", "Adam(0.9, 0.999), weights' grad clip 1.0"}}
