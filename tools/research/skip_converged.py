@@ -12,6 +12,7 @@ and every output is scored by `residue-cli eval` (relMSE, SSIM, HDR-FLIP). Write
         --model multiscale --thresholds 1e-5,3e-5,1e-4,3e-4,1e-3 --out docs/research/skip_converged
 """
 import argparse
+import datetime
 import json
 import os
 import re
@@ -58,6 +59,14 @@ def denoise(cli, scene, var, out, model, precision, threshold, repeat):
     return best, kept
 
 
+def cpu_name():
+    with open("/proc/cpuinfo") as f:
+        for line in f:
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    return "unknown CPU"
+
+
 def score(cli, image, reference):
     text = subprocess.run([cli, "eval", image, "-r", reference, "--json"], check=True, capture_output=True, text=True).stdout
     row = json.loads(text)["rows"][0]
@@ -96,7 +105,8 @@ def main():
 
     with open(args.out + ".json", "w") as f:
         json.dump({"model": args.model, "precision": args.precision, "repeat": args.repeat, "scenes": results}, f, indent=1)
-    lines = [f"`{args.model}` {args.precision}; time is `denoise()`'s, the fastest of {args.repeat} runs; "
+    lines = [f"# `--skip-converged`: time against error ({datetime.date.today()}, {cpu_name()}, {os.cpu_count()} cores)", "",
+             f"`{args.model}` {args.precision}; time is `denoise()`'s, the fastest of {args.repeat} runs; "
              "speed-up and error against the same scene without the option.", "",
              "| scene | threshold | kept as rendered | rectangles | time | speed-up | relMSE | relMSE change | SSIM | HDR-FLIP |",
              "|---|---|---|---|---|---|---|---|---|---|"]
