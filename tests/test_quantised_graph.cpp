@@ -73,6 +73,23 @@ TEST(QuantisedGraph, FloatIsCoresFp32AndRoundedIsCoresInt8) {
   EXPECT_GT(int8_error, 1e-3 * scale);
   EXPECT_LT(rms_difference(rounded, int8), 0.1 * int8_error)
       << "int8 off fp32 by " << int8_error << ", the rounded graph off int8 by " << rms_difference(rounded, int8);
+
+  // Rounding chosen per op (the sensitivity study): every op is the int8 plan, none the float network, and each
+  // value alone moves the output by less than all of them together.
+  const std::vector<bool> every(static_cast<size_t>(q->size()), true), none(every.size(), false);
+  EXPECT_TRUE(torch::equal(q->forward(to_nchw(x), every), q->forward(to_nchw(x), true)));
+  EXPECT_TRUE(torch::equal(q->forward(to_nchw(x), none), q->forward(to_nchw(x), false)));
+  int quantised = 0;
+  for (int i = 0; i < q->size(); ++i) {
+    if (!q->rounds(i)) continue;
+    ++quantised;
+    std::vector<bool> alone = none;
+    alone[static_cast<size_t>(i)] = true;
+    const double moved = rms_difference(to_image(q->forward(to_nchw(x), alone)), real);
+    EXPECT_GT(moved, 0.0) << graph.op(i).name;
+    EXPECT_LT(moved, rms_difference(rounded, real)) << graph.op(i).name;
+  }
+  EXPECT_GT(quantised, 5);
 }
 
 TEST(QuantisedGraph, RangesAndWeightsLearnAndGoBackIntoTheNetwork) {

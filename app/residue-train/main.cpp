@@ -84,6 +84,7 @@ struct Options {
   double range_lr = 1e-3;        // --quantise: the log ranges' learning rate
   double range_init = 0.25;      // --quantise: the ranges' start, as a share of the largest values
   std::string range_start;       // --quantise: or the ranges of this calibration file
+  std::string quantise_sensitivity;  // --quantise: instead of training, what each value's 8 bits cost (JSON)
 };
 
 struct Validation {
@@ -268,6 +269,7 @@ int run(const Options& o) {
     q.range_lr = o.range_lr;
     q.range_init = o.range_init;
     q.range_start = o.range_start;
+    q.sensitivity = o.quantise_sensitivity;
     q.loss = o.loss;
     q.ssim_weight = o.ssim_weight;
     q.relmse_weight = o.relmse_weight;
@@ -598,6 +600,9 @@ int main(int argc, char** argv) {
   app.add_option("--range-start", o.range_start,
                  "With --quantise: the ranges start as this calibration file gives them (residue-cli calibrate's, "
                  "measured on whole images) instead of --range-init's share of the patches' largest values");
+  app.add_option("--quantise-sensitivity", o.quantise_sensitivity,
+                 "With --quantise: train nothing; write to this JSON file what rounding each value (alone, and all but "
+                 "it) costs the network's output at the starting ranges");
   app.add_flag("--bf16", o.bf16, "Train with CPU autocast to bfloat16 (convolutions), float weights and optimiser: faster on the Zen CPUs measured, slower on an Intel one (MODELS.md, \"Training speed\")");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -77,17 +77,61 @@ Scores score(const nn::Model& model, const std::vector<TrainingSource>& scenes, 
   return s;
 }
 
+// What each value's 8 bits cost, at the starting ranges: the network's output (log colour) with only that value
+// (and its conv's weights) rounded, and with every value rounded but it, against the float network's; RMS over
+// 8 batches of the trainer's patches. The second says what keeping the value in f32 would save.
+int sensitivity(const nn::Graph& graph, QuantisedGraph& q, const TrainingSet& set, const QuantiseOptions& o, std::mt19937& rng) {
+  torch::NoGradGuard no_grad;
+  std::vector<torch::Tensor> xs, floats;
+  for (int b = 0; b < 8; ++b) {
+    torch::Tensor x, y;
+    set.sample(rng, o.batch, x, y);
+    xs.push_back(x);
+    floats.push_back(q->forward(x, false));
+  }
+  const auto rms = [&](const std::vector<bool>& rounded) {
+    double sum = 0, n = 0;
+    for (size_t b = 0; b < xs.size(); ++b) {
+      const torch::Tensor d = q->forward(xs[b], rounded) - floats[b];
+      sum += d.pow(2).sum().item<double>();
+      n += static_cast<double>(d.numel());
+    }
+    return std::sqrt(sum / n);
+  };
+  const std::vector<bool> all(static_cast<size_t>(q->size()), true);
+  const double every = rms(all);
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < q->size(); ++i) {
+    if (!q->rounds(i)) continue;
+    std::vector<bool> alone(all.size(), false), but(all);
+    alone[static_cast<size_t>(i)] = true;
+    but[static_cast<size_t>(i)] = false;
+    const nn::GraphOp& op = graph.op(i);
+    rows.push_back({{"op", i}, {"name", op.name}, {"channels", op.channels}, {"level", op.level},
+                    {"range", q->ranges()[static_cast<size_t>(i)]}, {"alone", rms(alone)}, {"all_but", rms(but)}});
+    std::printf("%3d %-24s level %d  %3d ch  alone %.5f  every value but it %.5f (every value %.5f)\n", i, op.name.c_str(),
+                op.level, op.channels, rows.back()["alone"].get<double>(), rows.back()["all_but"].get<double>(), every);
+    std::fflush(stdout);
+  }
+  const nlohmann::json j{{"what", "RMS of the network's output (log colour) against the float network's, 8 batches of " +
+                                      std::to_string(o.batch) + " patches: each value alone rounded, and every value but it"},
+                         {"ranges_from", o.range_start.empty() ? "--range-init " + std::to_string(o.range_init) : o.range_start.string()},
+                         {"every_value", every}, {"values", rows}};
+  std::ofstream(o.sensitivity) << j.dump(1) << "\n";
+  std::printf("wrote %s\n", o.sensitivity.string().c_str());
+  return 0;
+}
+
 }  // namespace
 
 int quantise(const nn::Model& model, const TrainingSet& set, const std::vector<TrainingSource>& val_scenes,
              const QuantiseOptions& o) {
   if (model.method != nn::Method::Residue)
     throw Error(ErrorKind::Usage, "--quantise: " + model.name + " is not a Residue model");
-  if (fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out.string() + "' exists; pass --force");
+  if (o.sensitivity.empty() && fs::exists(o.out) && !o.force) throw Error(ErrorKind::Output, "output '" + o.out.string() + "' exists; pass --force");
   torch::manual_seed(o.seed);
   std::mt19937 rng(o.seed);
   const fs::path ckpt = o.checkpoint.empty() ? fs::path(o.out).replace_extension(".ckpt") : o.checkpoint;
-  fs::create_directories(ckpt);
   const bool resuming = fs::exists(ckpt / "step");
 
   // Starting ranges: a share of the largest |value| each op takes over a few batches (the float network's).
@@ -108,6 +152,8 @@ int quantise(const nn::Model& model, const TrainingSet& set, const std::vector<T
     for (size_t i = 0; i < start.size(); ++i) start[i] = given[i] > 0 ? given[i] : start[i];
   }
   QuantisedGraph q(model.graph, start);
+  if (!o.sensitivity.empty()) return sensitivity(model.graph, q, set, o, rng);
+  fs::create_directories(ckpt);
 
   torch::optim::Adam opt({torch::optim::OptimizerParamGroup(q->weight_parameters(), std::make_unique<torch::optim::AdamOptions>(o.lr)),
                           torch::optim::OptimizerParamGroup(q->range_parameters(), std::make_unique<torch::optim::AdamOptions>(o.range_lr))},

@@ -27,13 +27,15 @@ struct QuantiseOptions {
   uint32_t seed = 1;
   int threads = 2;
   std::filesystem::path out, checkpoint, log;
+  std::filesystem::path sensitivity;  // instead of training: what each value's 8 bits cost, as JSON (quantise.cpp)
   std::string name;   // the new model's name (default: OUT's stem)
   std::string data;   // what it was trained on, for the metadata and the calibration
   bool force = false;
 };
 
 // Fine-tunes `model` (a Residue model) on `set`, validating through core's int8 path on `val_scenes` against the
-// model's own fp32 result; resumes from the checkpoint folder when it holds a step. Returns the exit status.
+// model's own fp32 result; resumes from the checkpoint folder when it holds a step. With `sensitivity` set it
+// trains nothing and writes there what rounding each value costs the network's output. Returns the exit status.
 int quantise(const nn::Model& model, const TrainingSet& set, const std::vector<TrainingSource>& val_scenes,
              const QuantiseOptions& o);
 

@@ -92,11 +92,23 @@ torch::Tensor QuantisedGraphImpl::round_value(const Op& op, const torch::Tensor&
 }
 
 torch::Tensor QuantisedGraphImpl::forward(const torch::Tensor& x, bool quantised, std::vector<float>* largest) {
+  const std::vector<bool> all(ops_.size(), true);
+  return run(x, quantised ? &all : nullptr, largest);
+}
+
+torch::Tensor QuantisedGraphImpl::forward(const torch::Tensor& x, const std::vector<bool>& rounded) {
+  if (rounded.size() != ops_.size())
+    throw Error(ErrorKind::Usage, "QuantisedGraph::forward: " + std::to_string(rounded.size()) + " flags for " +
+                                      std::to_string(ops_.size()) + " ops");
+  return run(x, &rounded, nullptr);
+}
+
+torch::Tensor QuantisedGraphImpl::run(const torch::Tensor& x, const std::vector<bool>* rounded, std::vector<float>* largest) {
   std::vector<torch::Tensor> values(ops_.size());
   torch::Tensor input_rounded;
   for (size_t i = 0; i < ops_.size(); ++i) {
     const Op& op = ops_[i];
-    const bool q = quantised && op.quantised;
+    const bool q = rounded && (*rounded)[i] && op.quantised;
     auto in = [&](int v) -> const torch::Tensor& { return values[static_cast<size_t>(v)]; };
     switch (op.kind) {
       case OpKind::Input:
@@ -104,17 +116,17 @@ torch::Tensor QuantisedGraphImpl::forward(const torch::Tensor& x, bool quantised
         if (q) input_rounded = round_value(op, x);
         break;
       case OpKind::Conv: {
-        const bool real = !quantised || op.float_conv;
+        const bool quantised_weights = rounded && (*rounded)[i] && !op.float_conv;
         torch::Tensor acc;
         int64_t first = 0;
         for (size_t k = 0; k < op.inputs.size(); ++k) {
           const int v = op.inputs[k];
-          const torch::Tensor& src = ops_[static_cast<size_t>(v)].kind == OpKind::Input && !real && input_rounded.defined()
+          const torch::Tensor& src = ops_[static_cast<size_t>(v)].kind == OpKind::Input && !op.float_conv && input_rounded.defined()
                                          ? input_rounded
                                          : in(v);
           torch::Tensor w = op.weight.narrow(1, first, op.part_channels[k]);
           first += op.part_channels[k];
-          if (!real) w = fake_quantise_weight(w);
+          if (quantised_weights) w = fake_quantise_weight(w);
           const torch::Tensor part =
               F::conv2d(src, w, F::Conv2dFuncOptions().bias(k == 0 ? op.bias : torch::Tensor())
                                     .padding(op.dilation * (op.kernel / 2)).dilation(op.dilation));

@@ -28,6 +28,15 @@ struct QuantisedGraphImpl : torch::nn::Module {
   // x: N x C x H x W feature planes -> the graph's output; `quantised` false: the float network (the same as
   // core's fp32 result). `largest`: raised to each op's largest |value| (one per op).
   torch::Tensor forward(const torch::Tensor& x, bool quantised = true, std::vector<float>* largest = nullptr);
+  // Only the ops `rounded` marks (one flag per op) round their value and, for a conv, its weights: the rest runs
+  // as the float network does (a study of what each value's 8 bits cost).
+  torch::Tensor forward(const torch::Tensor& x, const std::vector<bool>& rounded);
+  // Whether op i rounds a value of its own (the input, a quantised conv; a pool or upsample moves its source's).
+  bool rounds(int i) const {
+    const Op& op = ops_[static_cast<size_t>(i)];
+    return op.quantised && (op.kind == nn::OpKind::Input || op.kind == nn::OpKind::Conv);
+  }
+  int size() const { return static_cast<int>(ops_.size()); }
 
   // The weights, biases and slopes as trained, written into `graph`'s ops, and each op's range as the
   // calibration file keeps it (a pool's or an upsample's: its source's; 0 for the values kept in f32).
@@ -52,6 +61,7 @@ struct QuantisedGraphImpl : torch::nn::Module {
     torch::Tensor weight, bias, slopes, log_range;  // conv: OIHW, [O], [O]; quantised: 0-d log of the range
   };
   torch::Tensor round_value(const Op& op, const torch::Tensor& v) const;
+  torch::Tensor run(const torch::Tensor& x, const std::vector<bool>* rounded, std::vector<float>* largest);
   std::vector<Op> ops_;
   int output_ = 0;
 };
