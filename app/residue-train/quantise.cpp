@@ -36,25 +36,6 @@ void write_quantised(const nn::Model& model, const QuantisedGraph& q, const fs::
   nn::write_calibration(nn::calibration_path(file), graph, c);
 }
 
-// The ranges of a calibration file (residue-cli calibrate's, measured on whole images) for `graph`'s ops.
-std::vector<float> calibration_ranges(const fs::path& file, const nn::Graph& graph) {
-  std::ifstream in(file);
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
-  const std::string where = "--range-start '" + file.string() + "'";
-  if (j.is_discarded() || !j.is_object() || !j.contains("ranges") || !j["ranges"].is_array())
-    throw Error(ErrorKind::Input, where + ": not a calibration file (a JSON object with a \"ranges\" array)");
-  if (j["ranges"].size() != static_cast<size_t>(graph.size()) || j.value("graph", "") != graph.summary())
-    throw Error(ErrorKind::Input, where + " is for another network (" + j.value("graph", std::string("?")) + ") than " +
-                                      graph.summary());
-  std::vector<float> r;
-  for (const auto& v : j["ranges"]) {
-    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < 0)
-      throw Error(ErrorKind::Input, where + ": range " + std::to_string(r.size()) + " is not a finite value >= 0");
-    r.push_back(v.get<float>());
-  }
-  return r;
-}
-
 struct Scores {
   double relmse = 0, ssim = 0;
   nlohmann::json per_scene = nlohmann::json::array();
@@ -148,7 +129,7 @@ int quantise(const nn::Model& model, const TrainingSet& set, const std::vector<T
   std::vector<float> start(largest.size());
   for (size_t i = 0; i < largest.size(); ++i) start[i] = largest[i] > 0 ? largest[i] * static_cast<float>(o.range_init) : 1.0f;
   if (!o.range_start.empty()) {
-    const std::vector<float> given = calibration_ranges(o.range_start, model.graph);
+    const std::vector<float> given = nn::read_calibration_file(o.range_start, model.graph).ranges;
     for (size_t i = 0; i < start.size(); ++i) start[i] = given[i] > 0 ? given[i] : start[i];
   }
   QuantisedGraph q(model.graph, start);

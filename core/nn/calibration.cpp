@@ -23,7 +23,13 @@ std::optional<Calibration> read_calibration(const std::filesystem::path& model_f
   const std::filesystem::path file = calibration_path(model_file);
   std::error_code ec;
   if (!std::filesystem::is_regular_file(file, ec)) return std::nullopt;
+  return read_calibration_file(file, graph);
+}
+
+Calibration read_calibration_file(const std::filesystem::path& file, const Graph& graph) {
   const std::string where = "int8 calibration '" + file.string() + "'";
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) throw Error(ErrorKind::Input, where + ": no such file");
   std::ifstream in(file);
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
   if (j.is_discarded() || !j.is_object()) throw Error(ErrorKind::Input, where + ": not a JSON object");
@@ -33,8 +39,8 @@ std::optional<Calibration> read_calibration(const std::filesystem::path& model_f
     throw Error(ErrorKind::Input, where + ": no \"ranges\" array");
   if (j["ranges"].size() != static_cast<size_t>(graph.size()) || j.value("graph", "") != graph.summary())
     throw Error(ErrorKind::Input, where + " is for another network (" + j.value("graph", std::string("?")) + ", " +
-                                      std::to_string(j["ranges"].size()) + " ranges) than " + model_file.string() +
-                                      " (" + graph.summary() + "): calibrate it again (residue-cli calibrate)");
+                                      std::to_string(j["ranges"].size()) + " ranges) than the model (" + graph.summary() +
+                                      "): calibrate it again (residue-cli calibrate)");
   Calibration c;
   c.set = j.value("set", "");
   c.statistic = j.value("statistic", c.statistic);

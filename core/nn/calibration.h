@@ -26,6 +26,8 @@ std::filesystem::path calibration_path(const std::filesystem::path& model_file);
 // none. Error(Input) naming the file when it does not parse, is for another graph, or holds a range that is not a
 // finite value >= 0.
 std::optional<Calibration> read_calibration(const std::filesystem::path& model_file, const Graph& graph);
+// The calibration file `file` itself, checked as above: Error(Input) when it is missing too.
+Calibration read_calibration_file(const std::filesystem::path& file, const Graph& graph);
 
 // Writes `c` for `graph` to `file` (atomically: a complete file or none).
 void write_calibration(const std::filesystem::path& file, const Graph& graph, const Calibration& c);
