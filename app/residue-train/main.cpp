@@ -21,6 +21,7 @@
 #include "core/aov/shot_dataset.h"
 #include "core/denoise/denoiser.h"
 #include "core/metrics/metrics.h"
+#include "core/nn/calibration.h"
 #include "core/nn/model_file.h"
 #include "core/nn/model_registry.h"
 #include "core/util/error.h"
@@ -208,6 +209,7 @@ int run(const Options& o) {
   if (!o.quantise.empty()) {
     to_quantise = nn::load_model(nn::find_model_for(o.quantise, FeatureSet::Full));
     arch = to_quantise->network.arch;  // the model's own: --arch, --features and the variants do not apply
+    if (!o.range_start.empty()) (void)nn::read_calibration_file(o.range_start, to_quantise->graph);  // before the data loads
   }
   // --arch, --features, --dilations, --demodulate, --prior and --temporal together (the rules model files obey).
   if (const auto c = arch.contradiction()) throw Error(ErrorKind::Usage, "these options cannot go together: " + *c);
