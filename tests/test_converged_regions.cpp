@@ -185,6 +185,12 @@ TEST(ConvergedRegionsCli, KeepsTheConvergedPartOfARender) {
   ASSERT_EQ(testing::run_cli({"denoise", (dir / "render.exr").string(), "-m", "base", "--float", "--skip-converged", "1e-4",
                               "-o", (dir / "out.exr").string()}, &out), 0) << out;
   EXPECT_NE(out.find("of the pixels kept as rendered"), std::string::npos) << out;
+  // What the network computed: the noisy part's blocks and their fade (x >= 160) and the halo left of them.
+  const size_t at = out.find("% of the image with its halo");
+  ASSERT_NE(at, std::string::npos) << out;
+  const double share = std::stod(out.substr(out.rfind(", ", at) + 2));
+  EXPECT_GT(share, 100.0 * 224 / 384) << out;
+  EXPECT_LT(share, 100.0 * (224 + 64) / 384) << out;
   const Image in = testing::read_exr_float(dir / "render.exr"), den = testing::read_exr_float(dir / "out.exr");
   for (int64_t y = 0; y < 192; ++y)
     for (int64_t x = 0; x < 160; ++x)  // the fade ends 32 px left of the noisy part (its box, then 16 px)

@@ -54,8 +54,10 @@ int run(const DenoiseCliOptions& o) {
               static_cast<long long>(stats.skipped));
   if (stats.skip_converged > 0)
     std::printf("converged  %.1f %% of the pixels kept as rendered (relative variance <= %g); the network on %lld "
-                "rectangle%s\n", 100.0 * static_cast<double>(stats.converged_pixels) / (r.megapixels * 1e6),
-                static_cast<double>(stats.skip_converged), static_cast<long long>(stats.regions), stats.regions == 1 ? "" : "s");
+                "rectangle%s, %.1f %% of the image with %s halo\n",
+                100.0 * static_cast<double>(stats.converged_pixels) / (r.megapixels * 1e6),
+                static_cast<double>(stats.skip_converged), static_cast<long long>(stats.regions), stats.regions == 1 ? "" : "s",
+                100.0 * static_cast<double>(stats.network_pixels) / (r.megapixels * 1e6), stats.regions == 1 ? "its" : "their");
   if (r.read_s >= 0) std::printf("files      read %.3f s, written %.3f s\n", r.read_s, r.write_s);
   if (stats.clamped_to_half > 0)
     std::fprintf(stderr, "warning: %lld output values exceed the half-float range and were written as +-65504; "

@@ -47,6 +47,7 @@ Image denoise_where_needed(const AovStack& stack, const Method& method, const De
     WorkCounter work{0, method.work(W, H, each)};
     Image out = method.denoise(stack, each, on_tile, stats, work);
     stats.skip_converged = options.skip_converged;
+    stats.network_pixels = plan.network_pixels;
     return out;
   }
   WorkCounter work{0, 0};
@@ -83,6 +84,7 @@ Image denoise_where_needed(const AovStack& stack, const Method& method, const De
   stats.skip_converged = options.skip_converged;
   stats.converged_pixels = plan.kept_pixels;
   stats.regions = static_cast<int64_t>(plan.regions.size());
+  stats.network_pixels = plan.network_pixels;
   return out;
 }
 

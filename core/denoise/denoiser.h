@@ -88,11 +88,12 @@ struct DenoiseStats {
   int64_t guarded_values = 0;     // output values the guard clamped (channels, not pixels)
   int64_t clamped_to_half = 0;    // denoise_to_exr into half: finite values beyond 65504 written as 65504
   float strength = 1.0f;          // the blend towards the noisy colour applied last (strength.h)
-  // skip_converged: its threshold (0: off), the pixels kept as the noisy colour, and the rectangles the method
-  // ran on (1: the region).
+  // skip_converged: its threshold (0: off), the pixels kept as the noisy colour, the rectangles the method
+  // ran on (1: the region), and the pixels those computed, halos included (what the time follows).
   float skip_converged = 0;
   int64_t converged_pixels = 0;
   int64_t regions = 1;
+  int64_t network_pixels = 0;
 };
 
 // Called after every tile with its denoised pixels (before the energy correction and the strength, which run per
