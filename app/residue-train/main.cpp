@@ -206,10 +206,11 @@ int run(const Options& o) {
     arch.dilations = *d;
   }
   std::optional<nn::Model> to_quantise;
+  std::vector<float> start_ranges;
   if (!o.quantise.empty()) {
     to_quantise = nn::load_model(nn::find_model_for(o.quantise, FeatureSet::Full));
     arch = to_quantise->network.arch;  // the model's own: --arch, --features and the variants do not apply
-    if (!o.range_start.empty()) (void)nn::read_calibration_file(o.range_start, to_quantise->graph);  // before the data loads
+    if (!o.range_start.empty()) start_ranges = nn::read_calibration_file(o.range_start, to_quantise->graph).ranges;  // before the data loads
   }
   // --arch, --features, --dilations, --demodulate, --prior and --temporal together (the rules model files obey).
   if (const auto c = arch.contradiction()) throw Error(ErrorKind::Usage, "these options cannot go together: " + *c);
@@ -271,6 +272,7 @@ int run(const Options& o) {
     q.range_lr = o.range_lr;
     q.range_init = o.range_init;
     q.range_start = o.range_start;
+    q.start_ranges = start_ranges;
     q.sensitivity = o.quantise_sensitivity;
     q.loss = o.loss;
     q.ssim_weight = o.ssim_weight;

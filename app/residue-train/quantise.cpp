@@ -81,6 +81,7 @@ int sensitivity(const nn::Graph& graph, QuantisedGraph& q, const TrainingSet& se
   };
   const std::vector<bool> all(static_cast<size_t>(q->size()), true);
   const double every = rms(all);
+  const std::vector<float> ranges = q->ranges();
   nlohmann::json rows = nlohmann::json::array();
   for (int i = 0; i < q->size(); ++i) {
     if (!q->rounds(i)) continue;
@@ -89,7 +90,7 @@ int sensitivity(const nn::Graph& graph, QuantisedGraph& q, const TrainingSet& se
     but[static_cast<size_t>(i)] = false;
     const nn::GraphOp& op = graph.op(i);
     rows.push_back({{"op", i}, {"name", op.name}, {"channels", op.channels}, {"level", op.level},
-                    {"range", q->ranges()[static_cast<size_t>(i)]}, {"alone", rms(alone)}, {"all_but", rms(but)}});
+                    {"range", ranges[static_cast<size_t>(i)]}, {"alone", rms(alone)}, {"all_but", rms(but)}});
     std::printf("%3d %-24s level %d  %3d ch  alone %.5f  every value but it %.5f (every value %.5f)\n", i, op.name.c_str(),
                 op.level, op.channels, rows.back()["alone"].get<double>(), rows.back()["all_but"].get<double>(), every);
     std::fflush(stdout);
@@ -128,10 +129,8 @@ int quantise(const nn::Model& model, const TrainingSet& set, const std::vector<T
   }
   std::vector<float> start(largest.size());
   for (size_t i = 0; i < largest.size(); ++i) start[i] = largest[i] > 0 ? largest[i] * static_cast<float>(o.range_init) : 1.0f;
-  if (!o.range_start.empty()) {
-    const std::vector<float> given = nn::read_calibration_file(o.range_start, model.graph).ranges;
-    for (size_t i = 0; i < start.size(); ++i) start[i] = given[i] > 0 ? given[i] : start[i];
-  }
+  if (!o.start_ranges.empty())
+    for (size_t i = 0; i < start.size(); ++i) start[i] = o.start_ranges[i] > 0 ? o.start_ranges[i] : start[i];
   QuantisedGraph q(model.graph, start);
   if (!o.sensitivity.empty()) return sensitivity(model.graph, q, set, o, rng);
   fs::create_directories(ckpt);

@@ -20,7 +20,8 @@ struct QuantiseOptions {
   double lr = 1e-5;        // the weights' peak learning rate (cosine to lr / 100)
   double range_lr = 1e-3;  // the log ranges' (Adam: about this much of log range per step)
   double range_init = 0.25;  // each range starts at this times the largest |value| over the first batches
-  std::filesystem::path range_start;  // or: the ranges start as this calibration file gives them (core's, whole images)
+  std::filesystem::path range_start;  // or: the ranges start as this calibration file gives them (core's, whole images),
+  std::vector<float> start_ranges;    // read from it (one per op of the model's graph)
   Loss loss = Loss::L1Log;
   double ssim_weight = 1.0, relmse_weight = 0.0;
   int val_every = 500, checkpoint_every = 250;

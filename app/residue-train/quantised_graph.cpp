@@ -76,8 +76,7 @@ QuantisedGraphImpl::QuantisedGraphImpl(const nn::Graph& graph, const std::vector
       if (g.activation == Activation::PReLU)
         op.slopes = register_parameter("a" + tag, to_tensor(g.slopes, {g.channels}), !fixed);
     }
-    const bool rounds = op.quantised && (g.kind == OpKind::Input || g.kind == OpKind::Conv);
-    if (rounds) {
+    if (rounds(op)) {
       const float r = ranges[static_cast<size_t>(i)];
       if (!(r > 0) || !std::isfinite(r))
         throw Error(ErrorKind::Usage, "quantisation-aware training: value " + g.name + " (op " + tag + ") has no range");

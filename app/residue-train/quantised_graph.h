@@ -32,10 +32,7 @@ struct QuantisedGraphImpl : torch::nn::Module {
   // as the float network does (a study of what each value's 8 bits cost).
   torch::Tensor forward(const torch::Tensor& x, const std::vector<bool>& rounded);
   // Whether op i rounds a value of its own (the input, a quantised conv; a pool or upsample moves its source's).
-  bool rounds(int i) const {
-    const Op& op = ops_[static_cast<size_t>(i)];
-    return op.quantised && (op.kind == nn::OpKind::Input || op.kind == nn::OpKind::Conv);
-  }
+  bool rounds(int i) const { return rounds(ops_[static_cast<size_t>(i)]); }
   int size() const { return static_cast<int>(ops_.size()); }
 
   // The weights, biases and slopes as trained, written into `graph`'s ops, and each op's range as the
@@ -60,6 +57,7 @@ struct QuantisedGraphImpl : torch::nn::Module {
     std::vector<int64_t> part_channels;
     torch::Tensor weight, bias, slopes, log_range;  // conv: OIHW, [O], [O]; quantised: 0-d log of the range
   };
+  static bool rounds(const Op& op) { return op.quantised && (op.kind == nn::OpKind::Input || op.kind == nn::OpKind::Conv); }
   torch::Tensor round_value(const Op& op, const torch::Tensor& v) const;
   torch::Tensor run(const torch::Tensor& x, const std::vector<bool>* rounded, std::vector<float>* largest);
   std::vector<Op> ops_;

@@ -70,9 +70,9 @@ std::vector<uint8_t> blocks_needing_network(const AovStack& stack, const Rect& r
 }
 
 // Rectangles (in blocks of the region's grid) covering every marked block, for the least the network computes.
-class RegionCutter {
+class CoverSearch {
  public:
-  RegionCutter(const std::vector<uint8_t>& covered, int64_t bw, int64_t bh, const Rect& region, int64_t halo, const Rect& bounds)
+  CoverSearch(const std::vector<uint8_t>& covered, int64_t bw, int64_t bh, const Rect& region, int64_t halo, const Rect& bounds)
       : bw_(bw), bh_(bh), region_(region), halo_(halo), bounds_(bounds) {
     std::vector<int64_t> ones(covered.begin(), covered.end());
     sum_ = summed(ones, bw, bh);
@@ -107,20 +107,6 @@ class RegionCutter {
     return {x0, y0, x1 - x0, y1 - y0};
   }
 
-  int64_t count(const Rect& b) const { return box_sum(sum_, bw_, b.x, b.y, b.x + b.width, b.y + b.height); }
-
-  // The smallest rectangle holding the covered blocks of `b` (empty when there are none).
-  Rect bbox(Rect b) const {
-    if (b.empty() || count(b) == 0) return {};
-    while (count({b.x, b.y, b.width, 1}) == 0) ++b.y, --b.height;
-    while (count({b.x, b.y + b.height - 1, b.width, 1}) == 0) --b.height;
-    while (count({b.x, b.y, 1, b.height}) == 0) ++b.x, --b.width;
-    while (count({b.x + b.width - 1, b.y, 1, b.height}) == 0) --b.width;
-    return b;
-  }
-
-  int64_t cost(const Rect& b) const { return b.empty() ? 0 : network_pixels({pixels(b)}, halo_, bounds_); }
-
   int64_t cost(const std::vector<Rect>& blocks) const {
     int64_t n = 0;
     for (const Rect& b : blocks) n += cost(b);
@@ -147,9 +133,9 @@ class RegionCutter {
       size_t bi = 0, bj = 0;
       for (size_t i = 0; i < r.size(); ++i)
         for (size_t j = i + 1; j < r.size(); ++j)
-          if (const int64_t saving = c[i] + c[j] - cost(bound(r[i], r[j])); saving > best) best = saving, bi = i, bj = j;
+          if (const int64_t saving = c[i] + c[j] - cost(r[i].united(r[j])); saving > best) best = saving, bi = i, bj = j;
       if (best == 0) break;
-      const Rect m = bound(r[bi], r[bj]);
+      const Rect m = r[bi].united(r[bj]);
       std::vector<Rect> next{m};
       for (size_t k = 0; k < r.size(); ++k)
         if (k != bi && k != bj && !m.contains(r[k])) next.push_back(r[k]);
@@ -164,10 +150,19 @@ class RegionCutter {
   }
 
  private:
-  static Rect bound(const Rect& a, const Rect& b) {
-    const int64_t x0 = std::min(a.x, b.x), y0 = std::min(a.y, b.y);
-    return {x0, y0, std::max(a.x + a.width, b.x + b.width) - x0, std::max(a.y + a.height, b.y + b.height) - y0};
+  int64_t count(const Rect& b) const { return box_sum(sum_, bw_, b.x, b.y, b.x + b.width, b.y + b.height); }
+
+  // The smallest rectangle holding the covered blocks of `b` (empty when there are none).
+  Rect bbox(Rect b) const {
+    if (b.empty() || count(b) == 0) return {};
+    while (count({b.x, b.y, b.width, 1}) == 0) ++b.y, --b.height;
+    while (count({b.x, b.y + b.height - 1, b.width, 1}) == 0) --b.height;
+    while (count({b.x, b.y, 1, b.height}) == 0) ++b.x, --b.width;
+    while (count({b.x + b.width - 1, b.y, 1, b.height}) == 0) --b.width;
+    return b;
   }
+
+  int64_t cost(const Rect& b) const { return b.empty() ? 0 : network_pixels({pixels(b)}, halo_, bounds_); }
 
   // The row runs of covered cells of f x f blocks, in blocks, stacked down while unchanged.
   std::vector<Rect> runs(int64_t f) const {
@@ -217,11 +212,7 @@ class RegionCutter {
 
 int64_t network_pixels(const std::vector<Rect>& regions, int64_t halo, const Rect& bounds) {
   int64_t n = 0;
-  for (const Rect& r : regions) {
-    const int64_t x0 = std::max(bounds.x, r.x - halo), x1 = std::min(bounds.x + bounds.width, r.x + r.width + halo);
-    const int64_t y0 = std::max(bounds.y, r.y - halo), y1 = std::min(bounds.y + bounds.height, r.y + r.height + halo);
-    n += std::max<int64_t>(0, x1 - x0) * std::max<int64_t>(0, y1 - y0);
-  }
+  for (const Rect& r : regions) n += Rect{r.x - halo, r.y - halo, r.width + 2 * halo, r.height + 2 * halo}.intersected(bounds).area();
   return n;
 }
 
@@ -272,11 +263,11 @@ ConvergedPlan plan_converged(const AovStack& stack, const Rect& region, float th
     }
   const Rect bounds{0, 0, stack.width(), stack.height()};
   // Two searches, the cheaper plan kept: cutting the bounding box down, and merging the rows' runs up.
-  const RegionCutter cutter(covered, bw, bh, region, halo, bounds);
-  std::vector<Rect> cut, merged = cutter.merged();
-  cutter.cut({0, 0, bw, bh}, cut);
-  const std::vector<Rect>& best = !merged.empty() && cutter.cost(merged) < cutter.cost(cut) ? merged : cut;
-  for (const Rect& b : best) plan.regions.push_back(cutter.pixels(b));
+  const CoverSearch search(covered, bw, bh, region, halo, bounds);
+  std::vector<Rect> cut, merged = search.merged();
+  search.cut({0, 0, bw, bh}, cut);
+  const std::vector<Rect>& best = !merged.empty() && search.cost(merged) < search.cost(cut) ? merged : cut;
+  for (const Rect& b : best) plan.regions.push_back(search.pixels(b));
   plan.network_pixels = network_pixels(plan.regions, halo, bounds);
   return plan;
 }

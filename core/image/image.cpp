@@ -1,5 +1,6 @@
 #include "core/image/image.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -8,6 +9,20 @@
 #include <tbb/parallel_reduce.h>
 
 namespace residue {
+
+Rect Rect::united(const Rect& o) const {
+  if (o.empty()) return *this;
+  if (empty()) return o;
+  const int64_t x0 = std::min(x, o.x), y0 = std::min(y, o.y);
+  const int64_t x1 = std::max(x + width, o.x + o.width), y1 = std::max(y + height, o.y + o.height);
+  return {x0, y0, x1 - x0, y1 - y0};
+}
+
+Rect Rect::intersected(const Rect& o) const {
+  const int64_t x0 = std::max(x, o.x), y0 = std::max(y, o.y);
+  const int64_t x1 = std::min(x + width, o.x + o.width), y1 = std::min(y + height, o.y + o.height);
+  return x1 > x0 && y1 > y0 ? Rect{x0, y0, x1 - x0, y1 - y0} : Rect{};
+}
 
 std::string Rect::to_string() const {
   return std::to_string(x) + "," + std::to_string(y) + "," + std::to_string(width) + "," +

@@ -23,6 +23,9 @@ struct Rect {
   bool contains(const Rect& o) const {
     return o.x >= x && o.y >= y && o.x + o.width <= x + width && o.y + o.height <= y + height;
   }
+  // The bounding box of both (an empty rectangle adds nothing), and the overlap (empty when there is none).
+  Rect united(const Rect& o) const;
+  Rect intersected(const Rect& o) const;
   friend bool operator==(const Rect&, const Rect&) = default;
   std::string to_string() const;  // "x,y,w,h"
 };

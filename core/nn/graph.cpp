@@ -181,32 +181,16 @@ double Graph::flops_per_pixel() const {
   return f;
 }
 
-namespace {
-Rect intersect(const Rect& a, const Rect& b) {
-  const int64_t x0 = std::max(a.x, b.x), y0 = std::max(a.y, b.y);
-  const int64_t x1 = std::min(a.x + a.width, b.x + b.width), y1 = std::min(a.y + a.height, b.y + b.height);
-  return x1 > x0 && y1 > y0 ? Rect{x0, y0, x1 - x0, y1 - y0} : Rect{};
-}
-
-// `a` grown to the bounding box of a and b (an empty rectangle adds nothing).
-void unite(Rect& a, const Rect& b) {
-  if (b.empty()) return;
-  if (a.empty()) {
-    a = b;
-    return;
-  }
-  const int64_t x0 = std::min(a.x, b.x), y0 = std::min(a.y, b.y);
-  const int64_t x1 = std::max(a.x + a.width, b.x + b.width), y1 = std::max(a.y + a.height, b.y + b.height);
-  a = {x0, y0, x1 - x0, y1 - y0};
-}
-}  // namespace
 
 std::vector<Rect> Graph::needed_regions(int64_t h, int64_t w, const Rect& needed) const {
   std::vector<Rect> region(ops_.size());
   if (ops_.empty()) return region;
   auto extent = [&](int i) { return Rect{0, 0, w >> op(i).level, h >> op(i).level}; };
-  auto need = [&](int x, const Rect& r) { unite(region[static_cast<size_t>(x)], intersect(r, extent(x))); };
-  region[static_cast<size_t>(output())] = intersect(needed, extent(output()));
+  auto need = [&](int x, const Rect& r) {
+    Rect& at = region[static_cast<size_t>(x)];
+    at = at.united(r.intersected(extent(x)));
+  };
+  region[static_cast<size_t>(output())] = needed.intersected(extent(output()));
   for (int i = size() - 1; i >= 0; --i) {
     const Rect r = region[static_cast<size_t>(i)];
     if (r.empty()) continue;
